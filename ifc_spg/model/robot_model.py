@@ -1,0 +1,205 @@
+"""Robot model: pinocchio kinematics/dynamics plus the IFC parameters the SPG must know.
+
+A :class:`RobotModel` is immutable and shared: the pinocchio ``Model`` is never modified
+after construction, and every solver creates its own ``Data`` with :meth:`create_data`
+(STYLE #6).
+"""
+
+from dataclasses import dataclass
+import os
+
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.errors import ModelError, UnknownFrame, UnknownJoint, did_you_mean
+
+__all__ = ['CartesianAdmittance', 'RobotModel', 'JOINT_IMPEDANCE', 'CARTESIAN_ADMITTANCE']
+
+JOINT_IMPEDANCE = 'joint_impedance'
+CARTESIAN_ADMITTANCE = 'cartesian_admittance'
+
+
+def _readonly(x, n, what):
+    a = np.array(np.broadcast_to(np.asarray(x, dtype=float), (n,)), dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise ModelError(f'{what} must be finite, got {a.tolist()}')
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class CartesianAdmittance:
+    """Cartesian admittance parameters h = M_x dd(x) + D_x d(x) + K_x x (SPEC 2.22/2.23).
+
+    Attributes:
+        stiffness: K_x, 6 diagonal entries [N/m]*3 + [Nm/rad]*3.
+        damping: D_x, 6 diagonal entries [Ns/m]*3 + [Nms/rad]*3.
+        mass: M_x, 6 diagonal entries [kg]*3 + [kg m^2]*3.
+    """
+
+    stiffness: np.ndarray
+    damping: np.ndarray
+    mass: np.ndarray
+
+
+class RobotModel:
+    """A fixed-base serial or tree robot with revolute/prismatic joints and its IFC parameters.
+
+    Args:
+        model: pinocchio model (nq == nv, 1-DoF joints only).
+        name: Configuration name, used in error messages.
+        frames: Chain id -> pinocchio frame name (e.g. ``{'tool': 'tool_frame'}``).
+        stiffness: Joint stiffness K in [Nm/rad] (scalar or per joint).
+        damping: Joint damping D in [Nms/rad] (scalar or per joint).
+        q_min, q_max: Joint position limits in [rad] (default: from the model file).
+        v_max: Joint velocity limit in [rad/s] (default: from the model file).
+        a_max: Joint acceleration limit in [rad/s^2].
+        tau_max: Joint torque limit in [Nm] (default: from the model file).
+        stiff_joints: Names of position-controlled joints (no compliance, e.g. iCub wrists).
+        q_home: Home configuration in [rad] (default: zeros clipped into the limits).
+        ifc: ``'joint_impedance'`` or ``'cartesian_admittance'``.
+        admittance: Chain id -> :class:`CartesianAdmittance` (for ``cartesian_admittance``).
+        model_file: Path of the file the model was loaded from (shared with the simulator).
+    """
+
+    def __init__(self, model, *, name, frames, stiffness, damping, q_min=None, q_max=None,
+                 v_max=None, a_max=10.0, tau_max=None, stiff_joints=(), q_home=None,
+                 ifc=JOINT_IMPEDANCE, admittance=None, model_file=None):
+        if model.nq != model.nv:
+            raise ModelError(f"model '{name}': only 1-DoF revolute/prismatic joints are "
+                             f'supported (nq={model.nq} != nv={model.nv}); replace continuous '
+                             'joints by revolute joints with limits')
+        self.model = model
+        self.name = str(name)
+        n = model.nv
+        self.n = n
+        self.joint_names = tuple(model.names[1:])
+        self._joint_index = {j: i for i, j in enumerate(self.joint_names)}
+        self.q_min = _readonly(model.lowerPositionLimit if q_min is None else q_min, n, 'q_min')
+        self.q_max = _readonly(model.upperPositionLimit if q_max is None else q_max, n, 'q_max')
+        if np.any(self.q_min >= self.q_max):
+            raise ModelError(f"model '{name}': q_min must be < q_max for every joint "
+                             f'(q_min={self.q_min.tolist()}, q_max={self.q_max.tolist()})')
+        self.v_max = _readonly(model.velocityLimit if v_max is None else v_max, n, 'v_max')
+        self.a_max = _readonly(a_max, n, 'a_max')
+        self.tau_max = _readonly(model.effortLimit if tau_max is None else tau_max, n, 'tau_max')
+        for what, arr in (('v_max', self.v_max), ('a_max', self.a_max), ('tau_max', self.tau_max)):
+            if np.any(arr <= 0):
+                raise ModelError(f"model '{name}': {what} must be > 0, got {arr.tolist()}")
+        self.stiffness = _readonly(stiffness, n, 'stiffness')
+        self.damping = _readonly(damping, n, 'damping')
+        if np.any(self.stiffness <= 0) or np.any(self.damping < 0):
+            raise ModelError(f"model '{name}': stiffness must be > 0 and damping >= 0 "
+                             f'(K={self.stiffness.tolist()}, D={self.damping.tolist()})')
+        mask = np.zeros(n, dtype=bool)
+        for j in stiff_joints:
+            mask[self.joint_index(j)] = True
+        mask.setflags(write=False)
+        self.stiff_mask = mask
+        self.frames = dict(frames)
+        self._frame_ids = {}
+        for chain, fname in self.frames.items():
+            if not model.existFrame(fname):
+                raise UnknownFrame(f"model '{name}': chain '{chain}' names frame '{fname}' which "
+                                   'is not in the model file' + did_you_mean(
+                                       fname, [f.name for f in model.frames]))
+            self._frame_ids[chain] = model.getFrameId(fname)
+        if q_home is None:
+            q_home = np.clip(np.zeros(n), self.q_min, self.q_max)
+        self.q_home = _readonly(q_home, n, 'q_home')
+        if ifc not in (JOINT_IMPEDANCE, CARTESIAN_ADMITTANCE):
+            raise ModelError(f"model '{name}': ifc must be '{JOINT_IMPEDANCE}' or "
+                             f"'{CARTESIAN_ADMITTANCE}', got '{ifc}'")
+        self.ifc = ifc
+        self.admittance = dict(admittance or {})
+        if ifc == CARTESIAN_ADMITTANCE:
+            for chain in self.admittance:
+                self.frame_id(chain)
+            if not self.admittance:
+                raise ModelError(f"model '{name}': cartesian_admittance needs admittance "
+                                 'parameters for at least one chain')
+        self.model_file = model_file
+
+    # -- construction --------------------------------------------------------------------
+    @classmethod
+    def from_urdf(cls, path, *, joints=None, q_lock=None, **ifc_params):
+        """Load a URDF; keep only ``joints`` (others locked at ``q_lock``, default 0)."""
+        if not os.path.isfile(path):
+            raise ModelError(f"URDF file '{path}' does not exist")
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except (RuntimeError, ValueError) as exc:
+            raise ModelError(f"could not load URDF '{path}': {exc}") from exc
+        model = _reduce(model, joints, q_lock)
+        return cls(model, model_file=str(path), **ifc_params)
+
+    @classmethod
+    def from_mjcf(cls, path, *, joints=None, q_lock=None, **ifc_params):
+        """Load an MJCF file; keep only ``joints`` (others locked at ``q_lock``, default 0)."""
+        if not os.path.isfile(path):
+            raise ModelError(f"MJCF file '{path}' does not exist")
+        try:
+            model = pin.buildModelFromMJCF(str(path))
+        except (RuntimeError, ValueError) as exc:
+            raise ModelError(f"could not load MJCF '{path}': {exc}") from exc
+        model = _reduce(model, joints, q_lock)
+        return cls(model, model_file=str(path), **ifc_params)
+
+    @classmethod
+    def from_config(cls, name):
+        """Build a named configuration: ``lbr4``, ``lbr_iiwa14``, ``icub_upper_body``, ..."""
+        from ifc_spg.model.robots import load_robot
+        return load_robot(name)
+
+    # -- lookups -------------------------------------------------------------------------
+    def create_data(self):
+        """Return a fresh pinocchio ``Data`` owned by the caller."""
+        return self.model.createData()
+
+    def frame_id(self, chain):
+        """Return the pinocchio frame id of chain id ``chain`` (raises :class:`UnknownFrame`)."""
+        try:
+            return self._frame_ids[chain]
+        except KeyError:
+            raise UnknownFrame(
+                f"frame '{chain}' not in model '{self.name}'"
+                f"{did_you_mean(chain, self._frame_ids)}; available: "
+                f"{', '.join(sorted(self._frame_ids)) or '(none)'}") from None
+
+    def joint_index(self, joint):
+        """Return the index of joint ``joint`` in q (raises :class:`UnknownJoint`)."""
+        try:
+            return self._joint_index[joint]
+        except KeyError:
+            raise UnknownJoint(
+                f"joint '{joint}' not in model '{self.name}'"
+                f"{did_you_mean(joint, self.joint_names)}; available: "
+                f"{', '.join(self.joint_names)}") from None
+
+    @property
+    def chains(self):
+        """The chain ids (frame names usable in task stacks)."""
+        return tuple(self._frame_ids)
+
+    def __repr__(self):
+        return (f'RobotModel({self.name!r}, n={self.n}, ifc={self.ifc!r}, '
+                f'chains={list(self._frame_ids)})')
+
+
+def _reduce(model, joints, q_lock):
+    if joints is None:
+        return model
+    names = list(model.names[1:])
+    for j in joints:
+        if j not in names:
+            raise UnknownJoint(f"joint '{j}' not in model{did_you_mean(j, names)}")
+    lock = [model.getJointId(j) for j in names if j not in set(joints)]
+    q_ref = pin.neutral(model)
+    for j, v in (q_lock or {}).items():
+        jid = model.getJointId(j)
+        q_ref[model.joints[jid].idx_q] = v
+    reduced = pin.buildReducedModel(model, lock, q_ref)
+    if list(reduced.names[1:]) != list(joints):
+        order = list(reduced.names[1:])
+        raise ModelError(f'joints must be listed in model order: {order}')
+    return reduced

@@ -1,0 +1,46 @@
+"""ament_python build script for ifc_spg (Jazzy template)."""
+
+from glob import glob
+import os
+
+from setuptools import find_packages, setup
+
+package_name = 'ifc_spg'
+
+
+def tree(src, dst):
+    """Return data_files entries that install every file below ``src`` into ``dst``."""
+    entries = {}
+    for path in glob(os.path.join(src, '**', '*'), recursive=True):
+        if os.path.isfile(path):
+            rel = os.path.relpath(os.path.dirname(path), src)
+            entries.setdefault(os.path.normpath(os.path.join(dst, rel)), []).append(path)
+    return sorted(entries.items())
+
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    package_data={'ifc_spg': ['models/data/*', 'schema/*.json'], 'sim_bridge': ['data/*']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        *tree('config', os.path.join('share', package_name, 'config')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    maintainer='ifc_spg developers',
+    maintainer_email='ifc-spg@users.noreply.github.com',
+    description='Set-point generation and task specification for indirect force controlled robots',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'spg_node = ifc_spg.spg_node:main',
+            'sim_bridge = sim_bridge.node:main',
+            'task_publisher = ifc_spg.task_publisher:main',
+            'ifc-spg = ifc_spg.cli:main',
+        ],
+    },
+)

@@ -1,0 +1,1 @@
+"""MuJoCo bridge: robots, scenes and emulated IFC interfaces (LBR FRI, iCub, ACCREA)."""
