@@ -1,45 +1,61 @@
-"""The ``ifc-spg`` tool: demo, run, check, bag, replay, plot, bench, dynamics."""
+"""The ``ifc-spg`` tool: demo, run, check, bag, replay, plot, bench, dynamics, ros.
 
-import argparse
+Each verb lives in its own module exposing ``main(argv) -> int``; this file only
+dispatches, so ``ifc-spg VERB --help`` is answered by the module that implements VERB.
+"""
+
+import importlib
+import importlib.util
 import sys
 
-__all__ = ['main']
+__all__ = ['main', 'VERBS']
 
-_PENDING = {
-    'run': 'offline lockstep runner (end-to-end issue)',
-    'check': 'task-stack validation (task-stack language issue)',
-    'bag': 'rosbag2 MCAP record/play/info (end-to-end issue)',
-    'replay': 'recompute SPG output from a bag (end-to-end issue)',
-    'plot': 'figures from a bag (end-to-end issue)',
+# verb -> (module, one-line help)
+VERBS = {
+    'demo': ('ifc_spg.demo', 'run the simulated LBR demo (bridge + SPG, lockstep)'),
+    'run': ('ifc_spg.runner', 'offline lockstep run of a scenario file'),
+    'check': ('ifc_spg.task_stack.check', 'validate task-stack files'),
+    'bag': ('ifc_spg.bag', 'rosbag2 MCAP record | play | info'),
+    'replay': ('ifc_spg.replay', 'recompute the SPG output from a bag'),
+    'plot': ('ifc_spg.plot', 'figures from a bag'),
+    'bench': ('ifc_spg.bench', 'benchmark the SPG tick per solver'),
+    'dynamics': ('ifc_spg.dynamics.cli', 'Popov-Vereshchagin solver scenarios'),
+    'ros': ('ifc_spg.ros.tools', 'ROS 2 layer tools: talker, listener, topic echo'),
 }
 
 
-def _parser():
-    p = argparse.ArgumentParser(
-        prog='ifc-spg', description='ifc_spg tool. Verbs marked (pending) are placeholders '
-        'that print their usage until their issue lands.')
-    sub = p.add_subparsers(dest='verb', metavar='VERB')
-    sub.add_parser('demo', help='run the simulated LBR demo')
-    sub.add_parser('bench', help='benchmark the SPG tick per solver')
-    sub.add_parser('dynamics', help='Popov-Vereshchagin solver scenarios')
-    for verb, what in _PENDING.items():
-        sub.add_parser(verb, help=f'(pending) {what}')
-    return p
+def _usage():
+    lines = ['usage: ifc-spg VERB [ARGS...]   (ifc-spg VERB --help for a verb)', '', 'verbs:']
+    for verb, (module, text) in VERBS.items():
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except ModuleNotFoundError:
+            found = False
+        mark = '' if found else '  (pending)'
+        lines.append(f'  {verb:<9} {text}{mark}')
+    return '\n'.join(lines)
 
 
 def main(argv=None):
     """Entry point of ``ifc-spg``."""
-    argv = sys.argv[1:] if argv is None else argv
-    p = _parser()
-    args, rest = p.parse_known_args(argv)
-    if args.verb is None:
-        p.print_help()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ('-h', '--help', 'help'):
+        print(_usage())
+        return 0 if argv else 2
+    verb, rest = argv[0], argv[1:]
+    if verb not in VERBS:
+        print(f"ifc-spg: unknown verb '{verb}'\n\n{_usage()}", file=sys.stderr)
         return 2
-    if args.verb in _PENDING:
-        print(f'ifc-spg {args.verb}: pending: {_PENDING[args.verb]}', file=sys.stderr)
-        return 2
-    print(f'ifc-spg {args.verb}: not implemented yet', file=sys.stderr)
-    return 2
+    module = VERBS[verb][0]
+    try:
+        mod = importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name and module.startswith(exc.name):
+            print(f"ifc-spg {verb}: pending (module '{module}' not implemented yet)",
+                  file=sys.stderr)
+            return 2
+        raise
+    return int(mod.main(rest) or 0)
 
 
 if __name__ == '__main__':
