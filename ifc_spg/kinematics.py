@@ -1,0 +1,81 @@
+"""Per-tick kinematics at the measured and the virtual configuration.
+
+One :class:`Kinematics` object is owned by a :class:`~ifc_spg.spg.SetPointGenerator`; it
+owns two pinocchio ``Data`` (measured q, virtual q_v) and caches frame quantities for the
+current tick so that several tasks on the same frame share one computation (STYLE #7).
+All Jacobians are 6 x n, LOCAL_WORLD_ALIGNED: linear velocity of the frame origin and
+angular velocity, both in the base frame (SPEC notation).
+"""
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = ['Kinematics']
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class Kinematics:
+    """Kinematic quantities of one tick.
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+    """
+
+    def __init__(self, robot):
+        self.robot = robot
+        self._model = robot.model
+        self._data_v = robot.create_data()
+        self._data_m = robot.create_data()
+        n = robot.n
+        self.q = np.zeros(n)
+        self.qdot = np.zeros(n)
+        self.q_v = np.zeros(n)
+        self._cache_v = {}
+        self._cache_m = {}
+        self._valid_v = False
+        self._valid_m = False
+
+    def update(self, q, qdot, q_v):
+        """Set the configuration of this tick (arrays are copied; nothing is computed yet).
+
+        Args:
+            q: Measured joint positions in [rad].
+            qdot: Measured joint velocities in [rad/s].
+            q_v: Virtual (commanded) joint positions in [rad].
+        """
+        self.q[:] = q
+        self.qdot[:] = qdot
+        self.q_v[:] = q_v
+        self._cache_v.clear()
+        self._cache_m.clear()
+        self._valid_v = False
+        self._valid_m = False
+
+    def _ensure(self, virtual):
+        if virtual and not self._valid_v:
+            pin.computeJointJacobians(self._model, self._data_v, self.q_v)
+            pin.updateFramePlacements(self._model, self._data_v)
+            self._valid_v = True
+        elif not virtual and not self._valid_m:
+            pin.computeJointJacobians(self._model, self._data_m, self.q)
+            pin.updateFramePlacements(self._model, self._data_m)
+            self._valid_m = True
+
+    def frame(self, frame_id, virtual):
+        """Return ``(position (3,), rotation (3, 3), jacobian (6, n))`` of a frame.
+
+        Args:
+            frame_id: pinocchio frame id.
+            virtual: True for the virtual configuration q_v, False for the measured q.
+        """
+        cache = self._cache_v if virtual else self._cache_m
+        hit = cache.get(frame_id)
+        if hit is None:
+            self._ensure(virtual)
+            data = self._data_v if virtual else self._data_m
+            oMf = data.oMf[frame_id]
+            J = pin.getFrameJacobian(self._model, data, frame_id, _LWA)
+            hit = (oMf.translation.copy(), oMf.rotation.copy(), J)
+            cache[frame_id] = hit
+        return hit

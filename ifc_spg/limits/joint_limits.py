@@ -1,0 +1,54 @@
+"""Joint position, velocity and acceleration limits as bounds on qdot_v (SPEC 4, 4.29-4.33).
+
+The limits apply to the commanded q_v, so the shaping uses q_v (the sources write q)::
+
+    lower = max{(q_m - q_v)/dT, -v_M, -sqrt(2 a_M (q_v - q_m))}
+    upper = min{(q_M - q_v)/dT,  v_M,  sqrt(2 a_M (q_M - q_v))}
+
+This box always contains 0 while q_v is inside its limits. The acceleration box
+[qdot_prev - a_M dT, qdot_prev + a_M dT] (4.31) is intersected softly: where the two do
+not intersect, position safety wins (the nearest point of the position box is taken).
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ['VelocityBox', 'joint_velocity_bounds', 'intersect_soft']
+
+
+class VelocityBox(NamedTuple):
+    """Bounds on qdot_v in [rad/s]: ``lower <= qdot_v <= upper``."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
+    """Position/velocity shaping (4.32, 4.33) at the virtual configuration.
+
+    Args:
+        q_v: Virtual joint positions in [rad] (inside [q_min, q_max]).
+        q_min, q_max: Joint position limits in [rad].
+        v_max: Joint velocity limits in [rad/s].
+        a_max: Joint acceleration limits in [rad/s^2].
+        dt: SPG period in [s].
+    """
+    d_lo = np.maximum(q_v - q_min, 0.0)
+    d_hi = np.maximum(q_max - q_v, 0.0)
+    lower = np.maximum(np.maximum(-d_lo / dt, -v_max), -np.sqrt(2.0 * a_max * d_lo))
+    upper = np.minimum(np.minimum(d_hi / dt, v_max), np.sqrt(2.0 * a_max * d_hi))
+    return VelocityBox(lower, upper)
+
+
+def intersect_soft(hard, soft):
+    """Intersect ``hard`` with ``soft``; where empty, take the point of ``hard`` nearest ``soft``."""
+    lower = np.maximum(hard.lower, soft.lower)
+    upper = np.minimum(hard.upper, soft.upper)
+    empty = lower > upper
+    if np.any(empty):
+        below = empty & (soft.upper < hard.lower)  # soft box entirely below the hard box
+        above = empty & ~below
+        lower[below] = upper[below] = hard.lower[below]
+        lower[above] = upper[above] = hard.upper[above]
+    return VelocityBox(lower, upper)

@@ -1,0 +1,118 @@
+"""Passive set-point modulation: per-joint energy tanks (SPEC 6, Sec. 4.2, Alg. C.4/C.5).
+
+At each tick, with dq = q_v - q and the last two measurements, the energy surely
+dissipated by the IFC damper in the last period is E_Dmin = (D/dT)(q_i - q_{i-1})^2 (4.78).
+The set-point step delta = dT qdot_v may raise the spring energy 1/2 K dq^2 by at most
+E_avail = E_r + E_Dmin + dE_shuffle, i.e. (both sides, exact; the thesis applies one)::
+
+    -sqrt(2 E_avail / K + dq^2) - dq <= delta <= sqrt(2 E_avail / K + dq^2) - dq
+
+After the step the tank is E_r <- min(E_max, E_avail - 1/2 K ((dq + delta)^2 - dq^2)).
+Shuffling stops once the shuffled energy reaches its budget b^2, so with
+c^2 = E_K(0) + E_r,init + sum(dE_shuffle) every joint satisfies -int tau qdot >= -c^2 (4.84).
+Stiff (position-controlled) joints have no spring and are not modulated.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ifc_spg.errors import ParameterError
+from ifc_spg.limits.joint_limits import VelocityBox
+
+__all__ = ['PspmConfig', 'EnergyTanks']
+
+
+@dataclass(frozen=True)
+class PspmConfig:
+    """Energy-tank parameters (per joint, in [J]).
+
+    Attributes:
+        initial_energy: E_r,init, energy in each tank at start (take-off, 4.2.2 item 4).
+        max_energy: E_r,max, the ceiling.
+        shuffle: dE_shuffle added per tick.
+        shuffle_budget: b^2, total shuffled energy per joint after which shuffling stops.
+    """
+
+    initial_energy: float = 0.5
+    max_energy: float = 2.0
+    shuffle: float = 0.0
+    shuffle_budget: float = 0.0
+
+    def __post_init__(self):
+        for name in ('initial_energy', 'max_energy', 'shuffle', 'shuffle_budget'):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ParameterError(f'pspm.{name} must be a finite number >= 0 [J], got {v!r}')
+        if self.initial_energy > self.max_energy:
+            raise ParameterError(f'pspm.initial_energy ({self.initial_energy} J) must not exceed '
+                                 f'pspm.max_energy ({self.max_energy} J)')
+
+
+class EnergyTanks:
+    """Per-joint energy reservoirs of PSPM.
+
+    Args:
+        stiffness: Joint stiffness K in [Nm/rad] (n,).
+        damping: Joint damping D in [Nms/rad] (n,).
+        modulated: Mask of joints whose set-points are modulated (compliant joints).
+        dt: SPG period in [s].
+        config: :class:`PspmConfig`.
+    """
+
+    def __init__(self, stiffness, damping, modulated, dt, config=PspmConfig()):
+        self.K = np.asarray(stiffness, dtype=float)
+        self.D = np.asarray(damping, dtype=float)
+        self.mask = np.asarray(modulated, dtype=bool)
+        self.dt = float(dt)
+        self.config = config
+        n = self.K.size
+        self.energy = np.full(n, config.initial_energy)
+        self.shuffled = np.zeros(n)
+        self.dissipated_min = np.zeros(n)
+        self._avail = np.zeros(n)
+        self._shuffle_now = np.zeros(n)
+        self._q_prev = None
+
+    def reset(self, q):
+        """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
+        self.energy[:] = self.config.initial_energy
+        self.shuffled[:] = 0.0
+        self._q_prev = np.array(q, dtype=float)
+
+    def bounds(self, q, q_v):
+        """Return the passivity :class:`VelocityBox` for this tick (contains 0).
+
+        Args:
+            q: Measured joint positions in [rad] at this tick.
+            q_v: Virtual joint positions in [rad] before this tick's step.
+        """
+        if self._q_prev is None:
+            self._q_prev = np.array(q, dtype=float)
+        step = q - self._q_prev
+        self.dissipated_min = self.D / self.dt * step * step
+        self._q_prev = np.array(q, dtype=float)
+        room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
+        self._shuffle_now = np.minimum(self.config.shuffle, room)
+        self._avail = self.energy + self.dissipated_min + self._shuffle_now
+        dq = q_v - q
+        r = np.sqrt(2.0 * self._avail / self.K + dq * dq)
+        lower = np.where(self.mask, (-r - dq) / self.dt, -np.inf)
+        upper = np.where(self.mask, (r - dq) / self.dt, np.inf)
+        return VelocityBox(lower, upper)
+
+    def update(self, q, q_v, qdot_v):
+        """Book the applied step into the tanks (Alg. C.5 lines 21-25).
+
+        Args:
+            q: Measured joint positions in [rad] at this tick.
+            q_v: Virtual joint positions before the step in [rad].
+            qdot_v: Applied virtual joint velocity in [rad/s].
+        """
+        dq = q_v - q
+        new = dq + self.dt * qdot_v
+        dEk = 0.5 * self.K * (new * new - dq * dq)
+        e = np.minimum(self.config.max_energy, self._avail - dEk)
+        self.energy = np.where(self.mask, np.maximum(e, 0.0), self.energy)
+        self.shuffled += np.where(self.mask, self._shuffle_now, 0.0)
+        return dEk

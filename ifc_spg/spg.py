@@ -1,0 +1,237 @@
+"""The set-point generator: one tick turns measurements into the virtual joint positions.
+
+``SetPointGenerator.step(q, qdot, t) -> q_v`` (ARCHITECTURE "Python API"):
+
+1. kinematics at the measured q and the virtual q_v,
+2. the velocity box: joint limits (SPEC 4) intersected with the PSPM passivity bounds
+   (SPEC 6), then the acceleration limit (soft: position safety and passivity win),
+3. the levels: the implicit joint-torque-limit task |tau_s| <= tau_max on top (4.3), then
+   the stack's tasks in priority order,
+4. the cascade (SPEC 3) or the nullspace baseline (SPEC 5),
+5. q_v <- q_v + dT qdot_v, and the energy tanks are booked.
+
+A failed or non-finite solve never produces NaN or a q_v outside the limits: the last
+q_v is held (zero velocity, clipped into the box) and the status says so in ``info``.
+"""
+
+import time
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.hqp import level_violation, make_solver
+from ifc_spg.kinematics import Kinematics
+from ifc_spg.limits import VelocityBox, intersect_soft, joint_velocity_bounds
+from ifc_spg.model import JOINT_IMPEDANCE
+from ifc_spg.nullspace import NullspaceCascade
+from ifc_spg.pspm import EnergyTanks, PspmConfig
+from ifc_spg.tasks import JointTorqueTask
+
+__all__ = ['SetPointGenerator', 'SpgInfo']
+
+
+class SpgInfo:
+    """What the last tick did (read-only snapshot, rebuilt every tick).
+
+    Attributes:
+        status: 'ok', 'fallback', 'hold', 'bad_input' or 'idle' (no stack).
+        solver: Name of the solver.
+        level_names: Names of the levels (the torque limit first, if enabled).
+        slacks: Slack s* per level (list of arrays).
+        residuals: Violation of each level's velocity bounds by the final qdot_v.
+        at_limit: Indices of joints whose qdot_v sits on the velocity box.
+        tank_energy: PSPM tank energies in [J] (None without PSPM).
+        spring_energy_step: Change of spring energy 1/2 K dq^2 by this tick's step [J].
+        solve_time: Cascade solve time in [s]; tick_time: whole tick in [s].
+        task_time: Seconds since the stack became active.
+        message: Human-readable reason for a non-'ok' status.
+    """
+
+    __slots__ = ('status', 'solver', 'level_names', 'slacks', 'residuals', 'at_limit',
+                 'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
+                 'qdot_v', 'message', 'failed_level')
+
+    def __init__(self, **kw):
+        for k in self.__slots__:
+            setattr(self, k, kw.get(k))
+
+    def as_dict(self):
+        """JSON-friendly dict (for ``spg/status``)."""
+        def conv(v):
+            if isinstance(v, np.ndarray):
+                return [float(x) for x in v.reshape(-1)]
+            if isinstance(v, (list, tuple)):
+                return [conv(x) for x in v]
+            if isinstance(v, np.generic):
+                return v.item()
+            return v
+        return {k: conv(getattr(self, k)) for k in self.__slots__}
+
+
+class SetPointGenerator:
+    """Hierarchical set-point generator for an IFC robot.
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+        stack: A task stack (an object with ``build(robot) -> list of tasks``, e.g.
+            :class:`~ifc_spg.task_stack.TaskStack`) or a list of tasks, highest priority
+            first; None starts idle (holding q_v).
+        dt: SPG period dT in [s].
+        pspm: True (default parameters), False, or a :class:`~ifc_spg.pspm.PspmConfig`.
+        solver: 'daqp' (default), 'proxsuite' or 'nullspace' (baseline, equalities only).
+        rho: Regularization of qdot_v in each level (4.45).
+        torque_limits: Add the implicit top-level task |K (q_v - q)| <= tau_max (4.3).
+    """
+
+    def __init__(self, robot, stack=None, *, dt=0.002, pspm=True, solver='daqp', rho=0.01,
+                 torque_limits=True):
+        if not (np.isfinite(dt) and 0 < dt <= 1.0):
+            raise ParameterError(f'dt must be a period in (0, 1] s, got {dt!r}')
+        self.robot = robot
+        self.dt = float(dt)
+        n = robot.n
+        self.n = n
+        if solver == 'nullspace':
+            self._solver = NullspaceCascade(n)
+        else:
+            self._solver = make_solver(solver, n, rho)
+        if pspm is True:
+            pspm = PspmConfig()
+        self.tanks = None
+        if pspm:
+            if not isinstance(pspm, PspmConfig):
+                raise ParameterError(f'pspm must be True, False or a PspmConfig, got {pspm!r}')
+            modulated = ~robot.stiff_mask if robot.ifc == JOINT_IMPEDANCE \
+                else np.zeros(n, dtype=bool)
+            self.tanks = EnergyTanks(robot.stiffness, robot.damping, modulated, dt, pspm)
+        self._limit_task = None
+        if torque_limits and robot.ifc == JOINT_IMPEDANCE and solver != 'nullspace':
+            self._limit_task = JointTorqueTask(
+                robot, name='torque_limits', lower=-robot.tau_max[~robot.stiff_mask],
+                upper=robot.tau_max[~robot.stiff_mask], gain=1.0 / dt)
+        self.kin = Kinematics(robot)
+        self.q_v = None
+        self.qdot_v = np.zeros(n)
+        self.tasks = []
+        self._pending = None
+        self._t0 = None
+        self.stack = None
+        self.info = SpgInfo(status='idle', solver=self._solver.name)
+        if stack is not None:
+            self.set_stack(stack)
+
+    # -- stack management -----------------------------------------------------------
+    def set_stack(self, stack):
+        """Replace the running stack at the next tick (hot swap, no jump in q_v).
+
+        ``init`` values are captured when the new stack becomes active. Building the tasks
+        happens here, so an invalid stack raises and the running one stays untouched.
+        """
+        tasks = stack.build(self.robot) if hasattr(stack, 'build') else list(stack)
+        if self._solver.name == 'nullspace':
+            for task in tasks:
+                if not task.equality:
+                    raise IfcSpgError(f"task '{task.name}' is an inequality; the nullspace "
+                                      "baseline handles equality tasks only (use solver 'daqp')")
+        self._pending = (stack, tasks)
+
+    def reset(self, q):
+        """Start from the measured configuration ``q``: q_v = q (clipped into the limits)."""
+        q = np.asarray(q, dtype=float)
+        self.q_v = np.clip(q, self.robot.q_min, self.robot.q_max)
+        self.qdot_v = np.zeros(self.n)
+        if self.tanks is not None:
+            self.tanks.reset(q)
+        self._t0 = None
+        for task in self.tasks:
+            task._active_lower = task._active_upper = None
+
+    # -- the tick -------------------------------------------------------------------
+    def step(self, q, qdot, t):
+        """One SPG tick.
+
+        Args:
+            q: Measured joint positions in [rad] (n,).
+            qdot: Measured joint velocities in [rad/s] (n,).
+            t: Time stamp of the measurement in [s] (task time counts from activation).
+
+        Returns:
+            The virtual joint positions q_v in [rad] (a new array).
+        """
+        t_start = time.perf_counter()
+        q = np.asarray(q, dtype=float)
+        qdot = np.asarray(qdot, dtype=float)
+        if q.shape != (self.n,) or qdot.shape != (self.n,):
+            raise ParameterError(f'q and qdot must have {self.n} entries (joints '
+                                 f'{", ".join(self.robot.joint_names)}), got {q.shape} and '
+                                 f'{qdot.shape}')
+        if self.q_v is None:
+            if not np.all(np.isfinite(q)):
+                raise ParameterError('the first measurement must be finite to start from it')
+            self.reset(q)
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot)) and np.isfinite(t)):
+            return self._hold('bad_input', 'non-finite joint state or time stamp', t_start)
+        if self._pending is not None:
+            self.stack, self.tasks = self._pending
+            self._pending = None
+            self._t0 = None
+        if self._t0 is None:
+            self._t0 = float(t)
+        task_time = float(t) - self._t0
+        robot = self.robot
+        q_v = self.q_v
+        self.kin.update(q, qdot, q_v)
+
+        box = joint_velocity_bounds(q_v, robot.q_min, robot.q_max, robot.v_max, robot.a_max,
+                                    self.dt)
+        if self.tanks is not None:
+            pb = self.tanks.bounds(q, q_v)
+            box = VelocityBox(np.maximum(box.lower, pb.lower), np.minimum(box.upper, pb.upper))
+        accel = robot.a_max * self.dt
+        box = intersect_soft(box, VelocityBox(self.qdot_v - accel, self.qdot_v + accel))
+
+        tasks = self.tasks if self._limit_task is None else [self._limit_task, *self.tasks]
+        levels = [task.level(self.kin, task_time) for task in tasks]
+        t_solve = time.perf_counter()
+        slacks, status, failed, message = [], 'ok', -1, ''
+        if self._solver.name == 'nullspace':
+            qdot_v, _ = self._solver.solve(levels, q_v, robot.q_min, robot.q_max)
+            if not np.all(np.isfinite(qdot_v)):
+                qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution'
+            qdot_v = np.clip(qdot_v, box.lower, box.upper)
+        elif levels:
+            res = self._solver.solve(levels, box)
+            qdot_v, slacks, status, failed = res
+            if status != 'ok':
+                message = (f"level {failed} ('{levels[failed].name}') could not be solved; "
+                           + ('holding q_v' if status == 'hold' else
+                              "using the higher levels' solution"))
+        else:
+            qdot_v = np.clip(np.zeros(self.n), box.lower, box.upper)
+            status = 'idle'
+        solve_time = time.perf_counter() - t_solve
+
+        energy_step = None
+        if self.tanks is not None:
+            energy_step = self.tanks.update(q, q_v, qdot_v)
+        self.q_v = np.clip(q_v + self.dt * qdot_v, robot.q_min, robot.q_max)
+        self.qdot_v = qdot_v
+        at_limit = np.flatnonzero((qdot_v <= box.lower) | (qdot_v >= box.upper))
+        self.info = SpgInfo(
+            status=status, solver=self._solver.name, level_names=[lv.name for lv in levels],
+            slacks=slacks, residuals=[level_violation(lv, qdot_v) for lv in levels],
+            at_limit=at_limit,
+            tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
+            spring_energy_step=energy_step, solve_time=solve_time,
+            tick_time=time.perf_counter() - t_start, task_time=task_time, qdot_v=qdot_v,
+            message=message, failed_level=failed)
+        return self.q_v.copy()
+
+    def _hold(self, status, message, t_start):
+        self.qdot_v = np.zeros(self.n)
+        self.info = SpgInfo(status=status, solver=self._solver.name, level_names=[], slacks=[],
+                            residuals=[], at_limit=np.zeros(0, dtype=int),
+                            tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
+                            solve_time=0.0, tick_time=time.perf_counter() - t_start,
+                            qdot_v=self.qdot_v, message=message, failed_level=-1)
+        return self.q_v.copy()

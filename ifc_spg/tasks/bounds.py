@@ -1,0 +1,105 @@
+"""Task bounds as functions of task time.
+
+A bound gives, at task time t [s] (seconds since the stack became active), a value in the
+task's subspace coordinates and its rate (the default feed-forward, SPEC 4.25-4.28).
+``INIT`` marks a bound captured from the task value at activation. Trajectory generators
+(circle, sine, ramp, ...) subclass :class:`Bound`.
+"""
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError
+
+__all__ = ['Bound', 'Constant', 'Init', 'INIT', 'as_bound']
+
+
+class Bound:
+    """A task bound alpha(t) with rate d(alpha)/dt, in subspace coordinates.
+
+    Subclasses implement :meth:`evaluate`; :meth:`activate` resolves values that depend on
+    the task value at activation (``init``) and returns the bound to use.
+    """
+
+    dim = None
+
+    def activate(self, init_value):
+        """Return the bound to use once the task is active.
+
+        Args:
+            init_value: The task value at activation, shape (m,).
+        """
+        return self
+
+    def evaluate(self, t):
+        """Return ``(value (m,), rate (m,))`` at task time ``t`` in [s]."""
+        raise NotImplementedError
+
+
+class Constant(Bound):
+    """A constant bound (rate zero); ``np.inf`` entries mean unbounded."""
+
+    def __init__(self, value):
+        v = np.array(value, dtype=float).reshape(-1)
+        if np.any(np.isnan(v)):
+            raise IfcSpgError(f'bound values must not be NaN, got {v.tolist()}')
+        v.setflags(write=False)
+        self.value = v
+        self.dim = v.size
+        self._rate = np.zeros(v.size)
+        self._rate.setflags(write=False)
+
+    def evaluate(self, t):
+        return self.value, self._rate
+
+    def __repr__(self):
+        return f'Constant({self.value.tolist()})'
+
+
+class Init(Bound):
+    """The task value at activation, per component (``mask`` selects which components).
+
+    Components not in ``mask`` take ``other`` (a :class:`Constant` of the full dimension).
+    """
+
+    def __init__(self, mask=None, other=None):
+        self.mask = None if mask is None else np.asarray(mask, dtype=bool)
+        self.other = other
+
+    def activate(self, init_value):
+        init_value = np.asarray(init_value, dtype=float)
+        if self.mask is None:
+            return Constant(init_value)
+        value = np.array(self.other.evaluate(0.0)[0], dtype=float)
+        value[self.mask] = init_value[self.mask]
+        return Constant(value)
+
+    def __repr__(self):
+        return 'Init()' if self.mask is None else f'Init(mask={self.mask.tolist()})'
+
+
+INIT = Init()
+
+
+def as_bound(x, dim, what):
+    """Convert a user value (None, number, sequence, 'init' or a Bound) into a Bound.
+
+    Args:
+        x: The value. ``None`` gives ``fill`` (handled by the caller).
+        dim: Expected dimension m.
+        what: Name used in error messages (e.g. ``'lower'``).
+    """
+    if isinstance(x, Bound):
+        if x.dim is not None and x.dim != dim:
+            raise IfcSpgError(f'{what}: expected {dim} values, got {x.dim}')
+        return x
+    if isinstance(x, str):
+        if x == 'init':
+            return INIT
+        raise IfcSpgError(f"{what}: expected a number, a list, 'init' or a trajectory, got {x!r}")
+    v = np.array(x, dtype=float).reshape(-1)
+    if v.size == 1 and dim != 1:
+        v = np.full(dim, v[0])
+    if v.size != dim:
+        raise IfcSpgError(f'{what}: expected {dim} values (one per subspace direction), '
+                          f'got {v.size}: {v.tolist()}')
+    return Constant(v)

@@ -1,0 +1,101 @@
+"""Cartesian pose task on a frame at the virtual configuration (Table 3.1).
+
+alpha = S^T [p_v - p_ref; log3(R_v R_ref^T)] with S in the base frame (an end-effector
+subspace is rotated into the base frame at the current virtual pose, 3.25 / Table 4.4).
+Positions are absolute (p_ref = 0) unless ``relative=True`` (p_ref = position at
+activation); the orientation is always relative to R_ref (default: orientation at
+activation; or a fixed rotation). The Jacobian is exact:
+A = S^T [J_lin; Jlog3(R_e) R_e^T J_ang], R_e = R_v R_ref^T.
+"""
+
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.tasks.subspace import SUBSPACE_FRAMES, axes_matrix, check_orthonormal
+from ifc_spg.tasks.subspace import subspace_in_base
+from ifc_spg.tasks.task import Task
+
+__all__ = ['CartesianPoseTask']
+
+
+class CartesianPoseTask(Task):
+    """Pose task of a chain end ("frame").
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+        frame: Chain id (e.g. ``'tool'``).
+        axes: Named directions (``x y z rx ry rz``), default all six.
+        subspace: Explicit 6 x m matrix with orthonormal columns (instead of ``axes``).
+        subspace_frame: 'base', 'ee' or 'ee_orientation'.
+        orientation: Reference rotation R_ref (3 x 3) or 'init' (default).
+        relative: Positions relative to the position at activation (default False).
+        **kwargs: Bounds in [m] / [rad] per direction, gain, feed-forward (see Task).
+    """
+
+    kind = 'cartesian_pose'
+
+    def __init__(self, robot, *, frame, axes=None, subspace=None, subspace_frame='base',
+                 orientation='init', relative=False, **kwargs):
+        self.frame = frame
+        self.frame_id = robot.frame_id(frame)
+        if subspace is not None and axes is not None:
+            raise IfcSpgError("give either 'axes' or an explicit 'subspace', not both")
+        S = axes_matrix(axes or ('x', 'y', 'z', 'rx', 'ry', 'rz')) if subspace is None \
+            else check_orthonormal(np.asarray(subspace, dtype=float))
+        if S.shape[0] != 6:
+            raise IfcSpgError(f'a Cartesian subspace has 6 rows (x y z rx ry rz), got {S.shape[0]}')
+        if subspace_frame not in SUBSPACE_FRAMES:
+            raise IfcSpgError(f"subspace frame '{subspace_frame}' unknown; use one of "
+                              f"{', '.join(SUBSPACE_FRAMES)}")
+        self.S = S
+        self.subspace_frame = subspace_frame
+        if isinstance(orientation, str):
+            if orientation != 'init':
+                raise IfcSpgError(f"orientation must be 'init' or a rotation matrix, got "
+                                  f'{orientation!r}')
+            self._R_ref = None
+        else:
+            R = np.asarray(orientation, dtype=float)
+            if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 \
+                    or np.linalg.det(R) < 0:
+                raise IfcSpgError('orientation must be a 3 x 3 rotation matrix')
+            self._R_ref = R
+        self.relative = bool(relative)
+        self._p_ref = np.zeros(3)
+        super().__init__(robot, dim=S.shape[1], **kwargs)
+
+    def activate(self, kin):
+        p, R, _ = kin.frame(self.frame_id, virtual=True)
+        if self._R_ref is None:
+            self._R_ref = R.copy()
+        if self.relative:
+            self._p_ref = p.copy()
+        super().activate(kin)
+
+    def _S_base(self, R):
+        return subspace_in_base(self.S, self.subspace_frame, R)
+
+    def compute(self, kin):
+        p, R, J = kin.frame(self.frame_id, virtual=True)
+        if self._R_ref is None:
+            self._R_ref = R.copy()
+        R_e = R @ self._R_ref.T
+        x = np.empty(6)
+        x[:3] = p - self._p_ref
+        x[3:] = pin.log3(R_e)
+        Jx = np.empty_like(J)
+        Jx[:3] = J[:3]
+        Jx[3:] = pin.Jlog3(R_e) @ R_e.T @ J[3:]
+        St = self._S_base(R).T
+        return St @ x, St @ Jx, np.zeros(self.dim)
+
+    def compute_value(self, kin):
+        return self.compute(kin)[0]
+
+    def compute_jacobian(self, kin):
+        return self.compute(kin)[1]
+
+    def compute_measured_rate(self, kin):
+        _, R, J = kin.frame(self.frame_id, virtual=False)
+        return self._S_base(kin.frame(self.frame_id, virtual=True)[1]).T @ (J @ kin.qdot)

@@ -1,0 +1,45 @@
+"""Joint torque task: alpha = tau_s (selected joints), A = K, gamma = K qdot (Table 3.1)."""
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.tasks.joint_position_task import joint_indices
+from ifc_spg.tasks.static_interaction import static_torque
+from ifc_spg.tasks.task import Task
+
+__all__ = ['JointTorqueTask']
+
+
+class JointTorqueTask(Task):
+    """Static joint torque task tau_s = K (q_v - q) on a subset of joints.
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+        joints: Joint names (default: all compliant joints). Stiff joints have no static
+            torque and are rejected.
+        **kwargs: Bounds in [Nm], gain, feed-forward (see Task).
+    """
+
+    kind = 'joint_torque'
+
+    def __init__(self, robot, *, joints=None, **kwargs):
+        self.indices = joint_indices(robot, joints, exclude_stiff=True)
+        stiff = [robot.joint_names[i] for i in self.indices if robot.stiff_mask[i]]
+        if stiff:
+            raise IfcSpgError(f"joint_torque task: joint(s) {', '.join(stiff)} are stiff "
+                              '(position controlled) and have no static torque; remove them')
+        super().__init__(robot, dim=len(self.indices), **kwargs)
+
+    def compute(self, kin):
+        tau, A, g = static_torque(self.robot, kin)
+        i = self.indices
+        return tau[i], A[i], g[i]
+
+    def compute_value(self, kin):
+        return self.compute(kin)[0]
+
+    def compute_jacobian(self, kin):
+        return self.compute(kin)[1]
+
+    def compute_gamma(self, kin):
+        return self.compute(kin)[2]

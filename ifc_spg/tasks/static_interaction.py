@@ -1,0 +1,83 @@
+"""Static interaction quantities: replacement task variables of IFC robots (SPEC 1, 3.1.1).
+
+Joint impedance (tau = K (q_v - q) - D qdot + ...)::
+
+    tau_s = K (q_v - q),            A = K,           gamma = K qdot
+    h_s = J^{+T} K (q_v - q),       A = J^{+T} K,    gamma = J^{+T} K qdot
+
+with J = J(q) at the measured configuration (damped pseudo-inverse) and stiff joints
+(position controlled) contributing no static torque (their K and J columns are zero).
+
+Cartesian admittance (h = K_x dx + ...), our generalisation (SPEC 1)::
+
+    h_s = K_x [p_v - p; log3(R_v R^T)],   tau_s = J^T h_s.
+"""
+
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.model import JOINT_IMPEDANCE
+
+__all__ = ['DAMPING', 'static_torque', 'static_wrench', 'check_admittance_chain']
+
+DAMPING = 1e-3  # lambda of the damped pseudo-inverse J^{+T} = (J J^T + lambda^2 I)^{-1} J
+
+
+def compliant_stiffness(robot):
+    """Per-joint stiffness with zeros at stiff (position-controlled) joints, in [Nm/rad]."""
+    return np.where(robot.stiff_mask, 0.0, robot.stiffness)
+
+
+def check_admittance_chain(robot, frame):
+    """Raise unless ``frame`` has Cartesian admittance parameters."""
+    if frame not in robot.admittance:
+        raise IfcSpgError(f"frame '{frame}' of admittance robot '{robot.name}' has no "
+                          'admittance parameters (K_x); use one of: '
+                          f"{', '.join(sorted(robot.admittance))}")
+
+
+def _admittance_wrench(robot, kin, frame):
+    fid = robot.frame_id(frame)
+    p_v, R_v, J_v = kin.frame(fid, virtual=True)
+    p, R, J = kin.frame(fid, virtual=False)
+    Kx = robot.admittance[frame].stiffness
+    R_e = R_v @ R.T
+    Jl = pin.Jlog3(R_e)
+    x = np.concatenate([p_v - p, pin.log3(R_e)])
+    A = np.vstack([J_v[:3], Jl @ R_e.T @ J_v[3:]])
+    v = J @ kin.qdot
+    g = np.concatenate([v[:3], Jl @ v[3:]])
+    return Kx * x, Kx[:, None] * A, Kx * g, J
+
+
+def static_wrench(robot, kin, frame):
+    """Return ``(h_s (6,), A (6, n), gamma (6,), R (3, 3))`` of chain ``frame`` in base frame.
+
+    R is the measured orientation of the frame (used for end-effector subspaces).
+    """
+    fid = robot.frame_id(frame)
+    _, R, J = kin.frame(fid, virtual=False)
+    if robot.ifc != JOINT_IMPEDANCE:
+        h, A, g, _ = _admittance_wrench(robot, kin, frame)
+        return h, A, g, R
+    K = compliant_stiffness(robot)
+    Jc = J * (~robot.stiff_mask)
+    P = np.linalg.solve(Jc @ Jc.T + DAMPING ** 2 * np.eye(6), Jc)  # J^{+T}
+    PK = P * K
+    return PK @ (kin.q_v - kin.q), PK, PK @ kin.qdot, R
+
+
+def static_torque(robot, kin):
+    """Return ``(tau_s (n,), A (n, n), gamma (n,))``."""
+    if robot.ifc == JOINT_IMPEDANCE:
+        K = compliant_stiffness(robot)
+        return K * (kin.q_v - kin.q), np.diag(K), K * kin.qdot
+    n = robot.n
+    tau, A, g = np.zeros(n), np.zeros((n, n)), np.zeros(n)
+    for frame in robot.admittance:
+        h, Ah, gh, J = _admittance_wrench(robot, kin, frame)
+        tau += J.T @ h
+        A += J.T @ Ah
+        g += J.T @ gh
+    return tau, A, g

@@ -1,0 +1,63 @@
+"""Task subspaces S (SPEC 2, 3.22): orthonormal columns selecting task directions.
+
+Cartesian subspaces are 6 x m (rows: x y z rx ry rz, or fx fy fz tx ty tz for wrenches),
+given in the base frame, the end-effector frame (S_base = diag(R, R) S_ee, Table 4.4) or
+with only the rotational part in the end-effector frame (diag(I, R) S_ee, 3.25).
+"""
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError, did_you_mean
+
+__all__ = ['AXES', 'WRENCH_AXES', 'SUBSPACE_FRAMES', 'axes_matrix', 'check_orthonormal',
+           'subspace_in_base']
+
+AXES = ('x', 'y', 'z', 'rx', 'ry', 'rz')
+WRENCH_AXES = ('fx', 'fy', 'fz', 'tx', 'ty', 'tz')
+SUBSPACE_FRAMES = ('base', 'ee', 'ee_orientation')
+
+
+def axes_matrix(axes, wrench=False):
+    """Return the 6 x m selection matrix of named axes (e.g. ``['y', 'z', 'rx']``)."""
+    names = WRENCH_AXES if wrench else AXES
+    alias = dict(zip(AXES, WRENCH_AXES)) if wrench else dict(zip(WRENCH_AXES, AXES))
+    S = np.zeros((6, len(axes)))
+    seen = set()
+    for k, a in enumerate(axes):
+        a = alias.get(a, a)
+        if a not in names:
+            raise IfcSpgError(f"unknown axis '{a}'{did_you_mean(a, names)}; "
+                              f"valid axes: {' '.join(names)}")
+        if a in seen:
+            raise IfcSpgError(f"axis '{a}' listed twice")
+        seen.add(a)
+        S[names.index(a), k] = 1.0
+    return S
+
+
+def check_orthonormal(S, tol=1e-6):
+    """Raise if the columns of S are not orthonormal (within ``tol``)."""
+    S = np.asarray(S, dtype=float)
+    if S.ndim != 2 or S.shape[1] == 0:
+        raise IfcSpgError(f'subspace must be a non-empty matrix, got shape {S.shape}')
+    err = np.abs(S.T @ S - np.eye(S.shape[1])).max()
+    if not np.isfinite(err) or err > tol:
+        raise IfcSpgError(f'subspace columns must be orthonormal (|S^T S - I| = {err:.3g} > '
+                          f'{tol:g}); normalize the columns and make them perpendicular')
+    return S
+
+
+def subspace_in_base(S, frame, R):
+    """Return S expressed in the base frame.
+
+    Args:
+        S: 6 x m subspace in ``frame`` coordinates.
+        frame: 'base', 'ee' or 'ee_orientation'.
+        R: Rotation of the end-effector frame in the base frame (3 x 3).
+    """
+    if frame == 'base':
+        return S
+    out = np.empty_like(S)
+    out[:3] = S[:3] if frame == 'ee_orientation' else R @ S[:3]
+    out[3:] = R @ S[3:]
+    return out

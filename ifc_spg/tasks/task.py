@@ -1,0 +1,178 @@
+"""Task base class: a task is a value, a Jacobian and a velocity compensation (SPEC 2).
+
+Every task maps the virtual configuration to a value alpha in its subspace (m
+coordinates), with A = d(alpha)/d(q_v) and gamma, the rate of alpha caused by the measured
+joint velocity (Table 3.1). Bounds alpha_m <= alpha <= alpha_M become velocity bounds
+(4.25-4.28)::
+
+    beta_m = Lambda (alpha_m - alpha) + ff_m + gamma
+    beta_M = Lambda (alpha_M - alpha) + ff_M + gamma
+
+and the cascade asks for beta_m <= A qdot_v <= beta_M. Equal bounds make an equality task.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.tasks.bounds import Bound, INIT, as_bound
+
+__all__ = ['Level', 'Task']
+
+
+class Level(NamedTuple):
+    """One priority level of the cascade: ``lower <= A qdot_v <= upper``.
+
+    Attributes:
+        name: Task name (for reports).
+        A: Task Jacobian in subspace coordinates, shape (m, n).
+        lower: Lower velocity bound beta_m, shape (m,) (may hold -inf).
+        upper: Upper velocity bound beta_M, shape (m,) (may hold +inf).
+        equality: True when lower == upper by construction (an equality task).
+    """
+
+    name: str
+    A: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    equality: bool
+
+
+class Task:
+    """Base class of the four task archetypes.
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+        dim: Task dimension m (columns of S).
+        name: Task name used in reports and errors.
+        equal: Target (equality task): number, list, 'init' or a :class:`Bound`.
+        lower: Lower bound (inequality task), default unbounded.
+        upper: Upper bound (inequality task), default unbounded.
+        gain: Convergence gain Lambda in [1/s] (scalar or per direction), >= 0.
+        feedforward: 'trajectory' (the bounds' rates, default), None (zero) or a
+            constant rate per direction in task units per second.
+        velocity_gain: k_d, adds k_d * (measured task rate) to the feed-forward
+            (Table 4.5's deliberately destabilizing regulator uses it).
+        compensate_velocity: Add gamma (True, default); False cancels the compensation
+            of the measured velocity (Table 5.1).
+    """
+
+    kind = 'task'
+
+    def __init__(self, robot, *, dim, name=None, equal=None, lower=None, upper=None, gain=1.0,
+                 feedforward='trajectory', velocity_gain=0.0, compensate_velocity=True):
+        self.robot = robot
+        self.name = name or self.kind
+        self.dim = int(dim)
+        if self.dim <= 0:
+            raise IfcSpgError(f"task '{self.name}': empty subspace")
+        if equal is not None and (lower is not None or upper is not None):
+            raise IfcSpgError(f"task '{self.name}': give either 'equal' or 'lower'/'upper', "
+                              'not both')
+        if equal is None and lower is None and upper is None:
+            raise IfcSpgError(f"task '{self.name}': no bounds; give 'equal' (equality task) "
+                              "or 'lower'/'upper' (inequality task)")
+        self.equality = equal is not None
+        if self.equality:
+            self._lower = self._upper = as_bound(equal, self.dim, f'{self.name}.equal')
+        else:
+            inf = np.full(self.dim, np.inf)
+            self._lower = as_bound(-inf if lower is None else lower, self.dim,
+                                   f'{self.name}.lower')
+            self._upper = as_bound(inf if upper is None else upper, self.dim,
+                                   f'{self.name}.upper')
+        gain = np.broadcast_to(np.asarray(gain, dtype=float), (self.dim,)).copy()
+        if not np.all(np.isfinite(gain)) or np.any(gain < 0):
+            raise IfcSpgError(f"task '{self.name}': gain must be finite and >= 0, got "
+                              f'{gain.tolist()}')
+        self.gain = gain
+        if isinstance(feedforward, str):
+            if feedforward != 'trajectory':
+                raise IfcSpgError(f"task '{self.name}': feedforward must be 'trajectory', "
+                                  f'none or numbers, got {feedforward!r}')
+            self._ff = None
+        elif feedforward is None:
+            self._ff = np.zeros(self.dim)
+        else:
+            self._ff = as_bound(feedforward, self.dim, f'{self.name}.feedforward').evaluate(0)[0]
+        self.velocity_gain = float(velocity_gain)
+        if not np.isfinite(self.velocity_gain):
+            raise IfcSpgError(f"task '{self.name}': velocity_gain must be finite")
+        self.compensate_velocity = bool(compensate_velocity)
+        self._active_lower = None
+        self._active_upper = None
+
+    # -- to implement -----------------------------------------------------------------
+    def compute_value(self, kin):
+        """Task value alpha (m,) at this tick's configuration."""
+        raise NotImplementedError
+
+    def compute_jacobian(self, kin):
+        """Task Jacobian A = d(alpha)/d(q_v), shape (m, n)."""
+        raise NotImplementedError
+
+    def compute_gamma(self, kin):
+        """Velocity compensation gamma (m,) (Table 3.1); zero for position tasks."""
+        return np.zeros(self.dim)
+
+    def compute_measured_rate(self, kin):
+        """Rate of alpha due to the measured joint velocity (m,)."""
+        return -self.compute_gamma(kin)
+
+    def compute(self, kin):
+        """Return ``(alpha, A, gamma)``; subclasses override to share work."""
+        return self.compute_value(kin), self.compute_jacobian(kin), self.compute_gamma(kin)
+
+    # -- activation and levels ------------------------------------------------------------
+    @property
+    def active(self):
+        """True once :meth:`activate` captured the ``init`` values."""
+        return self._active_lower is not None
+
+    def activate(self, kin):
+        """Capture ``init`` bounds from the current value; called when the stack starts."""
+        init = None
+        bounds = []
+        for b in (self._lower, self._upper):
+            if b is INIT or type(b).activate is not Bound.activate:
+                if init is None:
+                    init = np.array(self.compute_value(kin), dtype=float)
+                b = b.activate(init)
+            bounds.append(b)
+        self._active_lower, self._active_upper = bounds
+        if self.equality:
+            self._active_upper = self._active_lower
+
+    def level(self, kin, t):
+        """Build this task's :class:`Level` at task time ``t`` in [s]."""
+        if not self.active:
+            self.activate(kin)
+        alpha, A, gamma = self.compute(kin)
+        lo, lo_rate = self._active_lower.evaluate(t)
+        if self.equality:
+            hi, hi_rate = lo, lo_rate
+        else:
+            hi, hi_rate = self._active_upper.evaluate(t)
+        if self._ff is None:
+            ff_lo, ff_hi = lo_rate, hi_rate
+        else:
+            ff_lo = ff_hi = self._ff
+        common = gamma if self.compensate_velocity else 0.0
+        if self.velocity_gain:
+            common = common + self.velocity_gain * self.compute_measured_rate(kin)
+        with np.errstate(invalid='ignore'):
+            beta_lo = self.gain * (lo - alpha) + ff_lo + common
+            beta_hi = self.gain * (hi - alpha) + ff_hi + common
+        beta_lo[np.isneginf(lo)] = -np.inf
+        beta_hi[np.isposinf(hi)] = np.inf
+        if self.equality:
+            beta_hi = beta_lo
+        return Level(self.name, A, beta_lo, beta_hi, self.equality)
+
+    def bounds_at(self, t):
+        """Return ``(lower, upper)`` task bounds at task time t (after activation)."""
+        return self._active_lower.evaluate(t)[0], self._active_upper.evaluate(t)[0]
+
+    def __repr__(self):
+        return f'{type(self).__name__}({self.name!r}, dim={self.dim})'
