@@ -38,12 +38,15 @@ class CascadeResult(NamedTuple):
         status: 'ok', 'fallback' (a level failed; the previous level's solution is used)
             or 'hold' (the first level failed; zero velocity clipped into the box).
         failed_level: Index of the failed level, or -1.
+        box_violation: How far the solver's raw solution lay outside the box (>= 0) before
+            it was clipped; solver tolerance only.
     """
 
     qdot_v: np.ndarray
     slacks: list
     status: str
     failed_level: int
+    box_violation: float = 0.0
 
 
 def build_levels(tasks, kin, t):
@@ -104,7 +107,8 @@ class CascadeSolver:
             if not ok or not (np.all(np.isfinite(x)) and np.all(np.isfinite(s))):
                 slacks.extend(np.full(lev.A.shape[0], np.nan) for lev in levels[i:])
                 status = 'hold' if i == 0 else 'fallback'
-                return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, status, i)
+                return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, status, i,
+                                     _outside(qdot, box_lo, box_hi))
             qdot = x
             slacks.append(s)
             a = lev.A @ x
@@ -114,7 +118,12 @@ class CascadeSolver:
             b_lo = np.concatenate([lo, b_lo])
             b_hi = np.concatenate([hi, b_hi])
             eq_bar = np.concatenate([eq_cur, eq_bar])
-        return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, 'ok', -1)
+        return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, 'ok', -1,
+                             _outside(qdot, box_lo, box_hi))
+
+
+def _outside(x, lo, hi):
+    return float(max(np.max(lo - x, initial=0.0), np.max(x - hi, initial=0.0)))
 
 
 class DaqpCascade(CascadeSolver):

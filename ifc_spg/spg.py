@@ -201,7 +201,7 @@ class SetPointGenerator:
             qdot_v = np.clip(qdot_v, box.lower, box.upper)
         elif levels:
             res = self._solver.solve(levels, box)
-            qdot_v, slacks, status, failed = res
+            qdot_v, slacks, status, failed = res[:4]
             if status != 'ok':
                 message = (f"level {failed} ('{levels[failed].name}') could not be solved; "
                            + ('holding q_v' if status == 'hold' else

@@ -1,12 +1,372 @@
-"""The ``sim_bridge``: placeholder until its issue lands."""
+"""The ``sim_bridge`` node: a MuJoCo robot behind its emulated IFC interface, on ROS topics.
 
+    sim_bridge --ros-args -p robot:=lbr_iiwa14 -p scene:=table -p mode:=lockstep
+
+Parameters: ``robot``, ``interface`` (``lbr_fri|icub|accrea``, empty: implied by the
+robot), ``scene``, ``scene_options`` (JSON object), ``mode`` (``realtime|lockstep``),
+``rate`` [Hz] (500), ``timestep`` [s] (0.001), ``q0`` [rad] (empty: home), ``duration``
+[s] of simulated time (0: forever), ``push_duration`` [s] (0.5), ``ft_raw`` (false).
+
+Topics (relative names, ARCHITECTURE.md "Topics"):
+
+- publishes ``joint_states`` (position, velocity, effort = measured torque; stamp = sim
+  time), ``ft_sensor/wrench`` (one message per wrist sensor; ``frame_id`` = chain id, base
+  frame components, moment about the chain frame, tool weight removed — with
+  ``ft_raw:=true`` the raw reading in the sensor frame, ``frame_id`` = sensor site),
+  ``sim/contact_wrench`` (ground truth on the tool, environment on robot, base frame,
+  ``frame_id`` = chain id), ``sim/env_joint_states`` (scene mechanisms).
+- subscribes ``command/joint_position`` (JointState: names + positions q_v; names may be
+  omitted if all joints are given in model order) and ``sim/apply_wrench`` (WrenchStamped,
+  base frame; ``header.frame_id`` = ``"<target>;duration=<s>"`` where the target is a chain,
+  site or body — empty target: the contact chain; no duration: ``push_duration``).
+
+Modes: ``lockstep`` publishes the state, waits for the command answering it (stamp equal to
+the state's, or unstamped) and then steps — deterministic and as fast as the SPG allows; the
+state is re-published every second while waiting. ``realtime`` paces to the wall clock with
+absolute deadlines; a period without a command holds the last q_v (as FRI does) and is
+counted and reported.
+"""
+
+import json
+import math
 import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+
+__all__ = ['BridgeParams', 'SimBridge', 'main', 'parse_push_frame']
+
+MODES = ('realtime', 'lockstep')
+
+
+@dataclass(frozen=True)
+class BridgeParams:
+    """The node's parameters, validated (one source of truth: :func:`declare`)."""
+
+    robot: str = 'lbr_iiwa14'
+    interface: str = ''
+    scene: str = 'free'
+    scene_options: str = '{}'
+    mode: str = 'realtime'
+    rate: float = 500.0
+    timestep: float = 0.001
+    q0: tuple = ()
+    duration: float = 0.0
+    push_duration: float = 0.5
+    ft_raw: bool = False
+
+
+_DESCRIPTIONS = {
+    'robot': 'Robot configuration (lbr_iiwa14, lbr4, icub_upper_body, accrea_dual_arm)',
+    'interface': 'IFC emulation lbr_fri|icub|accrea (empty: implied by the robot)',
+    'scene': 'Scene name (free, table, obstacle, drawer_horizontal, drawer_vertical, crank, '
+             'cupboard_door, microwave_door)',
+    'scene_options': 'Scene builder options as a JSON object, e.g. {"grasp": "none"}',
+    'mode': 'realtime (wall-clock paced) or lockstep (wait for each command)',
+    'rate': 'Joint-state / command rate in [Hz]',
+    'timestep': 'Physics step in [s] (<= 0.001)',
+    'q0': 'Initial joint positions in [rad] (empty: the home pose)',
+    'duration': 'Stop after this much simulated time in [s] (0: run forever)',
+    'push_duration': 'Default duration of sim/apply_wrench pushes in [s]',
+    'ft_raw': 'Publish raw F/T readings (sensor frame) instead of compensated ones',
+}
+
+
+def declare(node):
+    """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
+    from ifc_spg import ros
+
+    values = {}
+    for name, default in BridgeParams.__dataclass_fields__.items():
+        default = default.default
+        if name == 'q0':
+            default = [0.0]  # typed as a double array; [] would be untyped
+        desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
+        values[name] = node.declare_parameter(name, default, desc).value
+    q0 = tuple(float(x) for x in (values['q0'] or ()))
+    values['q0'] = () if q0 == (0.0,) else q0
+    return validate(BridgeParams(**values))
+
+
+def validate(p):
+    """Return ``p`` if valid, else raise :class:`ParameterError` naming the fix."""
+    if p.mode not in MODES:
+        raise ParameterError(f"mode '{p.mode}' is not one of {', '.join(MODES)}"
+                             f'{did_you_mean(p.mode, MODES)}')
+    if not p.rate > 0:
+        raise ParameterError(f'rate must be > 0 Hz, got {p.rate}')
+    steps = (1.0 / p.rate) / p.timestep
+    if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+        raise ParameterError(f'1/rate = {1.0 / p.rate} s must be a multiple of timestep '
+                             f'{p.timestep} s (e.g. rate 500 with timestep 0.001 or 0.0005)')
+    try:
+        options = json.loads(p.scene_options or '{}')
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"scene_options must be a JSON object, got '{p.scene_options}': "
+                             f'{exc}') from None
+    if not isinstance(options, dict):
+        raise ParameterError(f"scene_options must be a JSON object, got '{p.scene_options}'")
+    return p
+
+
+def parse_push_frame(frame_id, default_target, default_duration):
+    """Parse ``"<target>;duration=<s>"`` into (target, duration [s]).
+
+    Raises:
+        ParameterError: A malformed duration.
+    """
+    parts = [x.strip() for x in (frame_id or '').split(';')]
+    target = parts[0] or default_target
+    duration = default_duration
+    for item in parts[1:]:
+        if not item:
+            continue
+        key, _, value = item.partition('=')
+        if key.strip() != 'duration':
+            raise ParameterError(f"push frame_id '{frame_id}': unknown field '{key}'; "
+                                 "use '<target>;duration=<seconds>'")
+        try:
+            duration = float(value)
+        except ValueError:
+            raise ParameterError(f"push frame_id '{frame_id}': duration '{value}' is not a "
+                                 'number of seconds') from None
+    return target, duration
+
+
+def _stamp(msg_time_cls, t):
+    sec = math.floor(t)
+    nsec = round((t - sec) * 1e9)
+    if nsec >= 1_000_000_000:
+        sec, nsec = sec + 1, nsec - 1_000_000_000
+    stamp = msg_time_cls()
+    stamp.sec, stamp.nanosec = sec, nsec
+    return stamp
+
+
+class SimBridge:
+    """The node body: a :class:`~sim_bridge.simulation.Simulation` wired to topics.
+
+    Args:
+        node: A node of the active ROS backend (``ifc_spg.ros.Node``).
+        spin: ``spin(timeout_s)`` processing incoming messages (default: spin ``node``).
+    """
+
+    def __init__(self, node, spin=None):
+        from ifc_spg import ros
+        from ifc_spg.ros import msg
+        from sim_bridge.simulation import SimConfig, Simulation
+
+        self.node = node
+        self.params = p = declare(node)
+        self._msg = msg
+        self.sim = Simulation(SimConfig(
+            robot=p.robot, interface=p.interface or None, scene=p.scene,
+            scene_options=json.loads(p.scene_options or '{}'), q0=p.q0 or None,
+            timestep=p.timestep, command_period=1.0 / p.rate))
+        self.steps_per_tick = round(1.0 / p.rate / p.timestep)
+        self._spin = spin or (lambda t: ros.spin_once(node, timeout_sec=t))
+        self.pub_joints = node.create_publisher(msg.JointState, 'joint_states', 10)
+        self.pub_ft = node.create_publisher(msg.WrenchStamped, 'ft_sensor/wrench',
+                                            ros.qos_profile_sensor_data)
+        self.pub_contact = node.create_publisher(msg.WrenchStamped, 'sim/contact_wrench',
+                                                 ros.qos_profile_sensor_data)
+        self.pub_env = node.create_publisher(msg.JointState, 'sim/env_joint_states', 10)
+        node.create_subscription(msg.JointState, 'command/joint_position', self._on_command,
+                                 10)
+        node.create_subscription(msg.WrenchStamped, 'sim/apply_wrench', self._on_push, 10)
+        self._names = list(self.sim.joint_names)
+        self._index = {n: i for i, n in enumerate(self._names)}
+        self._command = None
+        self._pushes = []
+        self._published_stamp = None
+        self.ticks = 0
+        self._reported_missed = 0
+        node.get_logger().info(
+            f"sim_bridge: robot '{self.sim.robot.name}', interface '{self.sim.interface}', "
+            f"scene '{p.scene}', mode '{p.mode}', {p.rate:g} Hz, physics {1 / p.timestep:g} Hz")
+
+    # -- callbacks ------------------------------------------------------------------------
+    def _on_command(self, message):
+        try:
+            q_v = self._command_vector(message)
+        except ParameterError as exc:
+            self.node.get_logger().error(f'command/joint_position rejected: {exc}')
+            return
+        stamp = (int(message.header.stamp.sec), int(message.header.stamp.nanosec))
+        self._command = (q_v, stamp)
+
+    def _command_vector(self, message):
+        positions = list(message.position)
+        if not message.name:
+            if len(positions) != len(self._names):
+                raise ParameterError(f'{len(positions)} positions without names; expected '
+                                     f'{len(self._names)} ({", ".join(self._names)})')
+            return np.array(positions, dtype=float)
+        if len(message.name) != len(positions):
+            raise ParameterError(f'{len(message.name)} names but {len(positions)} positions')
+        q_v = np.array(self.sim.read_state().q_v)
+        seen = set()
+        for name, value in zip(message.name, positions):
+            if name not in self._index:
+                raise ParameterError(f"unknown joint '{name}'{did_you_mean(name, self._names)}")
+            q_v[self._index[name]] = value
+            seen.add(name)
+        if len(seen) != len(self._names):
+            missing = [n for n in self._names if n not in seen]
+            raise ParameterError(f'command lacks joints {missing}')
+        return q_v
+
+    def _on_push(self, message):
+        try:
+            target, duration = parse_push_frame(message.header.frame_id,
+                                                self.sim.contact_chain,
+                                                self.params.push_duration)
+            w = message.wrench
+            wrench = [w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z]
+            self._pushes.append((target, wrench, duration))
+        except IfcSpgError as exc:
+            self.node.get_logger().error(f'sim/apply_wrench rejected: {exc}')
+
+    # -- publishing -----------------------------------------------------------------------
+    def publish_state(self):
+        """Publish the current state on every output topic; return its stamp."""
+        msg = self._msg
+        s = self.sim.read_state()
+        stamp = _stamp(msg.Time, s.t)
+        js = msg.JointState()
+        js.header.stamp = stamp
+        js.name = list(s.joint_names)
+        js.position = s.q.tolist()
+        js.velocity = s.qd.tolist()
+        js.effort = s.tau_measured.tolist()
+        self.pub_joints.publish(js)
+        source = s.ft_wrench if self.params.ft_raw else s.ft_external
+        for chain, w in source.items():
+            frame = s.ft_frames[chain] if self.params.ft_raw else chain
+            self.pub_ft.publish(self._wrench(stamp, frame, w))
+        self.pub_contact.publish(self._wrench(stamp, self.sim.contact_chain, s.contact_wrench))
+        if s.env_joint_names:
+            env = msg.JointState()
+            env.header.stamp = stamp
+            env.name = list(s.env_joint_names)
+            env.position = s.env_q.tolist()
+            env.velocity = s.env_qd.tolist()
+            self.pub_env.publish(env)
+        self._published_stamp = (int(stamp.sec), int(stamp.nanosec))
+        return self._published_stamp
+
+    def _wrench(self, stamp, frame, w):
+        m = self._msg.WrenchStamped()
+        m.header.stamp = stamp
+        m.header.frame_id = frame
+        f, t = m.wrench.force, m.wrench.torque
+        f.x, f.y, f.z = (float(x) for x in w[:3])
+        t.x, t.y, t.z = (float(x) for x in w[3:])
+        return m
+
+    # -- the loop -------------------------------------------------------------------------
+    def _apply_inputs(self):
+        for target, wrench, duration in self._pushes:
+            try:
+                self.sim.apply_wrench(target, wrench, duration)
+            except IfcSpgError as exc:
+                self.node.get_logger().error(f'sim/apply_wrench rejected: {exc}')
+        self._pushes = []
+        if self._command is not None:
+            self.sim.write_command(self._command[0])
+            self._command = None
+
+    def _advance(self):
+        self._apply_inputs()
+        self.sim.step(self.steps_per_tick)
+        self.ticks += 1
+        missed = self.sim.missed_commands
+        if missed > self._reported_missed and self.ticks % int(self.params.rate) == 0:
+            self.node.get_logger().warning(
+                f'{missed - self._reported_missed} command period(s) without a command in the '
+                f'last second (q_v held); {missed} in total')
+            self._reported_missed = missed
+
+    def _done(self, max_ticks):
+        if max_ticks is not None and self.ticks >= max_ticks:
+            return True
+        return self.params.duration > 0 and self.sim.read_time() >= self.params.duration - 1e-9
+
+    def run_lockstep(self, max_ticks=None, republish=1.0, ok=lambda: True):
+        """Publish, wait for the matching command, step; until ``duration``/``max_ticks``."""
+        import time
+
+        while ok() and not self._done(max_ticks):
+            stamp = self.publish_state()
+            last = time.monotonic()
+            while ok():
+                if self._command is not None and self._command[1] in (stamp, (0, 0)):
+                    break
+                if self._command is not None:  # stale: answers an older state
+                    self._command = None
+                self._spin(0.05)
+                if time.monotonic() - last > republish:
+                    self.publish_state()
+                    last = time.monotonic()
+            self._advance()
+
+    def run_realtime(self, max_ticks=None, ok=lambda: True):
+        """Publish, process messages until the next absolute deadline, step; repeat."""
+        from sim_bridge.pacing import DeadlinePacer
+
+        pacer = DeadlinePacer(1.0 / self.params.rate)
+        pacer.start()
+        while ok() and not self._done(max_ticks):
+            self.publish_state()
+            pacer.wait(idle=self._spin)
+            self._advance()
+        self.pacing = pacer.stats()
+        return self.pacing
+
+    def run(self, max_ticks=None, ok=lambda: True):
+        """Run in the configured mode."""
+        if self.params.mode == 'lockstep':
+            self.run_lockstep(max_ticks, ok=ok)
+        else:
+            stats = self.run_realtime(max_ticks, ok=ok)
+            self.node.get_logger().info(
+                f"realtime pacing: p50 lateness {stats['p50'] * 1e6:.0f} us, p99 "
+                f"{stats['p99'] * 1e6:.0f} us, {stats['overruns']} overrun(s), "
+                f'{self.sim.missed_commands} missed command(s)')
+
+    def close(self):
+        """Close the simulation."""
+        self.sim.close()
 
 
 def main(argv=None):
-    """Print usage; this executable is a placeholder until the MuJoCo bridge issue lands."""
-    print('usage: sim_bridge [--ros-args ...]\n(placeholder: lands with the MuJoCo bridge issue)')
-    return 0 if '--help' in (argv or sys.argv[1:]) or '-h' in (argv or sys.argv[1:]) else 2
+    """Entry point of the ``sim_bridge`` executable."""
+    argv = list(sys.argv if argv is None else argv)
+    if '-h' in argv or '--help' in argv:
+        print(__doc__)
+        return 0
+    from ifc_spg import ros
+
+    ros.init(args=argv)
+    node = ros.Node('sim_bridge')
+    try:
+        bridge = SimBridge(node)
+    except IfcSpgError as exc:
+        print(f'sim_bridge: {exc}', file=sys.stderr)
+        ros.shutdown()
+        return 2
+    try:
+        bridge.run(ok=ros.ok)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        bridge.close()
+        node.destroy_node()
+        if ros.ok():
+            ros.shutdown()
+    return 0
 
 
 if __name__ == '__main__':

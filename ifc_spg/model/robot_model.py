@@ -60,11 +60,13 @@ class RobotModel:
         ifc: ``'joint_impedance'`` or ``'cartesian_admittance'``.
         admittance: Chain id -> :class:`CartesianAdmittance` (for ``cartesian_admittance``).
         model_file: Path of the file the model was loaded from (shared with the simulator).
+        spec_builder: Callable returning a fresh ``mujoco.MjSpec`` of this robot for the
+            simulator (default: ``model_file`` loaded as is), see :meth:`mjcf_spec`.
     """
 
     def __init__(self, model, *, name, frames, stiffness, damping, q_min=None, q_max=None,
                  v_max=None, a_max=10.0, tau_max=None, stiff_joints=(), q_home=None,
-                 ifc=JOINT_IMPEDANCE, admittance=None, model_file=None):
+                 ifc=JOINT_IMPEDANCE, admittance=None, model_file=None, spec_builder=None):
         if model.nq != model.nv:
             raise ModelError(f"model '{name}': only 1-DoF revolute/prismatic joints are "
                              f'supported (nq={model.nq} != nv={model.nv}); replace continuous '
@@ -119,6 +121,7 @@ class RobotModel:
                 raise ModelError(f"model '{name}': cartesian_admittance needs admittance "
                                  'parameters for at least one chain')
         self.model_file = model_file
+        self._spec_builder = spec_builder
 
     # -- construction --------------------------------------------------------------------
     @classmethod
@@ -150,6 +153,20 @@ class RobotModel:
         """Build a named configuration: ``lbr4``, ``lbr_iiwa14``, ``icub_upper_body``, ..."""
         from ifc_spg.model.robots import load_robot
         return load_robot(name)
+
+    def mjcf_spec(self):
+        """Return a fresh ``mujoco.MjSpec`` of this robot for the simulator.
+
+        Named configurations build it from the same file pinocchio loaded (the iCub: its
+        URDF with MuJoCo compiler options, reduced to the same joints); otherwise
+        ``model_file`` is loaded as is.
+        """
+        if self._spec_builder is not None:
+            return self._spec_builder()
+        if self.model_file is None:
+            raise ModelError(f"model '{self.name}' has no model_file to load into MuJoCo")
+        import mujoco
+        return mujoco.MjSpec.from_file(str(self.model_file))
 
     # -- lookups -------------------------------------------------------------------------
     def create_data(self):

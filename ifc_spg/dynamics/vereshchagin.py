@@ -1,0 +1,408 @@
+"""Popov-Vereshchagin constrained hybrid dynamics for serial chains (SPEC §9, report Alg. 1).
+
+Given q, q̇, feed-forward torques τ, the base acceleration Ẍ_0, external wrenches on the
+segments and m ≤ 6 acceleration constraints A_Nᵀ Ẍ_N = b_N on the last segment, the
+solver returns the Gauss-principle motion
+
+    q̈ = argmin ½ (q̈ − q̈_free)ᵀ M (q̈ − q̈_free)   s.t.   A_Nᵀ Ẍ_N(q̈) = b_N,
+
+the constraint force magnitudes ν, the control torques and the segment accelerations,
+in three O(n) sweeps (no n×n matrix is ever formed).
+
+Implementation: the sweeps run in base ("ground") coordinates, Featherstone style. All
+quantities that do not depend on the recursion (poses, joint motion subspaces S_i,
+velocities as a cumulative sum, bias accelerations c_i, world inertias, bias forces) are
+computed for all segments at once with numpy; only the articulated-inertia recursion
+(inward) and the acceleration recursion (outward) loop over the joints, one small
+rank-1 update per joint. The inward sweep carries several right-hand sides at once
+(columns of torques), so the response of q̈ to unit joint torques, ∂q̈/∂τ, comes out of
+the same pass (used by the static-friction extension).
+
+Conventions:
+    * Spatial vectors are [linear; angular]; wrenches [force; moment].
+    * The constrained acceleration Ẍ_N is the *spatial* acceleration of the tip frame
+      (KDL's convention, pinocchio ``getFrameAcceleration(..., LOCAL_WORLD_ALIGNED)``):
+      the derivative of the tip's body twist, rotated into base axes, referenced at the
+      tip frame origin. Its linear part is the classical acceleration p̈ minus ω × v
+      (classical = spatial + [ω × v; 0]). To constrain the classical acceleration, move
+      ω × v to b_N.
+    * A_N (6×m) holds unit constraint *wrenches* on the last segment, base axes, reference
+      point at the tip frame origin. ν has the sign of KDL and report Alg. 1 line 25:
+      the wrench the constraint exerts on the last segment is **−A_N ν** (A_N ν is the
+      wrench the segment exerts on the constraint), so τ_control = τ − J_Nᵀ A_N ν.
+    * Base acceleration Ẍ_0 = [linear; angular] spatial acceleration of the base, base
+      axes, at the base origin. Gravity enters as Ẍ_0 = −g (default: −model.gravity).
+    * External wrenches act *on* segment i, base axes, reference point at the origin of
+      joint frame i (pinocchio LOCAL_WORLD_ALIGNED at the joint).
+    * Segment accelerations are returned in the same convention as Ẍ_N, per joint frame.
+      Like KDL, all segment accelerations (and hence Ẍ_N in the constraint) include Ẍ_0:
+      with gravity as Ẍ_0 = −g a segment at rest has Ẍ = [0, 0, +9.81, 0, 0, 0]. To
+      constrain the acceleration relative to the base, use b_N = A_Nᵀ(a_rel + Ẍ_0 moved
+      to the tip origin).
+    * Reference for tests: the constrained Gauss problem built from pinocchio's M, the
+      LOCAL_WORLD_ALIGNED frame Jacobian J and drift J̇q̇ = getFrameAcceleration(...,
+      LOCAL_WORLD_ALIGNED) at q̈ = 0 (plus Ẍ_0 moved to the tip) gives the same q̈.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ifc_spg.dynamics.chain import chain_from_model
+from ifc_spg.errors import ParameterError
+
+__all__ = ['VereshchaginResult', 'VereshchaginSolver']
+
+
+@dataclass(frozen=True)
+class VereshchaginResult:
+    """Output of :meth:`VereshchaginSolver.solve`.
+
+    Attributes:
+        qdd: Joint accelerations q̈ in [rad/s^2] or [m/s^2], shape (n,).
+        nu: Constraint force magnitudes ν, shape (m,); the constraint exerts −A_N ν on the
+            last segment (KDL sign).
+        tau_control: Control torques τ − J_Nᵀ A_N ν in [Nm] / [N], shape (n,): applied
+            as joint torques without the constraint (e.g. to ABA) they produce ``qdd``.
+        tau_constraint: The constraint part −J_Nᵀ A_N ν, shape (n,).
+        segment_accelerations: Spatial accelerations of the joint frames, base axes,
+            [linear; angular], shape (n, 6) (includes the base acceleration, i.e. −g).
+        tip_acceleration: Spatial acceleration Ẍ_N of the tip frame, shape (6,).
+        constraint_residual: A_Nᵀ Ẍ_N − b_N, shape (m,) (≈ 0 unless ``singular``).
+        singular: True when the constraint coupling matrix 𝓛 is rank-deficient
+            (singular configuration or more constraints than DoF); ν is then the damped
+            least-squares solution and the constraints hold only as far as possible.
+        rank: Numerical rank of 𝓛.
+        coupling: The constraint coupling matrix 𝓛_0, shape (m, m) (negative semidefinite).
+        gauss: Acceleration energy Z(q̈) in [Nm/s^2] (report eq. 4.1 with the torques that
+            were applied), or NaN unless requested with ``gauss=True``.
+    """
+
+    qdd: np.ndarray
+    nu: np.ndarray
+    tau_control: np.ndarray
+    tau_constraint: np.ndarray
+    segment_accelerations: np.ndarray
+    tip_acceleration: np.ndarray
+    constraint_residual: np.ndarray
+    singular: bool
+    rank: int
+    coupling: np.ndarray
+    gauss: float
+
+
+_outer = np.multiply.outer
+
+
+def _skew_map(dim):
+    """Constant E with (x @ E).reshape(-1, dim, dim) = the cross-product matrix of x."""
+    if dim == 3:
+        E = np.zeros((3, 3, 3))
+        for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+            E[i, k, j] = 1.0       # [x]_kj = x_i for (k, j) = (2, 1) ...
+            E[i, j, k] = -1.0
+        return E.reshape(3, 9)
+    # motion cross product crm(v) = [[w^, vl^], [0, w^]] for v = [vl; w]
+    S3 = _skew_map(3).reshape(3, 3, 3)
+    E = np.zeros((6, 6, 6))
+    E[3:, :3, :3] = S3
+    E[3:, 3:, 3:] = S3
+    E[:3, :3, 3:] = S3
+    return E.reshape(6, 36)
+
+
+_SKEW3 = _skew_map(3)
+_CRM = _skew_map(6)
+
+
+class VereshchaginSolver:
+    """Popov-Vereshchagin hybrid dynamics solver for a serial chain.
+
+    Args:
+        model: pinocchio ``Model`` (or :class:`ifc_spg.RobotModel`) of a fixed-base
+            serial chain of revolute / continuous / prismatic joints. Rotor inertias are
+            taken from ``model.armature``. The model is not modified.
+        tip_frame: Frame on the last segment where A_N acts (default: last joint frame).
+        rank_tol: 𝓛 counts as rank-deficient when its smallest eigenvalue magnitude is
+            below ``rank_tol`` times the largest.
+        damping: Relative damping δ of the damped least-squares inverse used when 𝓛 is
+            rank-deficient: ν = argmin ‖𝓛ν − r‖² + (δ λ_max)² ‖ν‖².
+    """
+
+    def __init__(self, model, *, tip_frame=None, rank_tol=1e-9, damping=1e-6):
+        self.chain = chain_from_model(model, tip_frame)
+        self.model = self.chain.model
+        self.n = self.chain.n
+        if not rank_tol > 0 or not damping > 0:
+            raise ParameterError(f'rank_tol and damping must be > 0, got rank_tol={rank_tol}, '
+                                 f'damping={damping}')
+        self.rank_tol = float(rank_tol)
+        self.damping = float(damping)
+        c = self.chain
+        n = self.n
+        self._revf = c.revolute.astype(float)
+        self._prisf = 1.0 - self._revf
+        self._rev3 = c.revolute[:, None]
+        self._H = np.zeros((n, 4, 4))
+        self._H[:, 3, 3] = 1.0
+        self._T = np.zeros((n, 4, 4))
+        self._eye3 = np.eye(3)
+        self._mI = c.mass[:, None, None] * np.eye(3)
+        self._gravity0 = -np.asarray(self.model.gravity.vector, dtype=float)
+        self._zeros6 = np.zeros(6)
+
+    # -- public API ------------------------------------------------------------------------
+    def solve(self, q, qd, tau=None, *, base_acceleration=None, external_wrenches=None,
+              A_N=None, b_N=None, gauss=False):
+        """Solve the constrained hybrid dynamics problem once.
+
+        Args:
+            q: Configuration, pinocchio convention, shape (nq,) [rad] / [m].
+            qd: Joint velocities, shape (n,) [rad/s] / [m/s].
+            tau: Feed-forward joint torques, shape (n,) [Nm] / [N] (default 0).
+            base_acceleration: Ẍ_0, shape (6,) [m/s^2, rad/s^2]; default −model.gravity.
+            external_wrenches: Wrenches on the segments, shape (n, 6) [N, Nm] (see module
+                docstring for frames), or None.
+            A_N: Unit constraint wrenches on the last segment, shape (6, m), m ≤ 6.
+            b_N: Desired constraint accelerations ("acceleration energy"), shape (m,).
+            gauss: Also evaluate the acceleration energy Z(q̈).
+
+        Returns:
+            VereshchaginResult.
+
+        Raises:
+            ParameterError: An input has the wrong shape or is not finite.
+        """
+        th, qd, tau, a0, fext, A, b = self._check(q, qd, tau, base_acceleration,
+                                                  external_wrenches, A_N, b_N)
+        out = self._sweeps(th, qd, tau[:, None], a0, fext, A, b)
+        return self._result(out, np.ones(1), tau, A, b, gauss)
+
+    def solve_with_sensitivity(self, q, qd, tau=None, *, joints=(), base_acceleration=None,
+                               external_wrenches=None, A_N=None, b_N=None):
+        """One pass giving q̈(τ) and the response of q̈ to unit torques at ``joints``.
+
+        q̈ is affine in the joint torques, q̈(τ + Σ_j μ_j e_j) = q̈(τ) + G μ (report eq.
+        5.10, the characteristic equation); the sweeps carry the unit-torque columns along
+        with the actual right-hand side, so G costs no extra pass.
+
+        Returns:
+            ``(base, G, combine)`` where ``base`` is the :class:`VereshchaginResult` for
+            ``tau``, ``G`` has shape (n, len(joints)) with G[:, k] = ∂q̈/∂τ_joints[k], and
+            ``combine(mu, gauss=False)`` returns the full result for τ + Σ μ_k e_{joints[k]}
+            without another pass.
+        """
+        th, qd, tau, a0, fext, A, b = self._check(q, qd, tau, base_acceleration,
+                                                  external_wrenches, A_N, b_N)
+        joints = np.asarray(joints, dtype=int).reshape(-1)
+        k = joints.size
+        T = np.zeros((self.n, 1 + k))
+        T[:, 0] = tau
+        T[joints, 1 + np.arange(k)] = 1.0
+        out = self._sweeps(th, qd, T, a0, fext, A, b)
+        G = out['qdd'][:, 1:].copy()
+        G.setflags(write=False)
+
+        def combine(mu, gauss=False):
+            mu = np.asarray(mu, dtype=float).reshape(k)
+            t = tau.copy()
+            t[joints] += mu
+            return self._result(out, np.concatenate(([1.0], mu)), t, A, b, gauss)
+
+        return self._result(out, np.concatenate(([1.0], np.zeros(k))), tau, A, b, False), G, \
+            combine
+
+    # -- input checks (boundary) -----------------------------------------------------------
+    def _check(self, q, qd, tau, a0, fext, A, b):
+        n = self.n
+        th = self.chain.joint_angles(q)
+        qd = np.asarray(qd, dtype=float)
+        if qd.shape != (n,):
+            raise ParameterError(f'qd must have shape ({n},), got {qd.shape}')
+        if tau is None:
+            tau = np.zeros(n)
+        else:
+            tau = np.asarray(tau, dtype=float)
+            if tau.shape != (n,):
+                raise ParameterError(f'tau must have shape ({n},), got {tau.shape}')
+        if a0 is None:
+            a0 = self._gravity0
+        else:
+            a0 = np.asarray(a0, dtype=float)
+            if a0.shape != (6,):
+                raise ParameterError(f'base_acceleration must have shape (6,) [linear; '
+                                     f'angular], got {a0.shape}; gravity enters as -g, e.g. '
+                                     '[0, 0, 9.81, 0, 0, 0]')
+        if fext is not None:
+            fext = np.asarray(fext, dtype=float)
+            if fext.shape != (n, 6):
+                raise ParameterError(f'external_wrenches must have shape ({n}, 6) (one '
+                                     f'[force; moment] per segment), got {fext.shape}')
+        if A is None:
+            if b is not None and np.size(b):
+                raise ParameterError('b_N given without A_N')
+            A = np.zeros((6, 0))
+            b = np.zeros(0)
+        else:
+            A = np.asarray(A, dtype=float)
+            if A.ndim == 1:
+                A = A[:, None]
+            if A.ndim != 2 or A.shape[0] != 6 or A.shape[1] > 6:
+                raise ParameterError(f'A_N must have shape (6, m) with m <= 6 (one unit '
+                                     f'constraint wrench per column), got {A.shape}')
+            b = np.zeros(A.shape[1]) if b is None else np.asarray(b, dtype=float).reshape(-1)
+            if b.shape != (A.shape[1],):
+                raise ParameterError(f'b_N must have shape ({A.shape[1]},) to match the '
+                                     f'{A.shape[1]} columns of A_N, got {b.shape}')
+        for name, x in (('q', th), ('qd', qd), ('tau', tau), ('base_acceleration', a0),
+                        ('A_N', A), ('b_N', b)):
+            if not np.isfinite(x).all():
+                raise ParameterError(f'{name} must be finite, got {np.asarray(x).tolist()}')
+        if fext is not None and not np.isfinite(fext).all():
+            raise ParameterError('external_wrenches must be finite')
+        return th, qd, tau, a0, fext, A, b
+
+    # -- the three sweeps ------------------------------------------------------------------
+    def _sweeps(self, th, qd, T, a0, fext, A, b):
+        """Run the sweeps for the torque columns T (n, r); column 0 carries the bias terms."""
+        c = self.chain
+        n = self.n
+        r = T.shape[1]
+        m = A.shape[1]
+        # ---- outward sweep 1: poses, velocities, bias accelerations and forces ----------
+        s = np.sin(th) * self._revf
+        cm = (1.0 - np.cos(th)) * self._revf
+        Rj = self._eye3 + s[:, None, None] * c.axis_skew + cm[:, None, None] * c.axis_skew2
+        H = self._H
+        np.matmul(c.R_parent, Rj, out=H[:, :3, :3])
+        H[:, :3, 3] = c.p_parent + np.einsum('nij,nj->ni', c.R_parent,
+                                             c.axis * (th * self._prisf)[:, None])
+        Tw = self._T
+        Tw[0] = H[0]
+        for i in range(1, n):                       # pose composition (the only loop here)
+            np.matmul(Tw[i - 1], H[i], out=Tw[i])
+        R = Tw[:, :3, :3]
+        p = Tw[:, :3, 3]
+        z = np.einsum('nij,nj->ni', R, c.axis)       # joint axes in base axes
+        S = np.empty((n, 6))                         # motion subspaces, base coordinates
+        pz = ((p @ _SKEW3).reshape(n, 3, 3) @ z[:, :, None])[:, :, 0]  # p x z
+        S[:, :3] = np.where(self._rev3, pz, z)
+        S[:, 3:] = z * self._revf[:, None]
+        Sq = S * qd[:, None]
+        V = np.cumsum(Sq, axis=0)                    # segment velocities
+        crm = (V @ _CRM).reshape(n, 6, 6)           # v x (motion cross product)
+        # spatial inertias in base coordinates (at the base origin)
+        cw = p + np.einsum('nij,nj->ni', R, c.com)
+        Icw = R @ c.inertia_com @ R.transpose(0, 2, 1)
+        mass = c.mass
+        C = (cw @ _SKEW3).reshape(n, 3, 3)
+        mC = mass[:, None, None] * C
+        Iw = np.empty((n, 6, 6))
+        Iw[:, :3, :3] = self._mI
+        Iw[:, :3, 3:] = -mC
+        Iw[:, 3:, :3] = mC
+        Iw[:, 3:, 3:] = Icw - mC @ C
+        h = (Iw @ V[:, :, None])
+        cb = (crm @ Sq[:, :, None])[:, :, 0]         # c_i = v_i x S_i qd_i
+        pb = -(crm.transpose(0, 2, 1) @ h)[:, :, 0]  # v_i x* I_i v_i  (x* = -crm^T)
+        if fext is not None:
+            pb[:, :3] -= fext[:, :3]
+            pb[:, 3:] -= fext[:, 3:] + (
+                (p @ _SKEW3).reshape(n, 3, 3) @ fext[:, :3, None])[:, :, 0]
+        # ---- inward sweep: articulated inertias, bias forces, constraint propagation ----
+        Ttip = Tw[n - 1] @ c.tip_placement
+        ptip = Ttip[:3, 3]
+        Aw = np.empty((6, m))                        # A_N moved to the base origin
+        Aw[:3] = A[:3]
+        Aw[3:] = A[3:] + (ptip @ _SKEW3).reshape(3, 3) @ A[:3]
+        # Mx = [I^A | p^A (r columns) | E (m columns)] of the current articulated body;
+        # one rank-1 update per joint projects all of them (report Alg. 1, lines 13-21).
+        k = 6 + r + m
+        Aug = np.zeros((n, 6, k))                    # rigid-body terms added per segment
+        Aug[:, :, :6] = Iw
+        Aug[:, :, 6] = pb
+        Taug = np.zeros((n, k))
+        Taug[:, 6:6 + r] = T
+        Mx = np.zeros((6, k))
+        Mx[:, 6 + r:] = Aw
+        xs = np.empty((n, k))                        # [U_i | S^T p^A - tau | S^T E_i]
+        Ds = np.empty(n)
+        Es = np.empty((n, 6, m))                     # E_{i-1} = P_i E_i
+        d = c.armature
+        for i in range(n - 1, -1, -1):
+            Mx += Aug[i]
+            Si = S[i]
+            x = Si @ Mx
+            D = d[i] + x[:6] @ Si
+            x -= Taug[i]
+            Mx -= _outer(x[:6] / D, x)
+            Mx[:, 6] += Mx[:, :6] @ cb[i]            # + I^a c_i
+            xs[i] = x
+            Ds[i] = D
+            Es[i] = Mx[:, 6 + r:]
+        E0 = Mx[:, 6 + r:]
+        Uv = xs[:, :6] / Ds[:, None]
+        u = -xs[:, 6:6 + r]
+        sE = xs[:, 6 + r:]
+        # ---- balance of acceleration energy at the base: nu = L0^-1 (b - E0^T a0 - U0) --
+        if m:
+            sED = sE / Ds[:, None]
+            L = -(sED.T @ sE)
+            U0 = sED.T @ u
+            U0[:, 0] += np.einsum('nkm,nk->m', Es, cb)
+            rhs = -U0
+            rhs[:, 0] += b - E0.T @ a0
+            lam, vec = np.linalg.eigh(-L)            # -L is symmetric positive semidefinite
+            lmax = max(lam[-1], 0.0)
+            tol = self.rank_tol * lmax
+            rank = int(np.count_nonzero(lam > tol)) if lmax > 0 else 0
+            singular = rank < m
+            if singular:
+                delta2 = (self.damping * lmax) ** 2 if lmax > 0 else 1e-300
+                inv = lam / (lam * lam + delta2)
+            else:
+                inv = 1.0 / lam
+            nu = -(vec * inv) @ (vec.T @ rhs)        # L^-1 = -V diag(1/lam) V^T
+            K = (u - sE @ nu) / Ds[:, None]
+        else:
+            L = np.zeros((0, 0))
+            nu = np.zeros((0, r))
+            rank, singular = 0, False
+            K = u / Ds[:, None]
+        # ---- outward sweep 2: joint and segment accelerations ----------------------------
+        # a_i = a0 + C_i + sum_{k<=i} S_k qdd_k with C_i = sum_{k<=i} c_k (cumulative sum)
+        Cb = np.cumsum(cb, axis=0) + a0
+        K[:, 0] -= np.einsum('ni,ni->n', Uv, Cb)
+        qdd = np.empty((n, r))
+        a = np.zeros((6, r))
+        for i in range(n):
+            qi = K[i] - Uv[i] @ a
+            a += _outer(S[i], qi)
+            qdd[i] = qi
+        acc = np.cumsum(S[:, :, None] * qdd[:, None, :], axis=0)
+        acc[:, :, 0] += Cb
+        return {'qdd': qdd, 'acc': acc, 'nu': nu, 'L': L, 'rank': rank, 'singular': singular,
+                'S': S, 'p': p, 'ptip': ptip, 'Aw': Aw, 'Iw': Iw, 'pb': pb}
+
+    def _result(self, out, wts, tau, A, b, gauss):
+        """Combine the columns of a sweep with weights ``wts`` into a result."""
+        qdd = out['qdd'] @ wts
+        nu = out['nu'] @ wts
+        acc = out['acc'] @ wts                       # (n, 6), base coordinates
+        S, p = out['S'], out['p']
+        tau_c = -(S @ (out['Aw'] @ nu))
+        seg = acc.copy()                             # shift to the joint-frame origins
+        seg[:, :3] -= ((p @ _SKEW3).reshape(-1, 3, 3) @ acc[:, 3:, None])[:, :, 0]
+        a_n = acc[-1]
+        tip = a_n.copy()
+        tip[:3] -= (out['ptip'] @ _SKEW3).reshape(3, 3) @ a_n[3:]
+        zval = np.nan
+        if gauss:
+            Iw, pb = out['Iw'], out['pb']
+            zval = float(0.5 * np.einsum('ni,nij,nj->', acc, Iw, acc) + np.sum(pb * acc)
+                         + 0.5 * np.sum(self.chain.armature * qdd * qdd) - tau @ qdd)
+        return VereshchaginResult(
+            qdd=qdd, nu=nu, tau_control=tau + tau_c, tau_constraint=tau_c,
+            segment_accelerations=seg, tip_acceleration=tip,
+            constraint_residual=A.T @ tip - b, singular=out['singular'], rank=out['rank'],
+            coupling=out['L'], gauss=zval)

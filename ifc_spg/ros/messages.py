@@ -1,0 +1,379 @@
+"""Built-in ROS 2 message classes (used when rclpy's message packages are not importable).
+
+Field names, defaults and value types follow rclpy's generated classes: numeric sequences are
+``array.array`` (lists, tuples and numpy arrays are accepted and converted by the constructor
+and accepted as they are by the serializer), string sequences are lists, ``byte`` fields are
+``bytes`` of length 1, ``Quaternion.w`` defaults to 1.0. Each class knows its ROS type name
+(``_TYPE``), its DDS type name (``_DDS_TYPE``, as ``rmw_cyclonedds_cpp`` names it) and its
+Jazzy type hash (``_HASH``, RIHS01, checked against rosbags in the tests).
+
+    msg = JointState(name=['a1'], position=[0.1])
+    data = serialize(msg)          # CDR bytes with the 4-byte encapsulation header
+    same = deserialize(JointState, data)
+"""
+
+import array
+
+import numpy as np
+
+from ifc_spg.errors import ParameterError
+from ifc_spg.ros.cdr import CDR_HEADER, PRIMITIVES, compile_codec, parse_field_type
+
+__all__ = [
+    'Message', 'REGISTRY', 'serialize', 'deserialize', 'dds_type_name',
+    'Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'MultiArrayLayout',
+    'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose', 'PoseStamped',
+    'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus', 'DiagnosticArray',
+    'Gid', 'NodeEntitiesInfo', 'ParticipantEntitiesInfo',
+]
+
+REGISTRY = {}
+
+
+def dds_type_name(ros_type):
+    """Return the DDS type name rmw_cyclonedds uses: ``pkg/msg/T`` -> ``pkg::msg::dds_::T_``."""
+    pkg, sub, name = ros_type.split('/')
+    return f'{pkg}::{sub}::dds_::{name}_'
+
+
+def _default_factory(ftype):
+    base, kind, length = parse_field_type(ftype)
+    if kind == 'sequence':
+        code = PRIMITIVES.get(base, (None, None, None))[2]
+        if code is not None:
+            return lambda: array.array(code)
+        return list
+    if kind == 'array':
+        code = PRIMITIVES.get(base, (None, None, None))[2]
+        if code is not None:
+            return lambda: array.array(code, bytes(length * array.array(code).itemsize))
+        if base == 'string':
+            return lambda: [''] * length
+        if base in PRIMITIVES:
+            zero = _default_factory(base)
+            return lambda: [zero() for _ in range(length)]
+        return lambda: [REGISTRY[base]() for _ in range(length)]
+    if base == 'string':
+        return str
+    if base == 'bool':
+        return bool
+    if base == 'byte':
+        return lambda: b'\x00'
+    if base in ('float32', 'float64'):
+        return float
+    if base in PRIMITIVES:
+        return int
+    return lambda: REGISTRY[base]()
+
+
+def _converter(ftype):
+    """Return a function normalising a constructor value like rclpy's setters, or None."""
+    base, kind, _ = parse_field_type(ftype)
+    code = PRIMITIVES.get(base, (None, None, None))[2]
+    if kind != 'single' and code is not None:
+        def to_array(value, code=code):
+            if type(value) is array.array and value.typecode == code:
+                return value
+            out = array.array(code)
+            if hasattr(value, 'dtype'):  # numpy array: one buffer copy
+                out.frombytes(np.ascontiguousarray(value, dtype=out.typecode).tobytes())
+            else:
+                out.extend(value)
+            return out
+        return to_array
+    if kind != 'single':
+        return list
+    if base in ('float32', 'float64'):
+        return float
+    return None
+
+
+class Message:
+    """Base of the built-in message classes: keyword constructor, equality, repr."""
+
+    __slots__ = ()
+    _TYPE = ''
+    _FIELDS = ()
+    _DEFAULTS = {}
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls._DDS_TYPE = dds_type_name(cls._TYPE)
+        cls._FACTORIES = tuple((name, _default_factory(ftype), _converter(ftype))
+                               for name, ftype in cls._FIELDS)
+        REGISTRY[cls._TYPE] = cls
+        cls._codec = None
+
+    def __init__(self, **kwargs):
+        for name, factory, convert in self._FACTORIES:
+            if name in kwargs:
+                value = kwargs.pop(name)
+                setattr(self, name, convert(value) if convert is not None else value)
+            elif name in self._DEFAULTS:
+                setattr(self, name, self._DEFAULTS[name])
+            else:
+                setattr(self, name, factory())
+        if kwargs:
+            bad = sorted(kwargs)[0]
+            fields = [n for n, _ in self._FIELDS]
+            raise ParameterError(f"{type(self).__name__} has no field '{bad}'; fields: "
+                                 f"{', '.join(fields)}")
+
+    @classmethod
+    def get_fields_and_field_types(cls):
+        """Return ``{field name: ROS type string}`` like rclpy's generated classes."""
+        return dict(cls._FIELDS)
+
+    def __eq__(self, other):
+        if type(other) is not type(self):
+            return NotImplemented
+        for name, _ in self._FIELDS:
+            a, b = getattr(self, name), getattr(other, name)
+            if isinstance(a, array.array) or isinstance(b, array.array):
+                a, b = list(a), list(b)
+            if a != b:
+                return False
+        return True
+
+    def __repr__(self):
+        inner = ', '.join(f'{name}={getattr(self, name)!r}' for name, _ in self._FIELDS)
+        return f'{self._TYPE.replace("/msg/", ".msg.").replace("/", ".")}({inner})'
+
+
+def _codec(cls):
+    if cls._codec is None:
+        cls._codec = compile_codec(cls, REGISTRY)
+    return cls._codec
+
+
+def serialize(msg):
+    """Return the CDR bytes (with the 4-byte header) of a built-in message, as rosbags does."""
+    b = bytearray(CDR_HEADER)
+    _codec(type(msg))[0](msg, b)
+    return bytes(b)
+
+
+def deserialize(cls, data):
+    """Decode CDR bytes (with header) into an instance of built-in message class ``cls``."""
+    view = memoryview(data)
+    if len(view) < 4 or view[1] != 1:
+        raise ParameterError(f'{cls._TYPE}: expected little-endian plain CDR (header 00 01), got '
+                             f'{bytes(view[:4]).hex()}')
+    try:
+        msg, _ = _codec(cls)[1](view[4:], 0)
+    except Exception as exc:  # struct.error, ValueError, UnicodeDecodeError on truncated data
+        raise ParameterError(f'{cls._TYPE}: cannot decode {len(view)} CDR bytes: {exc}') from exc
+    return msg
+
+
+# builtin_interfaces ---------------------------------------------------------------------------
+
+class Time(Message):
+    """builtin_interfaces/msg/Time: ``sec`` [s] and ``nanosec`` [ns]."""
+
+    __slots__ = ('sec', 'nanosec')
+    _TYPE = 'builtin_interfaces/msg/Time'
+    _FIELDS = (('sec', 'int32'), ('nanosec', 'uint32'))
+    _HASH = 'RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197'
+
+
+class Duration(Message):
+    """builtin_interfaces/msg/Duration: ``sec`` [s] and ``nanosec`` [ns]."""
+
+    __slots__ = ('sec', 'nanosec')
+    _TYPE = 'builtin_interfaces/msg/Duration'
+    _FIELDS = (('sec', 'int32'), ('nanosec', 'uint32'))
+    _HASH = 'RIHS01_e8d009f659816f758b75334ee1a9ca5b5c0b859843261f14c7f937349599d93b'
+
+
+# std_msgs -------------------------------------------------------------------------------------
+
+class Header(Message):
+    """std_msgs/msg/Header: ``stamp`` and ``frame_id``."""
+
+    __slots__ = ('stamp', 'frame_id')
+    _TYPE = 'std_msgs/msg/Header'
+    _FIELDS = (('stamp', 'builtin_interfaces/msg/Time'), ('frame_id', 'string'))
+    _HASH = 'RIHS01_f49fb3ae2cf070f793645ff749683ac6b06203e41c891e17701b1cb597ce6a01'
+
+
+class String(Message):
+    """std_msgs/msg/String: ``data``."""
+
+    __slots__ = ('data',)
+    _TYPE = 'std_msgs/msg/String'
+    _FIELDS = (('data', 'string'),)
+    _HASH = 'RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18'
+
+
+class MultiArrayDimension(Message):
+    """std_msgs/msg/MultiArrayDimension: ``label``, ``size``, ``stride``."""
+
+    __slots__ = ('label', 'size', 'stride')
+    _TYPE = 'std_msgs/msg/MultiArrayDimension'
+    _FIELDS = (('label', 'string'), ('size', 'uint32'), ('stride', 'uint32'))
+    _HASH = 'RIHS01_5e773a60a4c7fc8a54985f307c7837aa2994252a126c301957a24e31282c9cbe'
+
+
+class MultiArrayLayout(Message):
+    """std_msgs/msg/MultiArrayLayout: ``dim`` and ``data_offset``."""
+
+    __slots__ = ('dim', 'data_offset')
+    _TYPE = 'std_msgs/msg/MultiArrayLayout'
+    _FIELDS = (('dim', 'std_msgs/msg/MultiArrayDimension[]'), ('data_offset', 'uint32'))
+    _HASH = 'RIHS01_4c66e6f78e740ac103a94cf63259f968e48c617e7699e829b63c21a5cb50dac6'
+
+
+class Float64MultiArray(Message):
+    """std_msgs/msg/Float64MultiArray: ``layout`` and ``data``."""
+
+    __slots__ = ('layout', 'data')
+    _TYPE = 'std_msgs/msg/Float64MultiArray'
+    _FIELDS = (('layout', 'std_msgs/msg/MultiArrayLayout'), ('data', 'float64[]'))
+    _HASH = 'RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f'
+
+
+# sensor_msgs ----------------------------------------------------------------------------------
+
+class JointState(Message):
+    """sensor_msgs/msg/JointState: ``name``, ``position`` [rad|m], ``velocity``, ``effort``."""
+
+    __slots__ = ('header', 'name', 'position', 'velocity', 'effort')
+    _TYPE = 'sensor_msgs/msg/JointState'
+    _FIELDS = (('header', 'std_msgs/msg/Header'), ('name', 'string[]'),
+               ('position', 'float64[]'), ('velocity', 'float64[]'), ('effort', 'float64[]'))
+    _HASH = 'RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e'
+
+
+# geometry_msgs --------------------------------------------------------------------------------
+
+class Vector3(Message):
+    """geometry_msgs/msg/Vector3: ``x``, ``y``, ``z``."""
+
+    __slots__ = ('x', 'y', 'z')
+    _TYPE = 'geometry_msgs/msg/Vector3'
+    _FIELDS = (('x', 'float64'), ('y', 'float64'), ('z', 'float64'))
+    _HASH = 'RIHS01_cc12fe83e4c02719f1ce8070bfd14aecd40f75a96696a67a2a1f37f7dbb0765d'
+
+
+class Point(Message):
+    """geometry_msgs/msg/Point: ``x``, ``y``, ``z`` [m]."""
+
+    __slots__ = ('x', 'y', 'z')
+    _TYPE = 'geometry_msgs/msg/Point'
+    _FIELDS = (('x', 'float64'), ('y', 'float64'), ('z', 'float64'))
+    _HASH = 'RIHS01_6963084842a9b04494d6b2941d11444708d892da2f4b09843b9c43f42a7f6881'
+
+
+class Quaternion(Message):
+    """geometry_msgs/msg/Quaternion: ``x``, ``y``, ``z``, ``w`` (``w`` defaults to 1)."""
+
+    __slots__ = ('x', 'y', 'z', 'w')
+    _TYPE = 'geometry_msgs/msg/Quaternion'
+    _FIELDS = (('x', 'float64'), ('y', 'float64'), ('z', 'float64'), ('w', 'float64'))
+    _DEFAULTS = {'w': 1.0}
+    _HASH = 'RIHS01_8a765f66778c8ff7c8ab94afcc590a2ed5325a1d9a076ffff38fbce36f458684'
+
+
+class Pose(Message):
+    """geometry_msgs/msg/Pose: ``position`` and ``orientation``."""
+
+    __slots__ = ('position', 'orientation')
+    _TYPE = 'geometry_msgs/msg/Pose'
+    _FIELDS = (('position', 'geometry_msgs/msg/Point'),
+               ('orientation', 'geometry_msgs/msg/Quaternion'))
+    _HASH = 'RIHS01_d501954e9476cea2996984e812054b68026ae0bfae789d9a10b23daf35cc90fa'
+
+
+class PoseStamped(Message):
+    """geometry_msgs/msg/PoseStamped: ``header`` and ``pose``."""
+
+    __slots__ = ('header', 'pose')
+    _TYPE = 'geometry_msgs/msg/PoseStamped'
+    _FIELDS = (('header', 'std_msgs/msg/Header'), ('pose', 'geometry_msgs/msg/Pose'))
+    _HASH = 'RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8'
+
+
+class Wrench(Message):
+    """geometry_msgs/msg/Wrench: ``force`` [N] and ``torque`` [Nm]."""
+
+    __slots__ = ('force', 'torque')
+    _TYPE = 'geometry_msgs/msg/Wrench'
+    _FIELDS = (('force', 'geometry_msgs/msg/Vector3'), ('torque', 'geometry_msgs/msg/Vector3'))
+    _HASH = 'RIHS01_018e8519d57c16adbe97c9fe1460ef21fec7e31bc541de3d653a35895677ce52'
+
+
+class WrenchStamped(Message):
+    """geometry_msgs/msg/WrenchStamped: ``header`` and ``wrench``."""
+
+    __slots__ = ('header', 'wrench')
+    _TYPE = 'geometry_msgs/msg/WrenchStamped'
+    _FIELDS = (('header', 'std_msgs/msg/Header'), ('wrench', 'geometry_msgs/msg/Wrench'))
+    _HASH = 'RIHS01_8dc3deaf06b2ab281f9f9a742a8961c328ca7cec16e3fd6586d3a5c83fa78f77'
+
+
+# diagnostic_msgs ------------------------------------------------------------------------------
+
+class KeyValue(Message):
+    """diagnostic_msgs/msg/KeyValue: ``key`` and ``value``."""
+
+    __slots__ = ('key', 'value')
+    _TYPE = 'diagnostic_msgs/msg/KeyValue'
+    _FIELDS = (('key', 'string'), ('value', 'string'))
+    _HASH = 'RIHS01_d68081eaa540288c5440753baecef0c4e16e81a5f78ad68902ded5100413bb42'
+
+
+class DiagnosticStatus(Message):
+    """diagnostic_msgs/msg/DiagnosticStatus: ``level`` (bytes: OK, WARN, ERROR, STALE), texts."""
+
+    __slots__ = ('level', 'name', 'message', 'hardware_id', 'values')
+    _TYPE = 'diagnostic_msgs/msg/DiagnosticStatus'
+    _FIELDS = (('level', 'byte'), ('name', 'string'), ('message', 'string'),
+               ('hardware_id', 'string'), ('values', 'diagnostic_msgs/msg/KeyValue[]'))
+    _HASH = 'RIHS01_b0e3e692ea2d54a8af2f4ef1930e81556a2db55216b771f8a7d2724ed47bf0e4'
+    OK = b'\x00'
+    WARN = b'\x01'
+    ERROR = b'\x02'
+    STALE = b'\x03'
+
+
+class DiagnosticArray(Message):
+    """diagnostic_msgs/msg/DiagnosticArray: ``header`` and ``status`` list."""
+
+    __slots__ = ('header', 'status')
+    _TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+    _FIELDS = (('header', 'std_msgs/msg/Header'),
+               ('status', 'diagnostic_msgs/msg/DiagnosticStatus[]'))
+    _HASH = 'RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e'
+
+
+# rmw_dds_common (graph discovery, ``ros_discovery_info``) -------------------------------------
+
+class Gid(Message):
+    """rmw_dds_common/msg/Gid: 16 bytes, the DDS GUID of an entity (Jazzy layout)."""
+
+    __slots__ = ('data',)
+    _TYPE = 'rmw_dds_common/msg/Gid'
+    _FIELDS = (('data', 'char[16]'),)
+    _HASH = 'RIHS01_a8e2f2bd4b156011c7ed7618c1db625ac341c2dc3ff09b8dd107f33f20dcec07'
+
+
+class NodeEntitiesInfo(Message):
+    """rmw_dds_common/msg/NodeEntitiesInfo: one node and the gids of its readers/writers."""
+
+    __slots__ = ('node_namespace', 'node_name', 'reader_gid_seq', 'writer_gid_seq')
+    _TYPE = 'rmw_dds_common/msg/NodeEntitiesInfo'
+    _FIELDS = (('node_namespace', 'string<=256'), ('node_name', 'string<=256'),
+               ('reader_gid_seq', 'rmw_dds_common/msg/Gid[]'),
+               ('writer_gid_seq', 'rmw_dds_common/msg/Gid[]'))
+    _HASH = 'RIHS01_8ecbfcad87fa92b9c1458f525b5faf5bf7cab9427a92524d72a394112992b5ab'
+
+
+class ParticipantEntitiesInfo(Message):
+    """rmw_dds_common/msg/ParticipantEntitiesInfo: a participant's gid and its nodes."""
+
+    __slots__ = ('gid', 'node_entities_info_seq')
+    _TYPE = 'rmw_dds_common/msg/ParticipantEntitiesInfo'
+    _FIELDS = (('gid', 'rmw_dds_common/msg/Gid'),
+               ('node_entities_info_seq', 'rmw_dds_common/msg/NodeEntitiesInfo[]'))
+    _HASH = 'RIHS01_e725f4a506958c79f95dd693b965722c57b19cd18e7eff984f49561b93dc985d'

@@ -1,0 +1,27 @@
+"""Message classes, backend-neutral: ``from ifc_spg.ros.msg import JointState``.
+
+With rclpy these are the real generated classes (sensor_msgs.msg.JointState, ...); otherwise the
+built-in ones of :mod:`ifc_spg.ros.messages`, with the same field names and wire format.
+"""
+
+from ifc_spg.ros import BACKEND
+
+__all__ = ['Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'MultiArrayLayout',
+           'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose',
+           'PoseStamped', 'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus',
+           'DiagnosticArray']
+
+if BACKEND == 'rclpy':
+    from builtin_interfaces.msg import Duration, Time
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from geometry_msgs.msg import (Point, Pose, PoseStamped, Quaternion, Vector3, Wrench,
+                                   WrenchStamped)
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import (Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout,
+                              String)
+else:
+    from ifc_spg.ros.messages import (DiagnosticArray, DiagnosticStatus, Duration,
+                                      Float64MultiArray, Header, JointState, KeyValue,
+                                      MultiArrayDimension, MultiArrayLayout, Point, Pose,
+                                      PoseStamped, Quaternion, String, Time, Vector3, Wrench,
+                                      WrenchStamped)

@@ -1,0 +1,135 @@
+"""Node parameters: Parameter, ParameterDescriptor and ranges with rcl_interfaces' field names.
+
+Declaring follows rclpy: the override (``-p`` / params file) wins over the default, its type must
+equal the default's type (rclpy does not coerce ``1`` to ``1.0``), ranges and ``read_only`` of
+the descriptor are enforced.
+"""
+
+import dataclasses
+import enum
+import math
+
+from ifc_spg.errors import ParameterError
+
+__all__ = ['Parameter', 'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange',
+           'ParameterType', 'check_parameter_value']
+
+
+class ParameterType(enum.IntEnum):
+    """rcl_interfaces/msg/ParameterType values."""
+
+    PARAMETER_NOT_SET = 0
+    PARAMETER_BOOL = 1
+    PARAMETER_INTEGER = 2
+    PARAMETER_DOUBLE = 3
+    PARAMETER_STRING = 4
+    PARAMETER_BYTE_ARRAY = 5
+    PARAMETER_BOOL_ARRAY = 6
+    PARAMETER_INTEGER_ARRAY = 7
+    PARAMETER_DOUBLE_ARRAY = 8
+    PARAMETER_STRING_ARRAY = 9
+
+    @classmethod
+    def of(cls, value):
+        """The ParameterType of a Python value; raises ParameterError if unsupported."""
+        if value is None:
+            return cls.PARAMETER_NOT_SET
+        for py, single, array in ((bool, cls.PARAMETER_BOOL, cls.PARAMETER_BOOL_ARRAY),
+                                  (int, cls.PARAMETER_INTEGER, cls.PARAMETER_INTEGER_ARRAY),
+                                  (float, cls.PARAMETER_DOUBLE, cls.PARAMETER_DOUBLE_ARRAY),
+                                  (str, cls.PARAMETER_STRING, cls.PARAMETER_STRING_ARRAY)):
+            if type(value) is py:
+                return single
+            if isinstance(value, (list, tuple)) and value and all(type(v) is py for v in value):
+                return array
+        if isinstance(value, (bytes, bytearray)):
+            return cls.PARAMETER_BYTE_ARRAY
+        raise ParameterError(f'unsupported parameter value {value!r} ({type(value).__name__}); '
+                             'use bool, int, float, str or a non-empty list of one of them')
+
+
+@dataclasses.dataclass
+class FloatingPointRange:
+    """rcl_interfaces/msg/FloatingPointRange: ``from_value`` <= v <= ``to_value``, ``step``."""
+
+    from_value: float = 0.0
+    to_value: float = 0.0
+    step: float = 0.0
+
+
+@dataclasses.dataclass
+class IntegerRange:
+    """rcl_interfaces/msg/IntegerRange: ``from_value`` <= v <= ``to_value``, ``step``."""
+
+    from_value: int = 0
+    to_value: int = 0
+    step: int = 0
+
+
+@dataclasses.dataclass
+class ParameterDescriptor:
+    """rcl_interfaces/msg/ParameterDescriptor (the fields rclpy nodes set)."""
+
+    name: str = ''
+    type: int = 0
+    description: str = ''
+    additional_constraints: str = ''
+    read_only: bool = False
+    dynamic_typing: bool = False
+    floating_point_range: list = dataclasses.field(default_factory=list)
+    integer_range: list = dataclasses.field(default_factory=list)
+
+
+class Parameter:
+    """A named, typed parameter value (``.name``, ``.value``, ``.type_``)."""
+
+    Type = ParameterType
+
+    def __init__(self, name, type_=None, value=None):
+        if isinstance(type_, ParameterType) or type_ is None:
+            self.value = value
+        else:  # Parameter(name, value) convenience
+            self.value = type_
+        self.name = name
+        self.type_ = ParameterType.of(self.value)
+
+    def __repr__(self):
+        return f'Parameter({self.name!r}, {self.value!r})'
+
+
+def _in_range(value, rng, tol):
+    lo, hi, step = rng.from_value, rng.to_value, rng.step
+    if value < lo - tol or value > hi + tol:
+        return False
+    if step and not (abs(value - hi) <= tol):
+        k = (value - lo) / step
+        return abs(k - round(k)) <= (tol / step if tol else 0)
+    return True
+
+
+def check_parameter_value(name, value, descriptor, expected_type=None):
+    """Raise ParameterError unless ``value`` fits the descriptor's type and range.
+
+    Args:
+        name: Parameter name (for messages).
+        value: The value.
+        descriptor: ParameterDescriptor.
+        expected_type: The declared ParameterType (None: any).
+    """
+    ptype = ParameterType.of(value)
+    if expected_type not in (None, ParameterType.PARAMETER_NOT_SET) and \
+            ptype != expected_type and not descriptor.dynamic_typing:
+        hint = ' (write 1.0, not 1, for a double)' if \
+            expected_type == ParameterType.PARAMETER_DOUBLE and ptype == \
+            ParameterType.PARAMETER_INTEGER else ''
+        raise ParameterError(f"parameter '{name}': value {value!r} has type {ptype.name}, "
+                             f'expected {ParameterType(expected_type).name}{hint}')
+    for rng, kind, tol in ((descriptor.floating_point_range, float, 1e-9),
+                           (descriptor.integer_range, int, 0)):
+        if rng and isinstance(value, (int, float)) and not isinstance(value, bool):
+            r = rng[0]
+            if not math.isfinite(value) or not _in_range(value, r, tol):
+                raise ParameterError(
+                    f"parameter '{name}': value {value!r} is outside its range "
+                    f'[{r.from_value}, {r.to_value}]' + (f' step {r.step}' if r.step else '') +
+                    (f' ({descriptor.description})' if descriptor.description else ''))

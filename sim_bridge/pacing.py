@@ -1,0 +1,78 @@
+"""Wall-clock pacing with absolute deadlines (the bridge's ``realtime`` mode).
+
+A plain ``sleep(period)`` drifts (2.1 ms periods for 2 ms requested here): each period adds
+the wake-up latency. :class:`DeadlinePacer` keeps an absolute schedule t_k = t_0 + k T,
+sleeps (or does useful waiting, e.g. DDS spinning) until ``spin_margin`` before the deadline
+and busy-spins the rest, which gave p99 lateness of tens of µs on this machine.
+"""
+
+import time
+
+import numpy as np
+
+__all__ = ['DeadlinePacer']
+
+
+class DeadlinePacer:
+    """Absolute-deadline pacer.
+
+    Args:
+        period: Period T in [s].
+        spin_margin: Busy-spin the last part of each period, in [s] (0.2-0.5 ms).
+        clock: Monotonic clock returning [s].
+    """
+
+    def __init__(self, period, spin_margin=0.0003, clock=time.perf_counter):
+        self.period = float(period)
+        self.spin_margin = float(spin_margin)
+        self._clock = clock
+        self._next = None
+        self.overruns = 0
+        self._lateness = []
+
+    def start(self):
+        """Start the schedule now; the first deadline is one period ahead."""
+        self._next = self._clock() + self.period
+
+    def time_to_deadline(self):
+        """Seconds until the next deadline (negative when late)."""
+        return self._next - self._clock()
+
+    def wait(self, idle=None):
+        """Block until the next deadline, then advance it by one period.
+
+        Args:
+            idle: ``idle(timeout_s)`` called instead of sleeping while more than
+                ``spin_margin`` remains (e.g. to process incoming messages); it may return
+                early and is called again.
+
+        Returns:
+            The lateness of this wake-up in [s].
+        """
+        if self._next is None:
+            self.start()
+        while True:
+            remaining = self._next - self._clock() - self.spin_margin
+            if remaining <= 0:
+                break
+            if idle is not None:
+                idle(remaining)
+            else:
+                time.sleep(remaining)
+        while self._clock() < self._next:
+            pass
+        late = self._clock() - self._next
+        self._lateness.append(late)
+        self._next += self.period
+        if self._clock() > self._next:  # a whole period lost: resynchronise, count it
+            self.overruns += 1
+            self._next = self._clock() + self.period
+        return late
+
+    def stats(self):
+        """Lateness statistics in [s]: p50, p99, max, and the overrun count."""
+        if not self._lateness:
+            return {'p50': 0.0, 'p99': 0.0, 'max': 0.0, 'overruns': self.overruns, 'n': 0}
+        lat = np.asarray(self._lateness)
+        return {'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
+                'max': float(lat.max()), 'overruns': self.overruns, 'n': int(lat.size)}

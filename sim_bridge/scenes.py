@@ -1,0 +1,329 @@
+"""Scenes built programmatically with ``mujoco.MjSpec``, selectable by name.
+
+Every scene is placed relative to the robot's tool frame at the initial configuration
+(the :class:`Anchor`): mechanisms put their handle exactly at the tool, so the robot starts
+"in front of the device" with the handle in hand. Directions: ``u`` is the horizontal
+direction from the robot base to the tool ("forward"), ``v = z × u`` ("left"), ``z`` up.
+
+========================  ==============================================================
+scene                     what
+========================  ==============================================================
+``free``                  free space
+``table``                 a table whose top is ``gap`` below the tool frame; contact
+                          stiffness via ``solref = (timeconst [s], dampratio)``
+``obstacle``              a box ``offset`` [m] (world frame) from the tool
+``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel
+``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel
+``crank``                 crank, radius 0.17 m, axis along u, handle at the tool
+``cupboard_door``         vertical hinge, 20 N break-away latch at the handle
+``microwave_door``        vertical hinge on the other side, 15 N break-away latch
+========================  ==============================================================
+
+Mechanism scenes grasp the handle with ``grasp='weld'`` (default; tool and handle frames
+welded), ``'connect'`` (ball joint at the tool frame) or ``'none'``. Tool/mechanism
+contacts are excluded (the grasp carries the load). Scene geoms collide with the robot only
+(``contype=1, conaffinity=2``), never with each other.
+
+Break-away doors use a *latch*: a joint equality holding the door closed until the torque
+it carries reaches ``force × lever``; then it releases and the door swings with only a
+small hinge friction. It re-engages once the door was opened past 0.05 rad and comes back
+within 2 mrad of closed.
+"""
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from ifc_spg.errors import ParameterError, did_you_mean
+
+__all__ = ['SCENES', 'Anchor', 'Latch', 'SceneInfo', 'build_scene', 'scene_names']
+
+SCENE_CONTYPE = 1
+SCENE_CONAFFINITY = 2
+_GRASPS = ('weld', 'connect', 'none')
+#: Distance [m] from the handle to the mechanism's front (drawer front, door, crank plane)
+#: along u, so that a wrist above a downward-pointing tool clears the mechanism.
+STANDOFF = 0.1
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """Where the robot's tool is at the initial configuration (world frame).
+
+    Attributes:
+        tool_pos: Tool frame position in [m].
+        tool_rot: Tool frame rotation matrix (3x3).
+        base_pos: Robot base position in [m].
+        tool_site: MuJoCo site of the tool frame (the grasp attaches here).
+        tool_body: Body whose subtree is the tool (excluded from handle contacts).
+    """
+
+    tool_pos: np.ndarray
+    tool_rot: np.ndarray
+    base_pos: np.ndarray
+    tool_site: str
+    tool_body: str
+
+    def frame(self):
+        """Return the unit vectors (u forward, v left, z up) of the scene frame."""
+        u = np.array(self.tool_pos - self.base_pos, dtype=float)
+        u[2] = 0.0
+        if np.linalg.norm(u) < 1e-6:
+            u = np.array([1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        z = np.array([0.0, 0.0, 1.0])
+        return u, np.cross(z, u), z
+
+
+@dataclass(frozen=True)
+class Latch:
+    """A break-away latch on a mechanism hinge.
+
+    Attributes:
+        joint: The hinge joint name.
+        equality: The joint-equality constraint holding it closed.
+        force: Break-away force at the handle in [N].
+        lever: Handle distance from the hinge axis in [m].
+    """
+
+    joint: str
+    equality: str
+    force: float
+    lever: float
+
+    @property
+    def torque(self):
+        """Break-away torque in [Nm]."""
+        return self.force * self.lever
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """What the simulation needs to know about a built scene.
+
+    Attributes:
+        name: Scene name.
+        env_joints: Mechanism joint names, reported as environment joint states.
+        latches: Break-away latches.
+        handle_site: Site on the handle (a push target), or ``None``.
+        grasp: Name of the grasp equality, or ``None``.
+        options: The options used (defaults filled in).
+    """
+
+    name: str
+    env_joints: tuple = ()
+    latches: tuple = ()
+    handle_site: str = None
+    grasp: str = None
+    options: dict = field(default_factory=dict)
+
+
+def _scene_geom(body, **kw):
+    kw.setdefault('contype', SCENE_CONTYPE)
+    kw.setdefault('conaffinity', SCENE_CONAFFINITY)
+    return body.add_geom(**kw)
+
+
+def _box(body, pos, half, mass=0.0, rgba=(0.6, 0.5, 0.4, 1.0), name=''):
+    kw = {'type': mujoco.mjtGeom.mjGEOM_BOX, 'pos': np.asarray(pos, float),
+              'size': np.asarray(half, float), 'rgba': list(rgba), 'name': name}
+    if mass > 0:
+        kw['mass'] = mass
+    else:
+        kw['density'] = 0.0
+    return _scene_geom(body, **kw)
+
+
+def _rot_columns(a, b, c):
+    """Quaternion of the rotation whose columns are a, b, c."""
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.column_stack([a, b, c]).reshape(-1))
+    return quat
+
+
+def _mechanism_body(spec, anchor, name, pos):
+    """A body at ``pos`` whose frame is the scene frame (x forward, y left, z up)."""
+    u, v, z = anchor.frame()
+    return spec.worldbody.add_body(name=name, pos=np.asarray(pos, float),
+                                   quat=_rot_columns(u, v, z))
+
+
+def _add_handle(spec, body, anchor, grasp, axis):
+    """Handle bar at the tool, a site aligned with the tool frame, and the grasp.
+
+    Args:
+        axis: Direction of the handle bar in the body frame.
+    """
+    u, v, z = anchor.frame()
+    r_world_body = np.column_stack([u, v, z])
+    rel = r_world_body.T @ (anchor.tool_pos - np.asarray(body.pos, float))
+    a = np.asarray(axis, float)
+    b = np.cross([0.0, 0.0, 1.0], a) if abs(a[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    b /= np.linalg.norm(b)
+    _scene_geom(body, type=mujoco.mjtGeom.mjGEOM_CAPSULE, pos=rel, quat=_rot_columns(
+        b, np.cross(a, b), a), size=[0.012, 0.05, 0.0], mass=0.05, rgba=[0.2, 0.2, 0.2, 1],
+        name='handle')
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, (r_world_body.T @ np.asarray(anchor.tool_rot, float)).reshape(-1))
+    body.add_site(name='handle', pos=rel, quat=quat, size=[0.01, 0, 0])
+    spec.add_exclude(bodyname1=anchor.tool_body, bodyname2=body.name)
+    if grasp == 'none':
+        return None
+    eq_type = mujoco.mjtEq.mjEQ_WELD if grasp == 'weld' else mujoco.mjtEq.mjEQ_CONNECT
+    spec.add_equality(name='grasp', type=eq_type, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                      name1=anchor.tool_site, name2='handle')
+    return 'grasp'
+
+
+def _free(spec, anchor):
+    return {}
+
+
+def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4)):
+    top = anchor.tool_pos[2] - gap
+    table = spec.worldbody.add_body(name='table', pos=[anchor.tool_pos[0], anchor.tool_pos[1],
+                                                      top - 0.02])
+    g = _box(table, [0, 0, 0], [size[0], size[1], 0.02], name='table_top')
+    g.solref = list(solref)
+    return {}
+
+
+def _obstacle(spec, anchor, offset=(0.0, 0.15, 0.0), half_size=(0.04, 0.04, 0.1)):
+    body = spec.worldbody.add_body(name='obstacle', pos=anchor.tool_pos + np.asarray(offset))
+    _box(body, [0, 0, 0], half_size, name='obstacle', rgba=(0.8, 0.2, 0.2, 1))
+    return {}
+
+
+def _drawer(spec, anchor, vertical, mass=1.2, travel=0.3, damping=1.0, grasp='weld'):
+    u, _, _ = anchor.frame()
+    body = _mechanism_body(spec, anchor, 'drawer', anchor.tool_pos + STANDOFF * u)
+    body.add_joint(name='drawer', type=mujoco.mjtJoint.mjJNT_SLIDE,
+                   axis=[0, 0, 1] if vertical else [-1, 0, 0], range=[0.0, travel],
+                   damping=[damping, 0, 0])
+    depth, box_mass = 0.3, mass - 0.05
+    # Front panel facing the robot plus the drawer box behind it.
+    _box(body, [0.01, 0, 0], [0.01, 0.2, 0.08], mass=0.4 * box_mass, name='drawer_front')
+    _box(body, [0.02 + depth / 2, 0, -0.02], [depth / 2, 0.18, 0.05], mass=0.6 * box_mass,
+         name='drawer_box', rgba=(0.5, 0.4, 0.3, 1))
+    grasp_eq = _add_handle(spec, body, anchor, grasp, [0, 1, 0])
+    return {'env_joints': ('drawer',), 'handle_site': 'handle', 'grasp': grasp_eq}
+
+
+def _drawer_horizontal(spec, anchor, **kw):
+    return _drawer(spec, anchor, vertical=False, **kw)
+
+
+def _drawer_vertical(spec, anchor, **kw):
+    return _drawer(spec, anchor, vertical=True, **kw)
+
+
+def _crank(spec, anchor, radius=0.17, mass=0.5, damping=0.05, grasp='weld'):
+    u, _, z = anchor.frame()
+    body = _mechanism_body(spec, anchor, 'crank', anchor.tool_pos - radius * z + STANDOFF * u)
+    body.add_joint(name='crank', type=mujoco.mjtJoint.mjJNT_HINGE, axis=[-1, 0, 0],
+                   damping=[damping, 0, 0])
+    # Balanced crank: its centre of mass lies on the axis, so gravity exerts no torque.
+    body.explicitinertial = True
+    body.mass = mass
+    body.ipos = [0.0, 0.0, 0.0]
+    body.inertia = [mass * radius ** 2 / 3.0] * 3
+    _scene_geom(body, type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[0, 0, 0, 0, 0, radius],
+                size=[0.01, 0, 0], density=0.0, rgba=[0.4, 0.4, 0.5, 1], name='crank_arm')
+    _scene_geom(body, type=mujoco.mjtGeom.mjGEOM_CYLINDER, fromto=[0.02, 0, 0, 0.04, 0, 0],
+                size=[0.03, 0, 0], density=0.0, rgba=[0.3, 0.3, 0.3, 1], name='crank_hub')
+    grasp_eq = _add_handle(spec, body, anchor, grasp, [1, 0, 0])
+    return {'env_joints': ('crank',), 'handle_site': 'handle', 'grasp': grasp_eq}
+
+
+def _door(spec, anchor, side, force, lever, mass, damping=0.05, friction=0.05, grasp='weld',
+          latch=True):
+    u, v, _ = anchor.frame()
+    body = _mechanism_body(spec, anchor, 'door', anchor.tool_pos + STANDOFF * u + side * lever * v)
+    # A positive angle swings the handle towards the robot (-u).
+    body.add_joint(name='door', type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, -side],
+                   range=[0.0, 1.9], damping=[damping, 0, 0], frictionloss=friction)
+    width = lever + 0.06
+    _box(body, [0.01, -side * width / 2, 0], [0.01, width / 2, 0.25], mass=mass,
+         name='door_panel', rgba=(0.7, 0.7, 0.75, 1))
+    grasp_eq = _add_handle(spec, body, anchor, grasp, [0, 0, 1])
+    latches = ()
+    if latch:
+        eq = spec.add_equality(name='latch', type=mujoco.mjtEq.mjEQ_JOINT, name1='door',
+                               objtype=mujoco.mjtObj.mjOBJ_JOINT)
+        eq.solref = [0.004, 1.0]
+        latches = (Latch(joint='door', equality='latch', force=float(force),
+                         lever=float(lever)),)
+    return {'env_joints': ('door',), 'handle_site': 'handle', 'grasp': grasp_eq, 'latches': latches}
+
+
+def _cupboard_door(spec, anchor, force=20.0, lever=0.35, mass=1.5, **kw):
+    return _door(spec, anchor, side=-1.0, force=force, lever=lever, mass=mass, **kw)
+
+
+def _microwave_door(spec, anchor, force=15.0, lever=0.30, mass=1.0, **kw):
+    return _door(spec, anchor, side=1.0, force=force, lever=lever, mass=mass, **kw)
+
+
+#: Scene name -> builder ``f(spec, anchor, **options) -> dict`` (SceneInfo fields).
+SCENES = {
+    'free': _free,
+    'table': _table,
+    'obstacle': _obstacle,
+    'drawer_horizontal': _drawer_horizontal,
+    'drawer_vertical': _drawer_vertical,
+    'crank': _crank,
+    'cupboard_door': _cupboard_door,
+    'microwave_door': _microwave_door,
+}
+
+
+def scene_names():
+    """Return the scene names."""
+    return tuple(SCENES)
+
+
+def _check_options(name, builder, options):
+    import inspect
+    params = inspect.signature(builder).parameters
+    allowed = [p for p in params if p not in ('spec', 'anchor')]
+    if name in ('drawer_horizontal', 'drawer_vertical'):
+        allowed = [p for p in inspect.signature(_drawer).parameters
+                   if p not in ('spec', 'anchor', 'vertical')]
+    if name in ('cupboard_door', 'microwave_door'):
+        allowed = [p for p in inspect.signature(_door).parameters
+                   if p not in ('spec', 'anchor', 'side')]
+    for key in options:
+        if key not in allowed:
+            raise ParameterError(f"scene '{name}' has no option '{key}'"
+                                 f"{did_you_mean(key, allowed)}; options: "
+                                 f"{', '.join(allowed) or '(none)'}")
+    grasp = options.get('grasp', 'weld')
+    if grasp not in _GRASPS:
+        raise ParameterError(f"scene '{name}': grasp must be one of {', '.join(_GRASPS)}, "
+                             f"got '{grasp}'")
+
+
+def build_scene(spec, name, anchor, options=None):
+    """Add scene ``name`` to ``spec`` around ``anchor`` and describe it.
+
+    Args:
+        spec: The robot's ``MjSpec`` (modified in place).
+        name: A scene name (see :data:`SCENES`).
+        anchor: The :class:`Anchor` of the tool at the initial configuration.
+        options: Builder keyword options (e.g. ``{'solref': (0.005, 1)}`` for ``table``).
+
+    Raises:
+        ParameterError: Unknown scene or option.
+    """
+    if name not in SCENES:
+        raise ParameterError(f"unknown scene '{name}'{did_you_mean(name, SCENES)}; "
+                             f"available: {', '.join(SCENES)}")
+    options = dict(options or {})
+    builder = SCENES[name]
+    _check_options(name, builder, options)
+    # Robot bodies carry explicit inertials; scene bodies take theirs from their geoms.
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
+    spec.worldbody.add_light(name='scene_light', pos=[0, 0, 3], dir=[0, 0, -1])
+    info = builder(spec, anchor, **options)
+    return SceneInfo(name=name, options=options, **info)

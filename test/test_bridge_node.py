@@ -1,0 +1,133 @@
+"""In-process tests of the sim_bridge node on the built-in Cyclone DDS backend (loopback)."""
+
+import functools
+import operator
+
+import numpy as np
+import pytest
+
+from ifc_spg.errors import ParameterError
+from ifc_spg.ros import dds, messages
+from ifc_spg.ros.qos import qos_profile_sensor_data
+from ifc_spg.ros.testing import LOOPBACK_CONFIG, random_domain_id
+from sim_bridge.node import SimBridge, main, parse_push_frame
+from sim_bridge.simulation import Simulation
+
+pytestmark = pytest.mark.dds
+
+
+@pytest.fixture
+def domain(monkeypatch):
+    monkeypatch.setenv('CYCLONEDDS_URI', LOOPBACK_CONFIG)
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(random_domain_id()))
+    monkeypatch.setenv('IFC_SPG_ROS_BACKEND', 'cyclonedds')
+    yield
+    dds.shutdown()
+
+
+def _commands(k, q0):
+    return q0 + 0.05 * np.sin(0.02 * k + np.arange(len(q0)))
+
+
+class EchoSpg:
+    """A stand-in SPG: answers each joint state with q_v(k), stamped like the state."""
+
+    def __init__(self, node, q0, answer=lambda k: True):
+        self.node, self.q0, self.answer = node, np.asarray(q0), answer
+        self.states, self.contact, self.env = [], [], []
+        self.pub = node.create_publisher(messages.JointState, 'command/joint_position', 10)
+        node.create_subscription(messages.JointState, 'joint_states', self._on_state, 10)
+        node.create_subscription(messages.WrenchStamped, 'sim/contact_wrench',
+                                 self.contact.append, qos_profile_sensor_data)
+        node.create_subscription(messages.JointState, 'sim/env_joint_states', self.env.append,
+                                 10)
+
+    def _on_state(self, msg):
+        k = len(self.states)
+        self.states.append(msg)
+        if not self.answer(k):
+            return
+        cmd = messages.JointState(name=list(msg.name),
+                                  position=_commands(k, self.q0).tolist())
+        cmd.header.stamp = msg.header.stamp
+        self.pub.publish(cmd)
+
+
+def _bridge(args):
+    dds.init(['prog', '--ros-args', *functools.reduce(operator.iadd, (['-p', a] for a in args), [])])
+    node = dds.Node('sim_bridge')
+    spg_node = dds.Node('spg')
+    spin = node.context.executor((node, spg_node)).spin_once
+    bridge = SimBridge(node, spin=spin)
+    return bridge, spg_node, spin
+
+
+def test_lockstep_over_dds_equals_in_process_run(domain):
+    bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'scene:=drawer_horizontal',
+                                      'mode:=lockstep'])
+    spg = EchoSpg(spg_node, bridge.sim.q0)
+    assert dds.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
+                          nodes=(bridge.node, spg_node))
+    bridge.run_lockstep(max_ticks=40)
+    final = bridge.sim.read_state()
+    assert bridge.ticks == 40 and final.t == pytest.approx(0.08)
+    stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in spg.states[:40]]
+    np.testing.assert_allclose(stamps, 0.002 * np.arange(40), atol=1e-9)
+    # The same commands in process give bit-identical joint trajectories.
+    ref = Simulation(robot='lbr4', scene='drawer_horizontal')
+    for k in range(40):
+        np.testing.assert_array_equal(spg.states[k].position, ref.read_state().q)
+        ref.write_command(_commands(k, ref.q0))
+        ref.step(2)
+    np.testing.assert_array_equal(final.q, ref.read_state().q)
+    assert final.missed_commands == 0
+    assert dds.spin_until(lambda: spg.env and spg.contact, 2.0, nodes=(spg_node,))
+    assert list(spg.env[0].name) == ['drawer']
+    bridge.close()
+
+
+def test_realtime_holds_q_v_and_counts_missing_commands(domain):
+    bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=realtime'])
+    spg = EchoSpg(spg_node, bridge.sim.q0, answer=lambda k: k == 0)
+    assert dds.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
+                          nodes=(bridge.node, spg_node))
+    stats = bridge.run_realtime(max_ticks=100)
+    s = bridge.sim.read_state()
+    assert s.missed_commands >= 90  # one command, then nothing: held and counted
+    np.testing.assert_allclose(s.q_v, _commands(0, bridge.sim.q0))
+    assert stats['n'] == 100 and stats['p50'] < 0.002
+    bridge.close()
+
+
+def test_push_topic_moves_the_tool(domain):
+    bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=lockstep'])
+    pub = spg_node.create_publisher(messages.WrenchStamped, 'sim/apply_wrench', 10)
+    assert dds.spin_until(lambda: pub.get_subscription_count() == 1, 5.0,
+                          nodes=(bridge.node, spg_node))
+    push = messages.WrenchStamped()
+    push.header.frame_id = 'tool;duration=0.1'
+    push.wrench.force.z = 20.0
+    pub.publish(push)
+    assert dds.spin_until(lambda: bridge._pushes, 5.0, nodes=(bridge.node, spg_node))
+    bridge._apply_inputs()
+    z0 = bridge.sim.chain_pose('tool')[0][2]
+    bridge.sim.step(101)
+    assert bridge.sim.chain_pose('tool')[0][2] > z0 + 1e-3
+    assert bridge.sim._pushes == [] and not bridge.sim.data.xfrc_applied.any()  # expired
+    bridge.close()
+
+
+def test_push_frame_and_parameter_errors(domain):
+    assert parse_push_frame('handle;duration=2', 'tool', 0.5) == ('handle', 2.0)
+    assert parse_push_frame('', 'tool', 0.5) == ('tool', 0.5)
+    with pytest.raises(ParameterError, match='duration'):
+        parse_push_frame('tool;duration=abc', 'tool', 0.5)
+    with pytest.raises(ParameterError, match="mode 'fast'"):
+        _bridge(['mode:=fast'])
+
+
+def test_main_help_and_bad_parameter_exit_code(domain, capsys):
+    assert main(['sim_bridge', '--help']) == 0
+    assert 'lockstep' in capsys.readouterr().out
+    assert main(['sim_bridge', '--ros-args', '-p', 'scene:=tabel']) == 2
+    assert "did you mean 'table'" in capsys.readouterr().err

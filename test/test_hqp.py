@@ -1,0 +1,186 @@
+"""The strict-priority cascade against a slow reference (SPEC 3) and its properties."""
+
+import numpy as np
+import pytest
+
+from ifc_spg.hqp import DaqpCascade, ProxsuiteCascade, level_violation, make_solver
+from ifc_spg.errors import SolverError
+from ifc_spg.limits import VelocityBox
+from ifc_spg.tasks import Level
+
+from reference_hqp import reference_cascade
+
+RHO = 0.01
+
+
+def random_level(rng, n, previous, name):
+    m = int(rng.integers(1, min(6, n) + 1))
+    A = rng.normal(size=(m, n))
+    if previous and rng.random() < 0.3:  # a row dependent on a higher level: degenerate
+        prev = previous[int(rng.integers(len(previous)))].A
+        A[0] = rng.normal() * prev[int(rng.integers(prev.shape[0]))]
+    if rng.random() < 0.2:  # clamped / stiff joints: zero columns
+        A[:, rng.random(n) < 0.3] = 0.0
+    c = rng.normal(size=m)
+    kind = rng.choice(['eq', 'ineq', 'mixed'])
+    if kind == 'eq':
+        return Level(name, A, c, c.copy(), True)
+    lower = c - rng.uniform(0.0, 1.0, m)
+    upper = c + rng.uniform(0.0, 1.0, m)
+    lower[rng.random(m) < 0.2] = -np.inf
+    upper[rng.random(m) < 0.2] = np.inf
+    if kind == 'mixed':
+        k = rng.random(m) < 0.5
+        upper[k] = lower[k] = c[k]
+    return Level(name, A, lower, upper, False)
+
+
+def random_stack(rng, n):
+    levels = []
+    for i in range(int(rng.integers(2, 7))):
+        levels.append(random_level(rng, n, levels, f'L{i}'))
+    box = VelocityBox(-rng.uniform(0.05, 2.0, n), rng.uniform(0.05, 2.0, n))
+    return levels, box
+
+
+def cases(count, seed):
+    rng = np.random.default_rng(seed)
+    return [(n, *random_stack(rng, n)) for n in [7, 17] * (count // 2)]
+
+
+CASES = cases(240, seed=1)
+
+
+@pytest.mark.parametrize('solver_cls', [DaqpCascade])
+def test_cascade_matches_reference(solver_cls):
+    worst = 0.0
+    for n, levels, box in CASES:
+        solver = solver_cls(n, RHO)
+        res = solver.solve(levels, box)
+        assert res.status == 'ok'
+        ref, ref_slacks = reference_cascade(levels, box.lower, box.upper, RHO)
+        err = np.abs(res.qdot_v - ref).max()
+        worst = max(worst, err)
+        assert err < 1e-6, (n, err)
+        for s, r in zip(res.slacks, ref_slacks):
+            assert np.abs(s - r).max() < 1e-6
+    print(f'largest |qdot - reference| over {len(CASES)} stacks: {worst:.2e}')
+
+
+def test_proxsuite_cascade_close_to_reference():
+    # proxsuite is an iterative solver: agreement to its tolerance on well-posed stacks
+    worst = []
+    for n, levels, box in CASES[:60]:
+        res = ProxsuiteCascade(n, RHO).solve(levels, box)
+        if res.status != 'ok':
+            continue
+        ref, _ = reference_cascade(levels, box.lower, box.upper, RHO)
+        worst.append(np.abs(res.qdot_v - ref).max())
+    assert len(worst) >= 50
+    assert np.median(worst) < 1e-5
+
+
+def test_lower_levels_never_degrade_higher_levels():
+    worst = 0.0
+    for n, levels, box in CASES:
+        full = DaqpCascade(n, RHO).solve(levels, box).qdot_v
+        for j in range(len(levels) - 1):
+            upto = DaqpCascade(n, RHO).solve(levels[:j + 1], box).qdot_v
+            before = np.linalg.norm(level_violation(levels[j], upto))
+            after = np.linalg.norm(level_violation(levels[j], full))
+            worst = max(worst, after - before)
+            assert after <= before + 1e-6, (j, before, after)
+    print(f'largest strict-priority violation: {worst:.2e}')
+
+
+def test_box_is_never_violated_by_the_solver():
+    for n, levels, box in CASES:
+        res = DaqpCascade(n, RHO).solve(levels, box)
+        assert res.box_violation < 1e-9
+        assert np.all(res.qdot_v >= box.lower) and np.all(res.qdot_v <= box.upper)
+
+
+def feasible_stack(rng, n):
+    """Levels that a common qdot_true inside the box satisfies."""
+    box = VelocityBox(-rng.uniform(0.5, 2.0, n), rng.uniform(0.5, 2.0, n))
+    q_true = rng.uniform(0.5 * box.lower, 0.5 * box.upper)
+    levels = []
+    budget = n
+    for i in range(int(rng.integers(2, 5))):
+        m = int(rng.integers(1, 4))
+        A = rng.normal(size=(m, n))
+        a = A @ q_true
+        if rng.random() < 0.5 and budget >= m:
+            budget -= m
+            levels.append(Level(f'L{i}', A, a, a.copy(), True))
+        else:
+            levels.append(Level(f'L{i}', A, a - rng.uniform(0, 1, m), a + rng.uniform(0, 1, m),
+                                False))
+    return levels, box
+
+
+@pytest.mark.parametrize('n', [7, 17])
+def test_feasible_levels_have_zero_slack(n):
+    rng = np.random.default_rng(7 + n)
+    for _ in range(100):
+        levels, box = feasible_stack(rng, n)
+        res = DaqpCascade(n, rho=1e-9).solve(levels, box)
+        assert res.status == 'ok'
+        for lev, s in zip(levels, res.slacks):
+            assert np.abs(s).max() < 1e-6
+            assert np.abs(level_violation(lev, res.qdot_v)).max() < 1e-6
+
+
+def test_infeasible_level_gets_least_squares_compromise():
+    # two contradicting equality levels on the same row: the second keeps the first's value
+    A = np.array([[1.0, 1.0, 0.0]])
+    lv1 = Level('a', A, np.array([1.0]), np.array([1.0]), True)
+    lv2 = Level('b', A, np.array([3.0]), np.array([3.0]), True)
+    box = VelocityBox(np.full(3, -10.0), np.full(3, 10.0))
+    res = DaqpCascade(3, rho=1e-9).solve([lv1, lv2], box)
+    assert abs(A @ res.qdot_v - 1.0) < 1e-6
+    assert abs(res.slacks[1][0] - (-2.0)) < 1e-6
+    # with a box that makes level 1 infeasible, its slack is the least-squares residual
+    tight = VelocityBox(np.full(3, -0.2), np.full(3, 0.2))
+    res = DaqpCascade(3, rho=1e-9).solve([lv1], tight)
+    assert abs(A @ res.qdot_v - 0.4) < 1e-6
+    assert abs(res.slacks[0][0] + 0.6) < 1e-6
+
+
+@pytest.mark.parametrize('n,m', [(7, 6), (7, 3), (17, 6)])
+def test_single_equality_task_is_the_pseudo_inverse(n, m):
+    """(3.29): with rho -> 0 and no active bounds, qdot = A^+ beta."""
+    rng = np.random.default_rng(n * 10 + m)
+    for _ in range(20):
+        A = rng.normal(size=(m, n))
+        beta = rng.normal(size=m)
+        box = VelocityBox(np.full(n, -1e3), np.full(n, 1e3))
+        res = DaqpCascade(n, rho=1e-10).solve([Level('t', A, beta, beta, True)], box)
+        np.testing.assert_allclose(res.qdot_v, np.linalg.pinv(A) @ beta, atol=1e-6)
+
+
+def test_failed_level_falls_back_to_higher_levels(monkeypatch):
+    n = 4
+    levels = [Level('a', np.eye(n)[:2], np.ones(2), np.ones(2), True),
+              Level('b', np.eye(n)[2:], np.ones(2), np.ones(2), True)]
+    box = VelocityBox(np.full(n, -5.0), np.full(n, 5.0))
+    solver = DaqpCascade(n)
+    good = solver.solve(levels[:1], box).qdot_v
+    original = solver.solve_level
+    calls = []
+
+    def failing(*args):
+        calls.append(1)
+        x, s, ok = original(*args)
+        return (x, s, ok) if len(calls) == 1 else (x * np.nan, s, True)
+
+    monkeypatch.setattr(solver, 'solve_level', failing)
+    res = solver.solve(levels, box)
+    assert res.status == 'fallback' and res.failed_level == 1
+    np.testing.assert_allclose(res.qdot_v, good)
+    assert np.all(np.isfinite(res.qdot_v))
+
+
+def test_unknown_solver_names_the_choices():
+    with pytest.raises(SolverError, match="did you mean 'daqp'.*available: daqp, proxsuite"):
+        make_solver('daqpp', 7)

@@ -1,0 +1,110 @@
+"""Tests of the programmatic scenes: stability, mechanism parameters, break-away latches."""
+
+import numpy as np
+import pytest
+
+from ifc_spg.errors import ParameterError
+from ifc_spg.model.robot_model import CartesianAdmittance
+from sim_bridge.scenes import scene_names
+from sim_bridge.simulation import Simulation
+
+MECHANISMS = ('drawer_horizontal', 'drawer_vertical', 'crank', 'cupboard_door',
+              'microwave_door')
+
+
+def _hold(sim, seconds):
+    q_v = sim.q0.copy()
+    for _ in range(round(seconds / 0.002)):
+        sim.write_command(q_v)
+        sim.step(2)
+    return sim.read_state()
+
+
+@pytest.mark.parametrize('scene', scene_names())
+def test_scene_steps_10_s_without_warnings(scene):
+    sim = Simulation(robot='lbr_iiwa14', scene=scene)
+    s = _hold(sim, 10.0)
+    assert sim.warnings() == {}
+    assert np.all(np.isfinite(s.q))
+    assert np.abs(s.q - sim.q0).max() < 0.01  # the grasp does not drag the robot around
+    assert len(s.env_q) == (1 if scene in MECHANISMS else 0)
+
+
+@pytest.mark.parametrize('scene', ['drawer_horizontal', 'crank', 'cupboard_door'])
+def test_accrea_grasp_is_stable_with_heavy_admittance(scene):
+    k_x = np.array([500.0, 500.0, 500.0, 50.0, 50.0, 50.0])
+    m_x = np.array([10.0, 10.0, 10.0, 0.5, 0.5, 0.5])
+    adm = CartesianAdmittance(stiffness=k_x, damping=2 * np.sqrt(k_x * m_x), mass=m_x)
+    sim = Simulation(robot='accrea_dual_arm', scene=scene,
+                     admittance={'l_tool': adm, 'r_tool': adm})
+    s = _hold(sim, 2.0)
+    assert sim.warnings() == {}
+    assert np.abs(s.contact_wrench).max() < 2.0
+
+
+def test_mechanism_parameters():
+    sim = Simulation(robot='lbr_iiwa14', scene='drawer_vertical')
+    m = sim.model
+    assert m.body_subtreemass[m.body('drawer').id] == pytest.approx(1.2)
+    np.testing.assert_allclose(m.jnt_range[m.joint('drawer').id], [0.0, 0.3])
+    np.testing.assert_allclose(sim.data.site('handle').xpos, sim.chain_pose('tool')[0],
+                               atol=1e-9)
+    sim = Simulation(robot='lbr4', scene='crank')
+    m, d = sim.model, sim.data
+    j = m.joint('crank').id
+    axis = d.xaxis[j]
+    r = d.site('handle').xpos - d.xanchor[j]
+    assert np.linalg.norm(r - axis * (r @ axis)) == pytest.approx(0.17)
+
+
+def test_drawer_reports_env_joint_state_and_stops_at_travel():
+    sim = Simulation(robot='lbr_iiwa14', scene='drawer_horizontal',
+                     scene_options={'grasp': 'none'})
+    sim.apply_wrench('handle', [-4.0, 0, 0, 0, 0, 0], duration=3.0)  # pull towards robot
+    s = _hold(sim, 0.3)
+    assert 0.01 < s.env_q[0] < 0.3 and s.env_qd[0] > 0
+    s = _hold(sim, 2.7)
+    assert s.env_q[0] == pytest.approx(0.3, abs=0.005)
+    assert s.env_joint_names == ('drawer',)
+
+
+@pytest.mark.parametrize('scene, force', [('cupboard_door', 20.0), ('microwave_door', 15.0)])
+def test_door_needs_break_away_force(scene, force):
+    """A slowly ramped pull on the handle: the door moves only once f >= break-away."""
+    sim = Simulation(robot='lbr_iiwa14', scene=scene, scene_options={'grasp': 'none'})
+    rate = 5.0  # N/s
+    onset = None
+    for k in range(int(1.6 * force / rate / 0.002)):
+        f = rate * 0.002 * (k + 1)
+        sim.clear_wrenches()
+        sim.apply_wrench('handle', [-f, 0, 0, 0, 0, 0])
+        sim.write_command(sim.q0)
+        sim.step(2)
+        if sim.read_state().env_q[0] > 0.01:
+            onset = f
+            break
+    assert onset is not None, 'the door never opened'
+    assert force <= onset <= 1.1 * force
+    s = _hold(sim, 0.5)
+    assert s.env_q[0] > 0.1  # no noteworthy resistance once released
+    assert sim.warnings() == {}
+
+
+def test_unknown_scene_and_option_are_rejected_with_choices():
+    with pytest.raises(ParameterError, match="did you mean 'table'.*available"):
+        Simulation(robot='lbr4', scene='tabel')
+    with pytest.raises(ParameterError, match="no option 'solrf'.*did you mean 'solref'"):
+        Simulation(robot='lbr4', scene='table', scene_options={'solrf': (0.01, 1)})
+    with pytest.raises(ParameterError, match='grasp must be one of'):
+        Simulation(robot='lbr4', scene='crank', scene_options={'grasp': 'glue'})
+
+
+def test_table_stiffness_option_changes_penetration():
+    def depth(solref):
+        sim = Simulation(robot='lbr_iiwa14', scene='table', scene_options={'solref': solref})
+        sim.apply_wrench('tool', [0, 0, -40.0, 0, 0, 0])
+        _hold(sim, 1.5)
+        return sim.chain_pose('tool')[0][2]
+
+    soft, stiff = depth((0.1, 1.0)), depth((0.005, 1.0))
+    assert soft < stiff - 3e-4
