@@ -155,7 +155,7 @@ class DaqpCascade(CascadeSolver):
         np.clip(bl, -_BIG, _BIG, out=bl)
         sense = np.zeros(n + m + m + r, dtype=np.int32)
         sense[n + m:][eq_rows] = _EQ
-        x, _, flag, _ = self._solve(H, np.zeros(n + m), C, bu, bl, sense)
+        x, _, flag, _ = self._solve(H, np.zeros(n + m), C, bu, bl, sense, primal_tol=1e-9)
         return x[:n], x[n:], flag == 1
 
 

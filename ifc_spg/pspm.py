@@ -73,6 +73,7 @@ class EnergyTanks:
         self._avail = np.zeros(n)
         self._shuffle_now = np.zeros(n)
         self._q_prev = None
+        self.deficit = 0.0
 
     def reset(self, q):
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
@@ -113,6 +114,8 @@ class EnergyTanks:
         new = dq + self.dt * qdot_v
         dEk = 0.5 * self.K * (new * new - dq * dq)
         e = np.minimum(self.config.max_energy, self._avail - dEk)
+        # only round-off can make e negative (the step was bounded by E_avail); record it
+        self.deficit = float(max(0.0, -np.min(np.where(self.mask, e, 0.0))))
         self.energy = np.where(self.mask, np.maximum(e, 0.0), self.energy)
         self.shuffled += np.where(self.mask, self._shuffle_now, 0.0)
         return dEk

@@ -2,15 +2,53 @@
 
 Level by level, the locked equality rows of the higher levels are eliminated exactly
 (q = q_p + Z y with Z an SVD nullspace basis, so redundant rows are harmless), and the
-remaining small QP in (y, s) is solved by proxsuite to high accuracy. Locking follows
+remaining small QP in (y, s) is solved and its optimality certified by the KKT conditions
+(so no solver is trusted). Locking follows
 the cascade's definition: equality rows keep A q*, inequality rows keep
 [lower + s*, upper + s*] (widened to contain A q*).
 """
 
 import numpy as np
-from proxsuite import proxqp
+import daqp
 
-BIG = 1e30
+RELAX = 1e-10
+
+
+def _solve_qp(H, g, E, e, C, lo, hi):
+    """min 1/2 x^T H x + g^T x  s.t.  E x = e,  lo <= C x <= hi, certified by its KKT conditions.
+
+    The solve itself uses DAQP; the answer is only accepted if stationarity, primal
+    feasibility, dual sign and complementarity hold to 1e-8, so the reference does not
+    rest on trusting any solver.
+    """
+    # rows that vanish after the elimination constrain nothing; they must hold at 0
+    zero = np.abs(C).max(axis=1) < 1e-12
+    if np.any(lo[zero] > 1e-8) or np.any(hi[zero] < -1e-8):
+        raise RuntimeError('a fully determined row is violated: the elimination is wrong')
+    C, lo, hi = C[~zero], lo[~zero], hi[~zero]
+    M = np.vstack([E, C])
+    # the inequalities are relaxed by 1e-10: the previous level's solution lies on some of
+    # them, and the elimination's round-off would otherwise make them infeasible
+    bl = np.concatenate([e, lo - RELAX])
+    bu = np.concatenate([e, hi + RELAX])
+    sense = np.zeros(M.shape[0], dtype=np.int32)
+    sense[:E.shape[0]] = 5
+    x, _, flag, info = daqp.solve(H, g, M, np.clip(bu, -1e30, 1e30), np.clip(bl, -1e30, 1e30),
+                                  sense)
+    if flag != 1:
+        raise RuntimeError(f'reference QP not solved (exitflag {flag})')
+    lam = np.asarray(info['lam'])
+    Mx = M @ x
+    scale = 1.0 + np.abs(x).max() + np.abs(lam).max()
+    stationarity = np.abs(H @ x + g + M.T @ lam).max()
+    infeasible = max(np.max(bl - Mx, initial=0.0), np.max(Mx - bu, initial=0.0))
+    ineq = slice(E.shape[0], None)
+    wrong_sign = max(np.max(lam[ineq][Mx[ineq] > bl[ineq] + 1e-7].clip(max=0) ** 2, initial=0),
+                     np.max(lam[ineq][Mx[ineq] < bu[ineq] - 1e-7].clip(min=0) ** 2, initial=0))
+    if stationarity > 1e-8 * scale or infeasible > 1e-8 or wrong_sign > 1e-16:
+        raise RuntimeError(f'KKT not certified: stationarity {stationarity:.1e}, infeasibility '
+                           f'{infeasible:.1e}, complementarity {wrong_sign:.1e}')
+    return x
 
 
 def _nullspace(E, tol=1e-9):
@@ -47,15 +85,7 @@ def reference_cascade(levels, box_lo, box_hi, rho):
                        np.hstack([Z, np.zeros((n, m))])])
         lo = np.r_[(lev.lower - lev.A @ q_p)[~eq], il - I @ q_p, box_lo - q_p]
         hi = np.r_[(lev.upper - lev.A @ q_p)[~eq], iu - I @ q_p, box_hi - q_p]
-        qp = proxqp.dense.QP(k + m, rows_eq.shape[0], C.shape[0])
-        qp.settings.eps_abs = 1e-12
-        qp.settings.eps_rel = 0.0
-        qp.settings.max_iter = 100000
-        qp.init(H, g, rows_eq, b_eq, C, np.clip(lo, -BIG, BIG), np.clip(hi, -BIG, BIG))
-        qp.solve()
-        if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
-            raise RuntimeError('reference QP not solved')
-        x = qp.results.x
+        x = _solve_qp(H, g, rows_eq, b_eq, C, lo, hi)
         q = q_p + Z @ x[:k]
         s = x[k:]
         slacks.append(s)

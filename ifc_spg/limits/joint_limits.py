@@ -5,6 +5,16 @@ The limits apply to the commanded q_v, so the shaping uses q_v (the sources writ
     lower = max{(q_m - q_v)/dT, -v_M, -sqrt(2 a_M (q_v - q_m))}
     upper = min{(q_M - q_v)/dT,  v_M,  sqrt(2 a_M (q_M - q_v))}
 
+The braking term sqrt(2 a_M d) of the sources is the continuous-time stopping curve; sampled
+every dT it asks for decelerations above a_M close to a limit. We use its exact
+discrete-time counterpart: the largest v from which the velocities v, v - c, v - 2c, ...
+(c = a_M dT) cover at most the distance d before reaching zero. With
+k = floor((sqrt(1 + 8 d / (c dT)) - 1) / 2)::
+
+    v_stop(d) = (d / dT + c k (k + 1) / 2) / (k + 1)      (~ sqrt(2 a_M d) - c / 2)
+
+It includes the one-step term d / dT (k = 0), and a q_v braking along it never needs
+more than a_M (v_stop(d - dT v_stop(d)) >= v_stop(d) - c).
 This box always contains 0 while q_v is inside its limits. The acceleration box
 [qdot_prev - a_M dT, qdot_prev + a_M dT] (4.31) is intersected softly: where the two do
 not intersect, position safety wins (the nearest point of the position box is taken).
@@ -14,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ['VelocityBox', 'joint_velocity_bounds', 'intersect_soft']
+__all__ = ['VelocityBox', 'joint_velocity_bounds', 'intersect_soft', 'stopping_velocity']
 
 
 class VelocityBox(NamedTuple):
@@ -36,9 +46,16 @@ def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
     """
     d_lo = np.maximum(q_v - q_min, 0.0)
     d_hi = np.maximum(q_max - q_v, 0.0)
-    lower = np.maximum(np.maximum(-d_lo / dt, -v_max), -np.sqrt(2.0 * a_max * d_lo))
-    upper = np.minimum(np.minimum(d_hi / dt, v_max), np.sqrt(2.0 * a_max * d_hi))
+    lower = np.maximum(np.maximum(-d_lo / dt, -v_max), -stopping_velocity(d_lo, a_max, dt))
+    upper = np.minimum(np.minimum(d_hi / dt, v_max), stopping_velocity(d_hi, a_max, dt))
     return VelocityBox(lower, upper)
+
+
+def stopping_velocity(distance, a_max, dt):
+    """Largest velocity [rad/s] that decelerating by a_max dt per tick stops within distance."""
+    c = a_max * dt
+    k = np.floor(0.5 * (np.sqrt(1.0 + 8.0 * distance / (c * dt)) - 1.0))
+    return (distance / dt + 0.5 * c * k * (k + 1.0)) / (k + 1.0)
 
 
 def intersect_soft(hard, soft):

@@ -1,0 +1,164 @@
+"""SetPointGenerator: closed loop, limits, bad input, fallbacks and the nullspace baseline."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ifc_spg import RobotModel
+from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.hqp import DaqpCascade
+from ifc_spg.limits import VelocityBox
+from ifc_spg.nullspace import NullspaceCascade
+from ifc_spg.pspm import PspmConfig
+from ifc_spg.spg import SetPointGenerator
+from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, Level, WrenchTask
+from ifc_spg.testing import JointImpedancePlant
+
+IIWA = RobotModel.from_config('lbr_iiwa14')
+DT = 0.002
+
+
+def tool_position(robot, q):
+    data = robot.create_data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.frame_id('tool')].translation.copy()
+
+
+def closed_loop(spg, robot, ticks, q0=None, tau_ext=None):
+    plant = JointImpedancePlant(robot, robot.q_home if q0 is None else q0, substeps=2)
+    q, qd, t = plant.q, plant.qdot, 0.0
+    log = []
+    for _ in range(ticks):
+        q_v = spg.step(q, qd, t)
+        log.append((q_v, spg.qdot_v.copy(), spg.info.status))
+        q, qd, t = plant.step(q_v, tau_ext=tau_ext)
+    return q, log
+
+
+def test_pose_task_converges_in_closed_loop():
+    target = tool_position(IIWA, IIWA.q_home) + [0.05, -0.1, 0.08]
+    tasks = [CartesianPoseTask(IIWA, frame='tool', axes=['x', 'y', 'z'], equal=target, gain=5.0),
+             CartesianPoseTask(IIWA, frame='tool', axes=['rx', 'ry', 'rz'], equal='init',
+                               gain=5.0, name='orientation'),
+             JointPositionTask(IIWA, equal='init', gain=1.0, name='posture')]
+    spg = SetPointGenerator(IIWA, tasks)
+    q, log = closed_loop(spg, IIWA, 2000)
+    assert all(s == 'ok' for _, _, s in log)
+    np.testing.assert_allclose(tool_position(IIWA, log[-1][0]), target, atol=1e-4)
+    np.testing.assert_allclose(tool_position(IIWA, q), target, atol=1e-3)
+
+
+def check_limits(robot, log):
+    q_v = np.array([x[0] for x in log])
+    qd_v = np.array([x[1] for x in log])
+    assert np.all(np.isfinite(q_v))
+    assert np.all(q_v >= robot.q_min - 1e-12) and np.all(q_v <= robot.q_max + 1e-12)
+    assert np.all(np.abs(qd_v) <= robot.v_max + 1e-9)
+    assert np.all(np.abs(np.diff(q_v, axis=0)) <= robot.v_max * DT + 1e-9)
+
+
+def test_contradictory_and_unreachable_stacks_stay_inside_limits():
+    far = [3.0, 3.0, 3.0]  # unreachable position
+    tasks = [CartesianPoseTask(IIWA, frame='tool', axes=['x', 'y', 'z'], equal=far, gain=50.0),
+             JointPositionTask(IIWA, equal=IIWA.q_max + 1.0, gain=100.0, name='beyond_limits'),
+             JointTorqueTask(IIWA, equal=1e4, gain=1e3, name='huge_torque')]
+    spg = SetPointGenerator(IIWA, tasks)
+    q, log = closed_loop(spg, IIWA, 1500)
+    check_limits(IIWA, log)
+    # torque limit task on top: |K (q_v - q)| stays within tau_max
+    q_v = log[-1][0]
+    assert np.all(np.abs(IIWA.stiffness * (q_v - q)) <= IIWA.tau_max * 1.05)
+
+
+@pytest.mark.parametrize('pspm', [False, PspmConfig(initial_energy=100.0, max_energy=100.0)])
+def test_acceleration_limit_holds_when_position_safety_allows(pspm):
+    """|dqdot_v| <= a_max dT, also when braking into a joint limit. (An empty energy tank
+    is a hard bound too and may stop a joint faster: passivity wins over smoothness.)"""
+    tasks = [JointPositionTask(IIWA, equal=IIWA.q_home + 0.5, gain=20.0)]
+    spg = SetPointGenerator(IIWA, tasks, pspm=pspm)
+    _, log = closed_loop(spg, IIWA, 500)
+    qd_v = np.array([x[1] for x in log])
+    assert np.all(np.abs(np.diff(qd_v, axis=0)) <= IIWA.a_max * DT + 1e-9)
+    check_limits(IIWA, log)
+
+
+def test_singular_configuration_gives_finite_commands():
+    q0 = np.zeros(7)  # stretched arm: singular
+    tasks = [CartesianPoseTask(IIWA, frame='tool', equal=[0.5, 0, 0.8, 0, 0, 0], gain=10.0,
+                               orientation=np.eye(3)),
+             WrenchTask(IIWA, frame='tool', axes=['fz'], equal=10.0, gain=5.0)]
+    spg = SetPointGenerator(IIWA, tasks)
+    _, log = closed_loop(spg, IIWA, 300, q0=q0)
+    check_limits(IIWA, log)
+
+
+def test_non_finite_input_holds_the_last_command():
+    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal=IIWA.q_home + 0.2, gain=5.0)])
+    q = IIWA.q_home.copy()
+    for i in range(10):
+        q_v = spg.step(q, np.zeros(7), i * DT)
+    bad = q.copy()
+    bad[3] = np.nan
+    held = spg.step(bad, np.zeros(7), 10 * DT)
+    assert spg.info.status == 'bad_input'
+    np.testing.assert_array_equal(held, q_v)
+    spg.step(q, np.zeros(7), float('inf'))
+    assert spg.info.status == 'bad_input'
+    with pytest.raises(ParameterError, match='7 entries'):
+        spg.step(np.zeros(6), np.zeros(6), 0.0)
+
+
+def test_failed_solve_holds_and_reports(monkeypatch):
+    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal=IIWA.q_home + 0.2, gain=5.0)])
+    q = IIWA.q_home.copy()
+    q_v = spg.step(q, np.zeros(7), 0.0)
+    monkeypatch.setattr(spg._solver, 'solve_level', lambda *a: (np.full(7, np.nan), None, True))
+    out = spg.step(q, np.zeros(7), DT)
+    assert spg.info.status == 'hold'
+    assert 'holding q_v' in spg.info.message
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, q_v, atol=IIWA.a_max.max() * DT * DT)
+
+
+def test_nullspace_baseline_matches_cascade_for_equality_stacks():
+    """For feasible equality hierarchies both give the minimum-norm solution (rho, lambda -> 0)."""
+    rng = np.random.default_rng(11)
+    box = VelocityBox(np.full(7, -1e3), np.full(7, 1e3))
+    for _ in range(50):
+        levels, rows = [], 0
+        for i in range(int(rng.integers(2, 5))):
+            m = int(rng.integers(1, 4))
+            rows += m
+            if rows > 6:  # keep the stack feasible and well conditioned
+                break
+            b = rng.normal(size=m)
+            levels.append(Level(f'L{i}', rng.normal(size=(m, 7)), b, b, True))
+        ns, clamped = NullspaceCascade(7, damping=1e-7).solve(levels, np.zeros(7),
+                                                               IIWA.q_min, IIWA.q_max)
+        assert clamped.size == 0
+        hqp = DaqpCascade(7, rho=1e-12).solve(levels, box).qdot_v
+        np.testing.assert_allclose(ns, hqp, rtol=1e-4, atol=1e-6)
+    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal='init')], solver='nullspace')
+    with pytest.raises(IfcSpgError, match='equality tasks only'):
+        spg.set_stack([JointPositionTask(IIWA, lower=IIWA.q_min, gain=1.0)])
+
+
+def test_nullspace_baseline_clamps_joints_near_limits():
+    q0 = IIWA.q_home.copy()
+    q0[0] = IIWA.q_max[0] - 0.01  # joint 1 within dl_crit of its limit
+    tasks = [CartesianPoseTask(IIWA, frame='tool', axes=['y'], equal=[0.5], gain=5.0)]
+    spg = SetPointGenerator(IIWA, tasks, solver='nullspace', pspm=False)
+    _, log = closed_loop(spg, IIWA, 200, q0=q0)
+    q_v = np.array([x[0] for x in log])
+    assert q_v[:, 0].max() <= IIWA.q_max[0]
+    assert q_v[-1, 0] <= q0[0] + 1e-9  # joint 1 was clamped, not driven into its limit
+
+
+def test_info_reports_levels_and_tanks():
+    tasks = [JointPositionTask(IIWA, equal='init', name='posture')]
+    spg = SetPointGenerator(IIWA, tasks)
+    spg.step(IIWA.q_home, np.zeros(7), 0.0)
+    d = spg.info.as_dict()
+    assert d['level_names'] == ['torque_limits', 'posture']
+    assert len(d['tank_energy']) == 7 and d['status'] == 'ok'
+    assert d['solve_time'] > 0

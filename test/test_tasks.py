@@ -1,0 +1,204 @@
+"""One contract suite for every task archetype (STYLE #10, Table 3.1)."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ifc_spg import RobotModel
+from ifc_spg.errors import IfcSpgError, UnknownFrame
+from ifc_spg.kinematics import Kinematics
+from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
+from ifc_spg.tasks.subspace import AXES, WRENCH_AXES
+
+ROBOTS = {name: RobotModel.from_config(name) for name in
+          ('lbr_iiwa14', 'icub_upper_body', 'accrea_dual_arm')}
+
+
+def random_state(robot, rng):
+    lo, hi = robot.q_min, robot.q_max
+    q = rng.uniform(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))
+    q_v = q + rng.normal(scale=0.05, size=robot.n)
+    qdot = rng.normal(scale=0.3, size=robot.n)
+    return q, qdot, q_v
+
+
+def kin_at(robot, q, qdot, q_v):
+    kin = Kinematics(robot)
+    kin.update(q, qdot, q_v)
+    return kin
+
+
+def random_axes(rng, names):
+    k = int(rng.integers(1, 7))
+    return list(rng.choice(names, size=k, replace=False))
+
+
+def make_tasks(robot, rng):
+    """One task of each archetype with random subspaces/joints on ``robot``."""
+    chain = robot.chains[int(rng.integers(len(robot.chains)))]
+    if robot.ifc == 'cartesian_admittance':
+        chain = sorted(robot.admittance)[int(rng.integers(len(robot.admittance)))]
+    joints = list(rng.choice(robot.joint_names, size=int(rng.integers(1, robot.n + 1)),
+                             replace=False))
+    compliant = [j for j in joints if not robot.stiff_mask[robot.joint_index(j)]] or None
+    frames = ['base', 'ee', 'ee_orientation']
+    return [
+        JointPositionTask(robot, joints=joints, equal='init'),
+        CartesianPoseTask(robot, frame=chain, axes=random_axes(rng, AXES), equal='init',
+                          subspace_frame=frames[int(rng.integers(3))]),
+        JointTorqueTask(robot, joints=compliant, equal='init'),
+        WrenchTask(robot, frame=chain, axes=random_axes(rng, WRENCH_AXES), equal='init',
+                   subspace_frame=frames[int(rng.integers(3))]),
+    ]
+
+
+def fd_jacobian(task, robot, q, qdot, q_v, eps=1e-6):
+    """Central differences of the task value w.r.t. q_v, with the subspace held fixed."""
+    kin = kin_at(robot, q, qdot, q_v)
+    S_fixed = None
+    if hasattr(task, 'S'):  # freeze an end-effector subspace at the nominal configuration
+        from ifc_spg.tasks.subspace import subspace_in_base
+        if isinstance(task, CartesianPoseTask):
+            R = kin.frame(task.frame_id, virtual=True)[1]
+        else:
+            R = kin.frame(robot.frame_id(task.frame), virtual=False)[1]
+        S_fixed = subspace_in_base(task.S, task.subspace_frame, R)
+    cols = []
+    for i in range(robot.n):
+        vals = []
+        for sgn in (1, -1):
+            dq = np.zeros(robot.n)
+            dq[i] = sgn * eps
+            k = kin_at(robot, q, qdot, q_v + dq)
+            if S_fixed is None:
+                vals.append(task.compute_value(k))
+            else:
+                saved = task.S, task.subspace_frame
+                task.S, task.subspace_frame = S_fixed, 'base'
+                vals.append(task.compute_value(k))
+                task.S, task.subspace_frame = saved
+        cols.append((vals[0] - vals[1]) / (2 * eps))
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize('name', list(ROBOTS))
+def test_jacobian_matches_finite_differences(name):
+    robot = ROBOTS[name]
+    rng = np.random.default_rng(len(name))
+    worst = 0.0
+    for _ in range(8):
+        q, qdot, q_v = random_state(robot, rng)
+        for task in make_tasks(robot, rng):
+            # activate elsewhere, so that orientation errors are far from zero
+            task.activate(kin_at(robot, q, qdot, q_v + rng.normal(scale=0.3, size=robot.n)))
+            kin = kin_at(robot, q, qdot, q_v)
+            A = task.compute_jacobian(kin)
+            A_fd = fd_jacobian(task, robot, q, qdot, q_v)
+            scale = max(1.0, np.abs(A).max())
+            err = np.abs(A - A_fd).max() / scale
+            worst = max(worst, err)
+            assert err < 1e-6, (task, err)
+    print(f'{name}: worst relative Jacobian error {worst:.1e}')
+
+
+@pytest.mark.parametrize('name', list(ROBOTS))
+def test_zero_error_at_target_and_dimensions_follow_subspace(name):
+    robot = ROBOTS[name]
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q, qdot, q_v = random_state(robot, rng)
+        kin = kin_at(robot, q, qdot, q_v)
+        for task in make_tasks(robot, rng):
+            lev = task.level(kin, 0.0)  # 'init': the target is the current value
+            m = task.dim
+            assert lev.A.shape == (m, robot.n)
+            assert lev.lower.shape == lev.upper.shape == (m,)
+            _, _, gamma = task.compute(kin)
+            # at the target only the velocity compensation remains (4.25-4.28)
+            np.testing.assert_allclose(lev.lower, gamma, atol=1e-10)
+            assert lev.equality
+
+
+def test_ee_subspace_equals_rotated_base_subspace():
+    robot = ROBOTS['lbr_iiwa14']
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        q, qdot, q_v = random_state(robot, rng)
+        kin = kin_at(robot, q, qdot, q_v)
+        S_ee = np.linalg.qr(rng.normal(size=(6, 3)))[0]
+        for cls, virtual in ((CartesianPoseTask, True), (WrenchTask, False)):
+            R = kin.frame(robot.frame_id('tool'), virtual=virtual)[1]
+            S_base = np.zeros((6, 3))
+            S_base[:3] = R @ S_ee[:3]
+            S_base[3:] = R @ S_ee[3:]
+            ee = cls(robot, frame='tool', subspace=S_ee, subspace_frame='ee', equal=[0, 0, 0])
+            base = cls(robot, frame='tool', subspace=S_base, equal=[0, 0, 0])
+            for a, b in zip(ee.compute(kin), base.compute(kin)):
+                np.testing.assert_allclose(a, b, atol=1e-12)
+
+
+def test_torque_and_wrench_gamma_is_the_measured_motion():
+    """Table 3.1: gamma = K qdot for torque tasks and J^{+T} K qdot for wrench tasks."""
+    robot = ROBOTS['lbr_iiwa14']
+    rng = np.random.default_rng(9)
+    q, qdot, q_v = random_state(robot, rng)
+    kin = kin_at(robot, q, qdot, q_v)
+    tau_task = JointTorqueTask(robot, equal=0.0)
+    _, A, g = tau_task.compute(kin)
+    np.testing.assert_allclose(g, robot.stiffness * qdot)
+    # the static torque changes by -K qdot when q moves with q_v fixed: d(tau_s)/dt = -gamma
+    h = 1e-7
+    k2 = kin_at(robot, q + h * qdot, qdot, q_v)
+    np.testing.assert_allclose((tau_task.compute_value(k2) - tau_task.compute_value(kin)) / h,
+                               -g, rtol=1e-6)
+    w = WrenchTask(robot, frame='tool', equal=0.0)
+    _, A, g = w.compute(kin)
+    np.testing.assert_allclose(g, A @ qdot, atol=1e-9)
+    # h_s = J^{+T} tau_s: J^T h_s reproduces tau_s for a 7-DoF arm (6 <= n)
+    J = kin.frame(robot.frame_id('tool'), virtual=False)[2]
+    h_s = w.compute_value(kin)
+    tau_s = robot.stiffness * (q_v - q)
+    P = J.T @ np.linalg.pinv(J.T)  # projector onto the range of J^T
+    np.testing.assert_allclose(J.T @ h_s, P @ tau_s, atol=1e-4 * np.abs(tau_s).max())
+
+
+def test_stiff_joints_have_no_static_torque():
+    robot = ROBOTS['icub_upper_body']
+    stiff = [j for j, s in zip(robot.joint_names, robot.stiff_mask) if s]
+    assert stiff
+    with pytest.raises(IfcSpgError, match='stiff'):
+        JointTorqueTask(robot, joints=stiff[:1], equal=0.0)
+    rng = np.random.default_rng(2)
+    q, qdot, q_v = random_state(robot, rng)
+    kin = kin_at(robot, q, qdot, q_v)
+    for frame in ('l_contact', 'r_palm'):
+        _, A, _ = WrenchTask(robot, frame=frame, equal=0.0).compute(kin)
+        assert np.all(A[:, robot.stiff_mask] == 0.0)
+    _, A, _ = JointTorqueTask(robot, equal=0.0).compute(kin)
+    assert np.all(A[:, robot.stiff_mask] == 0.0)
+
+
+def test_rotation_error_is_log3_not_euler():
+    robot = ROBOTS['lbr_iiwa14']
+    kin = kin_at(robot, robot.q_home, np.zeros(7), robot.q_home)
+    R0 = kin.frame(robot.frame_id('tool'), virtual=True)[1]
+    R_ref = pin.exp3(np.array([0.0, 0.0, 2.5])) @ R0  # 2.5 rad about z: Euler would wrap
+    task = CartesianPoseTask(robot, frame='tool', axes=['rx', 'ry', 'rz'], orientation=R_ref,
+                             equal=[0, 0, 0])
+    np.testing.assert_allclose(task.compute_value(kin), [0, 0, -2.5], atol=1e-12)
+
+
+@pytest.mark.parametrize('kwargs,match', [
+    (dict(frame='tool9', equal=0.0), "'tool9' not in model 'lbr_iiwa14'; did you mean 'tool'"),
+    (dict(frame='tool', axes=['x', 'q'], equal=0.0), "unknown axis 'q'"),
+    (dict(frame='tool', axes=['x', 'x'], equal=0.0), 'listed twice'),
+    (dict(frame='tool', subspace=[[1, 1]] + [[0, 0]] * 5, equal=0.0), 'orthonormal'),
+    (dict(frame='tool', axes=['x'], equal=[1, 2]), 'expected 1 values'),
+    (dict(frame='tool', axes=['x'], equal=1.0, lower=0.0), "either 'equal' or"),
+    (dict(frame='tool', axes=['x']), 'no bounds'),
+    (dict(frame='tool', axes=['x'], equal=1.0, gain=-1.0), 'gain must be'),
+    (dict(frame='tool', axes=['x'], equal=1.0, subspace_frame='world'), "unknown; use one of"),
+])
+def test_bad_task_arguments_name_the_problem(kwargs, match):
+    with pytest.raises((IfcSpgError, UnknownFrame), match=match):
+        CartesianPoseTask(ROBOTS['lbr_iiwa14'], **kwargs)
