@@ -127,23 +127,34 @@ def _outside(x, lo, hi):
 
 
 class DaqpCascade(CascadeSolver):
-    """The cascade with DAQP (exact dual active-set QP, PyPI ``daqp``)."""
+    """The cascade with DAQP (exact dual active-set QP, PyPI ``daqp``).
+
+    The rows of all levels are stacked once per tick in priority order; level i solves
+    over the rows of levels 0..i with slack columns on its own rows only, and writes its
+    locked bounds in place. Nothing is re-assembled between levels.
+    """
 
     name = 'daqp'
 
-    def __init__(self, n, rho=0.01):
+    def __init__(self, n, rho=0.01, primal_tol=1e-9):
         super().__init__(n, rho)
         import daqp
         self._solve = daqp.solve
+        self._solve_model = lambda model: model.solve()
+        self._settings = {'primal_tol': float(primal_tol)}
         self._H = {}
+        self._ws = {}
+
+    def _hessian(self, m):
+        H = self._H.get(m)
+        if H is None:
+            H = np.diag(np.concatenate([np.full(self.n, self.rho), np.ones(m)]))
+            self._H[m] = H
+        return H
 
     def solve_level(self, A, lower, upper, A_bar, b_lo, b_hi, box_lo, box_hi, eq_rows):
         n = self.n
         m = A.shape[0]
-        H = self._H.get(m)
-        if H is None:
-            H = np.diag(np.concatenate([np.full(n, self.rho), np.ones(m)]))
-            self._H[m] = H
         r = A_bar.shape[0]
         C = np.zeros((m + r, n + m))
         C[:m, :n] = A
@@ -155,8 +166,120 @@ class DaqpCascade(CascadeSolver):
         np.clip(bl, -_BIG, _BIG, out=bl)
         sense = np.zeros(n + m + m + r, dtype=np.int32)
         sense[n + m:][eq_rows] = _EQ
-        x, _, flag, _ = self._solve(H, np.zeros(n + m), C, bu, bl, sense, primal_tol=1e-9)
+        x, _, flag, _ = self._solve(self._hessian(m), np.zeros(n + m), C, bu, bl, sense,
+                                    **self._settings)
         return x[:n], x[n:], flag == 1
+
+    def solve(self, levels, box):
+        """Solve the cascade (fast path: one stacked problem, only bounds change per level).
+
+        All levels share one constraint matrix [A_all, -I_R] over w = [qdot_v; s_1..s_k]:
+        level i frees its own slacks, fixes the others to zero (so the rows of the higher
+        levels are hard, at their locked bounds) and leaves the rows of lower levels
+        unbounded. The QP of level i is then exactly (4.45)-(4.48).
+        """
+        if not levels:
+            return super().solve(levels, box)
+        n = self.n
+        ms = [lev.A.shape[0] for lev in levels]
+        R = sum(ms)
+        ws = self._ws.get(R)
+        if ws is None:
+            ws = self._ws[R] = _Workspace(n, R, self.rho, self._settings)
+        C, bu, bl, sense = ws.C, ws.bu, ws.bl, ws.sense
+        A_all = C[:, :n]
+        row = 0
+        for lev, m in zip(levels, ms):
+            A_all[row:row + m] = lev.A
+            bl[n + R + row:n + R + row + m] = lev.lower
+            bu[n + R + row:n + R + row + m] = lev.upper
+            row += m
+        lo_rows = bl[n + R:]
+        hi_rows = bu[n + R:]
+        np.maximum(lo_rows, -_BIG, out=lo_rows)
+        np.minimum(hi_rows, _BIG, out=hi_rows)
+        eq_all = lo_rows == hi_rows
+        orig_lo = lo_rows.copy()
+        orig_hi = hi_rows.copy()
+        # lower levels start unbounded; slacks start fixed at zero
+        lo_rows[:] = -_BIG
+        hi_rows[:] = _BIG
+        bl[:n] = np.maximum(box.lower, -_BIG)
+        bu[:n] = np.minimum(box.upper, _BIG)
+        bl[n:n + R] = 0.0
+        bu[n:n + R] = 0.0
+        sense[:] = 0
+        sense[n:n + R] = _EQ
+        row_sense = sense[n + R:]
+        qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
+        slacks = []
+        start = 0
+        for i, m in enumerate(ms):
+            end = start + m
+            sl = slice(start, end)
+            lo_rows[sl] = orig_lo[sl]
+            hi_rows[sl] = orig_hi[sl]
+            row_sense[sl] = np.where(eq_all[sl], _EQ, 0)
+            bl[n + start:n + end] = -_BIG
+            bu[n + start:n + end] = _BIG
+            sense[n + start:n + end] = 0
+            if i == 0:
+                ws.model.update(A=C, bupper=bu, blower=bl, sense=sense)
+            else:
+                ws.model.update(bupper=bu, blower=bl, sense=sense)
+            x, _, flag, _ = self._solve_model(ws.model)
+            if flag != 1 or not np.isfinite(x).all():
+                slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
+                return _result(qdot, bl[:n], bu[:n], slacks, 'hold' if i == 0 else 'fallback',
+                               i)
+            qdot = x[:n]
+            s = x[n + start:n + end]
+            slacks.append(s)
+            a = A_all[sl] @ qdot
+            eq = eq_all[sl]
+            lo_rows[sl] = np.where(eq, a, np.minimum(orig_lo[sl] + s, a))
+            hi_rows[sl] = np.where(eq, a, np.maximum(orig_hi[sl] + s, a))
+            # lock: the slacks of this level are fixed to zero from now on
+            bl[n + start:n + end] = 0.0
+            bu[n + start:n + end] = 0.0
+            sense[n + start:n + end] = _EQ
+            start = end
+        return _result(qdot, bl[:n], bu[:n], slacks, 'ok', -1)
+
+
+class _Workspace:
+    """Preallocated stacked problem of a cascade with R task rows over n joints, and the
+    DAQP model (workspace) that solves it; only bounds (and A once per tick) change."""
+
+    def __init__(self, n, R, rho, settings):
+        self.C = np.zeros((R, n + R))
+        self.C[:, n:] = -np.eye(R)
+        self.H = np.diag(np.concatenate([np.full(n, rho), np.ones(R)]))
+        self.f = np.zeros(n + R)
+        self.bu = np.zeros(n + R + R)
+        self.bl = np.zeros(n + R + R)
+        self.sense = np.zeros(n + R + R, dtype=np.int32)
+        import daqp
+        self.model = daqp.Model()
+        self.model.setup(self.H, self.f, self.C, self.bu, self.bl, self.sense)
+        settings_ = dict(self.model.settings)
+        settings_.update(settings)
+        self.model.settings = settings_
+
+
+def _result(qdot, lo, hi, slacks, status, failed):
+    clipped = np.minimum(np.maximum(qdot, lo), hi)
+    return CascadeResult(clipped, slacks, status, failed, float(np.abs(clipped - qdot).max()))
+
+
+_EYES = {}
+
+
+def _eye(m):
+    e = _EYES.get(m)
+    if e is None:
+        e = _EYES[m] = np.eye(m)
+    return e
 
 
 class ProxsuiteCascade(CascadeSolver):

@@ -47,13 +47,19 @@ class SpgInfo:
         message: Human-readable reason for a non-'ok' status.
     """
 
-    __slots__ = ('status', 'solver', 'level_names', 'slacks', 'residuals', 'at_limit',
+    __slots__ = ('status', 'solver', 'level_names', 'slacks', 'at_limit',
                  'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
-                 'qdot_v', 'message', 'failed_level')
+                 'qdot_v', 'message', 'failed_level', 'levels')
+    _FIELDS = __slots__[:-1] + ('residuals',)
 
     def __init__(self, **kw):
         for k in self.__slots__:
             setattr(self, k, kw.get(k))
+
+    @property
+    def residuals(self):
+        """Violation of each level's velocity bounds by the final qdot_v (computed on demand)."""
+        return [level_violation(lv, self.qdot_v) for lv in (self.levels or [])]
 
     def as_dict(self):
         """JSON-friendly dict (for ``spg/status``)."""
@@ -65,7 +71,7 @@ class SpgInfo:
             if isinstance(v, np.generic):
                 return v.item()
             return v
-        return {k: conv(getattr(self, k)) for k in self.__slots__}
+        return {k: conv(getattr(self, k)) for k in self._FIELDS}
 
 
 class SetPointGenerator:
@@ -219,8 +225,7 @@ class SetPointGenerator:
         at_limit = np.flatnonzero((qdot_v <= box.lower) | (qdot_v >= box.upper))
         self.info = SpgInfo(
             status=status, solver=self._solver.name, level_names=[lv.name for lv in levels],
-            slacks=slacks, residuals=[level_violation(lv, qdot_v) for lv in levels],
-            at_limit=at_limit,
+            slacks=slacks, levels=levels, at_limit=at_limit,
             tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
             spring_energy_step=energy_step, solve_time=solve_time,
             tick_time=time.perf_counter() - t_start, task_time=task_time, qdot_v=qdot_v,
@@ -230,7 +235,7 @@ class SetPointGenerator:
     def _hold(self, status, message, t_start):
         self.qdot_v = np.zeros(self.n)
         self.info = SpgInfo(status=status, solver=self._solver.name, level_names=[], slacks=[],
-                            residuals=[], at_limit=np.zeros(0, dtype=int),
+                            levels=[], at_limit=np.zeros(0, dtype=int),
                             tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
                             solve_time=0.0, tick_time=time.perf_counter() - t_start,
                             qdot_v=self.qdot_v, message=message, failed_level=-1)

@@ -166,15 +166,15 @@ def test_failed_level_falls_back_to_higher_levels(monkeypatch):
     box = VelocityBox(np.full(n, -5.0), np.full(n, 5.0))
     solver = DaqpCascade(n)
     good = solver.solve(levels[:1], box).qdot_v
-    original = solver.solve_level
+    original = solver._solve_model
     calls = []
 
-    def failing(*args):
+    def failing(model):  # the QP of the second level returns garbage
         calls.append(1)
-        x, s, ok = original(*args)
-        return (x, s, ok) if len(calls) == 1 else (x * np.nan, s, True)
+        x, f, flag, info = original(model)
+        return (x, f, flag, info) if len(calls) == 1 else (x * np.nan, f, 1, info)
 
-    monkeypatch.setattr(solver, 'solve_level', failing)
+    monkeypatch.setattr(solver, '_solve_model', failing)
     res = solver.solve(levels, box)
     assert res.status == 'fallback' and res.failed_level == 1
     np.testing.assert_allclose(res.qdot_v, good)

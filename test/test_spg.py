@@ -112,7 +112,8 @@ def test_failed_solve_holds_and_reports(monkeypatch):
     spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal=IIWA.q_home + 0.2, gain=5.0)])
     q = IIWA.q_home.copy()
     q_v = spg.step(q, np.zeros(7), 0.0)
-    monkeypatch.setattr(spg._solver, 'solve_level', lambda *a: (np.full(7, np.nan), None, True))
+    monkeypatch.setattr(spg._solver, '_solve_model', lambda model: (np.full(30, np.nan), 0.0,
+                                                                    1, {}))
     out = spg.step(q, np.zeros(7), DT)
     assert spg.info.status == 'hold'
     assert 'holding q_v' in spg.info.message

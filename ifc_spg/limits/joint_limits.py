@@ -13,7 +13,7 @@ k = floor((sqrt(1 + 8 d / (c dT)) - 1) / 2)::
 
     v_stop(d) = (d / dT + c k (k + 1) / 2) / (k + 1)      (~ sqrt(2 a_M d) - c / 2)
 
-It includes the one-step term d / dT (k = 0), and a q_v braking along it never needs
+It includes the one-step term d / dT (k = 0: v_stop <= d / dT always), and a q_v braking along it never needs
 more than a_M (v_stop(d - dT v_stop(d)) >= v_stop(d) - c).
 This box always contains 0 while q_v is inside its limits. The acceleration box
 [qdot_prev - a_M dT, qdot_prev + a_M dT] (4.31) is intersected softly: where the two do
@@ -44,11 +44,11 @@ def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
         a_max: Joint acceleration limits in [rad/s^2].
         dt: SPG period in [s].
     """
-    d_lo = np.maximum(q_v - q_min, 0.0)
-    d_hi = np.maximum(q_max - q_v, 0.0)
-    lower = np.maximum(np.maximum(-d_lo / dt, -v_max), -stopping_velocity(d_lo, a_max, dt))
-    upper = np.minimum(np.minimum(d_hi / dt, v_max), stopping_velocity(d_hi, a_max, dt))
-    return VelocityBox(lower, upper)
+    n = q_v.shape[0]
+    d = np.maximum(np.concatenate([q_v - q_min, q_max - q_v]), 0.0)
+    stop = np.minimum(stopping_velocity(d, np.concatenate([a_max, a_max]), dt),
+                      np.concatenate([v_max, v_max]))
+    return VelocityBox(-stop[:n], stop[n:])
 
 
 def stopping_velocity(distance, a_max, dt):

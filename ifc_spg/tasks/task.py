@@ -87,6 +87,7 @@ class Task:
             raise IfcSpgError(f"task '{self.name}': gain must be finite and >= 0, got "
                               f'{gain.tolist()}')
         self.gain = gain
+        self._zero_gain = bool(np.any(gain == 0.0))
         if isinstance(feedforward, str):
             if feedforward != 'trajectory':
                 raise IfcSpgError(f"task '{self.name}': feedforward must be 'trajectory', "
@@ -161,13 +162,15 @@ class Task:
         common = gamma if self.compensate_velocity else 0.0
         if self.velocity_gain:
             common = common + self.velocity_gain * self.compute_measured_rate(kin)
-        with np.errstate(invalid='ignore'):
+        if self._zero_gain:  # 0 * inf: keep unbounded sides unbounded
+            with np.errstate(invalid='ignore'):
+                beta_lo = self.gain * (lo - alpha) + ff_lo + common
+                beta_hi = self.gain * (hi - alpha) + ff_hi + common
+            beta_lo[np.isneginf(lo)] = -np.inf
+            beta_hi[np.isposinf(hi)] = np.inf
+        else:
             beta_lo = self.gain * (lo - alpha) + ff_lo + common
-            beta_hi = self.gain * (hi - alpha) + ff_hi + common
-        beta_lo[np.isneginf(lo)] = -np.inf
-        beta_hi[np.isposinf(hi)] = np.inf
-        if self.equality:
-            beta_hi = beta_lo
+            beta_hi = beta_lo if self.equality else self.gain * (hi - alpha) + ff_hi + common
         return Level(self.name, A, beta_lo, beta_hi, self.equality)
 
     def bounds_at(self, t):

@@ -1,0 +1,244 @@
+"""``ifc-spg bench``: the SPG tick time per solver, and our strict stack next to pink.
+
+Full tick = kinematics + task assembly + solve + joint limits + PSPM, measured inside
+:meth:`SetPointGenerator.step` (``info.tick_time``) in a closed loop with a simple
+joint-impedance plant (the plant is not timed). Stacks:
+
+- ``lbr_table_4_1``: LBR iiwa 14, the 5-level stack of Table 4.1 (variant 1b: obstacle
+  as a Cartesian inequality, joint-torque inequality, circle trajectory, orientation,
+  posture) plus the implicit torque-limit level;
+- ``icub_table_3_7``: iCub upper body, the 7-level stack of Table 3.7 (wiping with the
+  left hand while the right hand holds a cup);
+- ``pink_ratio``: a 2-level strict stack (pose, posture) on the iiwa, next to pink's
+  weighted solve of the same two tasks (``pink.solve_ik`` with DAQP), same process,
+  interleaved tick by tick so that machine load affects both alike.
+
+Targets (issue 3): LBR p99 <= 0.3 ms and max <= 1 ms; iCub p99 <= 0.6 ms; ratio <= 1.0.
+"""
+
+import argparse
+import gc
+import json
+import sys
+import time
+
+import numpy as np
+
+__all__ = ['main', 'run_benchmarks']
+
+
+def _circle(center, radius, freq, plane=(1, 2), select=(0, 1, 2)):
+    """A circle in ``plane`` around ``center`` (3D); outputs the components ``select``."""
+    from ifc_spg.tasks.bounds import Bound
+    select = list(select)
+
+    class Circle(Bound):
+        dim = len(select)
+
+        def evaluate(self, t):
+            w = 2 * np.pi * freq
+            v = np.array(center, dtype=float)
+            r = np.zeros(3)
+            v[plane[0]] += radius * np.cos(w * t)
+            v[plane[1]] += radius * np.sin(w * t)
+            r[plane[0]] = -radius * w * np.sin(w * t)
+            r[plane[1]] = radius * w * np.cos(w * t)
+            return v[select], r[select]
+    return Circle()
+
+
+def _tool_pose(robot, q, frame):
+    import pinocchio as pin
+    data = robot.create_data()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return data.oMf[robot.frame_id(frame)].translation.copy()
+
+
+def lbr_stack(robot):
+    """Table 4.1 (1b) on the iiwa: 5 levels."""
+    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask
+    p0 = _tool_pose(robot, robot.q_home, 'tool')
+    return [
+        CartesianPoseTask(robot, frame='tool', axes=['z'], lower=[p0[2] - 0.03], gain=20.0,
+                          name='obstacle'),
+        JointTorqueTask(robot, lower=-5.0, upper=5.0, gain=20.0, name='static_torques'),
+        CartesianPoseTask(robot, frame='tool', axes=['x', 'y', 'z'],
+                          equal=_circle(p0 - [0, 0.05, 0], 0.05, 0.2), gain=10.0,
+                          name='circle'),
+        CartesianPoseTask(robot, frame='tool', axes=['rx', 'ry', 'rz'], equal='init',
+                          gain=10.0, name='orientation'),
+        JointPositionTask(robot, equal=robot.q_home, gain=1.0, name='posture'),
+    ]
+
+
+def icub_stack(robot):
+    """Table 3.7 on the iCub: 7 levels."""
+    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, WrenchTask
+    torso = [j for j in robot.joint_names if 'torso' in j]
+    pl = _tool_pose(robot, robot.q_home, 'l_contact')
+    return [
+        WrenchTask(robot, frame='l_contact', axes=['fz'], equal=-1.0, gain=5.0, name='l_force'),
+        CartesianPoseTask(robot, frame='l_contact', axes=['x', 'y'],
+                          equal=_circle(pl, 0.03, 0.2, plane=(0, 1), select=(0, 1)), gain=5.0,
+                          name='l_wipe'),
+        CartesianPoseTask(robot, frame='r_palm', axes=['rx', 'ry'], equal='init', gain=5.0,
+                          name='cup_upright'),
+        CartesianPoseTask(robot, frame='r_palm', axes=['x', 'y', 'z'], equal='init', gain=5.0,
+                          name='cup_position'),
+        CartesianPoseTask(robot, frame='l_palm', axes=['rx', 'ry', 'rz'], equal='init',
+                          gain=5.0, name='l_orientation'),
+        JointPositionTask(robot, joints=torso, equal='init', gain=1.0, name='torso'),
+        JointPositionTask(robot, equal='init', gain=1.0, name='posture'),
+    ]
+
+
+def _closed_loop(spg, robot, ticks, progress):
+    from ifc_spg.testing import JointImpedancePlant
+    plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
+    q, qd, t = plant.q, plant.qdot, 0.0
+    times = np.empty(ticks)
+    statuses = {}
+    for i in range(ticks):
+        q_v = spg.step(q, qd, t)
+        times[i] = spg.info.tick_time
+        statuses[spg.info.status] = statuses.get(spg.info.status, 0) + 1
+        q, qd, t = plant.step(q_v)
+        if progress and i % max(1, ticks // 4) == 0 and i:
+            print(f'    ... {i}/{ticks} ticks', file=sys.stderr)
+    return times, statuses
+
+
+def _stats(times):
+    us = times * 1e6
+    return {'p50_us': float(np.median(us)), 'p99_us': float(np.percentile(us, 99)),
+            'max_us': float(us.max()), 'ticks': int(us.size)}
+
+
+def bench_stack(name, robot, make_stack, solvers, ticks, progress=True):
+    from ifc_spg.spg import SetPointGenerator
+    rows = []
+    for solver in solvers:
+        spg = SetPointGenerator(robot, make_stack(robot), solver=solver)
+        _closed_loop(spg, robot, 200, False)  # warm-up
+        gc.collect()
+        gc.disable()
+        try:
+            times, statuses = _closed_loop(spg, robot, ticks, progress)
+        finally:
+            gc.enable()
+        row = {'stack': name, 'solver': solver, 'levels': len(spg.info.level_names)}
+        row.update(_stats(times))
+        row['status'] = statuses
+        rows.append(row)
+    return rows
+
+
+def bench_pink(ticks):
+    """Our 2-level strict stack vs pink's weighted solve, interleaved in one loop."""
+    import pink
+    from pink.tasks import FrameTask, PostureTask
+    import pinocchio as pin
+    from ifc_spg import RobotModel
+    from ifc_spg.spg import SetPointGenerator
+    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask
+    robot = RobotModel.from_config('lbr_iiwa14')
+    ours = SetPointGenerator(robot, [
+        CartesianPoseTask(robot, frame='tool', equal='init', gain=1.0, name='pose'),
+        JointPositionTask(robot, equal=robot.q_home, gain=1.0, name='posture')],
+        torque_limits=False)
+    # pink: same two tasks, weighted; its configuration does the kinematics
+    frame_name = robot.frames['tool']
+    config = pink.Configuration(robot.model, robot.create_data(), robot.q_home.copy())
+    pose_task = FrameTask(frame_name, position_cost=1.0, orientation_cost=1.0, gain=1.0)
+    pose_task.set_target(config.get_transform_frame_to_world(frame_name))
+    posture_task = PostureTask(cost=1e-3)
+    posture_task.set_target(robot.q_home.copy())
+    dt = 0.002
+    q_ours = robot.q_home.copy()
+    q_pink = robot.q_home.copy()
+    t_ours = np.empty(ticks)
+    t_pink = np.empty(ticks)
+    gc.collect()
+    gc.disable()
+    try:
+        for i in range(ticks):
+            t0 = time.perf_counter()
+            q_ours = ours.step(q_ours, np.zeros(robot.n), i * dt)
+            t1 = time.perf_counter()
+            config.update(q_pink)
+            v = pink.solve_ik(config, [pose_task, posture_task], dt, solver='daqp')
+            q_pink = pin.integrate(robot.model, q_pink, v * dt)
+            t2 = time.perf_counter()
+            t_ours[i] = t1 - t0
+            t_pink[i] = t2 - t1
+    finally:
+        gc.enable()
+    a, b = _stats(t_ours), _stats(t_pink)
+    return {'ours': a, 'pink': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
+            'ratio_p99': a['p99_us'] / b['p99_us']}
+
+
+def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True):
+    """Run all benchmarks; return a JSON-friendly dict."""
+    from ifc_spg import RobotModel
+    out = {'ticks': ticks, 'stacks': []}
+    lbr = RobotModel.from_config('lbr_iiwa14')
+    icub = RobotModel.from_config('icub_upper_body')
+    for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),
+                              ('icub_table_3_7', icub, icub_stack)):
+        if progress:
+            print(f'  {name} ...', file=sys.stderr)
+        out['stacks'] += bench_stack(name, robot, make, solvers, ticks, progress)
+    if progress:
+        print('  pink_ratio ...', file=sys.stderr)
+    out['pink'] = bench_pink(ticks)
+    return out
+
+
+TARGETS = {'lbr_table_4_1': (300.0, 1000.0), 'icub_table_3_7': (600.0, None)}
+
+
+def format_report(res):
+    lines = [f"SPG full tick, {res['ticks']} ticks per row (closed loop, plant not timed)",
+             f"{'stack':<16}{'solver':<11}{'levels':>6}{'p50 us':>9}{'p99 us':>9}{'max us':>9}"
+             '  target        status']
+    for r in res['stacks']:
+        p99t, maxt = TARGETS.get(r['stack'], (None, None))
+        ok = (p99t is None or r['p99_us'] <= p99t) and (maxt is None or r['max_us'] <= maxt)
+        target = f"p99<={p99t:.0f}" + (f",max<={maxt:.0f}" if maxt else '')
+        lines.append(f"{r['stack']:<16}{r['solver']:<11}{r['levels']:>6}{r['p50_us']:>9.1f}"
+                     f"{r['p99_us']:>9.1f}{r['max_us']:>9.1f}  {target:<14}"
+                     f"{'met' if ok else 'MISSED'} {r['status']}")
+    p = res['pink']
+    lines += ['', '2-level strict stack (pose + posture) vs pink weighted solve (daqp), '
+              'interleaved:',
+              f"  ours p50 {p['ours']['p50_us']:.1f} us  p99 {p['ours']['p99_us']:.1f} us  "
+              f"max {p['ours']['max_us']:.1f} us",
+              f"  pink p50 {p['pink']['p50_us']:.1f} us  p99 {p['pink']['p99_us']:.1f} us  "
+              f"max {p['pink']['max_us']:.1f} us",
+              f"  ratio ours/pink: p50 {p['ratio_p50']:.2f}  p99 {p['ratio_p99']:.2f}  "
+              f"(target <= 1.0: {'met' if p['ratio_p50'] <= 1.0 else 'MISSED'})"]
+    return '\n'.join(lines)
+
+
+def main(argv=None):
+    """Entry point of ``ifc-spg bench``."""
+    p = argparse.ArgumentParser(prog='ifc-spg bench', description=__doc__.split('\n\n')[0])
+    p.add_argument('--ticks', type=int, default=20000, help='ticks per row (default 20000)')
+    p.add_argument('--quick', action='store_true', help='2000 ticks per row')
+    p.add_argument('--solvers', default='daqp,proxsuite', help='comma-separated solvers')
+    p.add_argument('--json', help='also write the results to this JSON file')
+    args = p.parse_args(argv)
+    ticks = 2000 if args.quick else args.ticks
+    if ticks < 1:
+        p.error('--ticks must be >= 1')
+    res = run_benchmarks(ticks, tuple(s for s in args.solvers.split(',') if s))
+    print(format_report(res))
+    if args.json:
+        with open(args.json, 'w') as f:
+            json.dump(res, f, indent=1)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
