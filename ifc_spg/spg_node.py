@@ -1,12 +1,222 @@
-"""The ``spg_node``: placeholder until its issue lands."""
+"""The ``spg_node``: the set-point generator on ROS topics.
 
+    spg_node --ros-args --params-file config/lbr_iiwa14.yaml [-p status.decimation:=1]
+
+One tick per ``joint_states`` message, one ``command/joint_position`` per tick (names +
+q_v, velocity qdot_v, header stamp = the joint state's stamp, so a lockstep bridge matches
+it). It starts from the measured q; task stacks (YAML/JSON text) arrive latched on
+``spg/task_stack`` — a bad one is rejected with the field named on ``spg/status`` and the
+running one continues. ``spg/status`` (JSON) is published every ``status.decimation``
+ticks and immediately on stack and watchdog events; ``spg/diagnostics`` every
+``diagnostics.period`` seconds. Without joint states for ``watchdog.timeout`` seconds the
+node stops commanding and reports it; when states return with stamps that jumped (or
+restarted) it restarts from the measured q (see :mod:`ifc_spg.spg_runner`).
+
+Parameters (``ros2 param describe`` shows ranges and units): robot, dt, solver, rho,
+torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget},
+watchdog.timeout, status.decimation, diagnostics.period, task_stack_file,
+topics.{joint_states, command, task_stack, status, diagnostics}. An unknown, mistyped or
+out-of-range parameter ends the node with exit code 2 and a message naming it.
+
+The logic lives in :class:`ifc_spg.spg_runner.SpgRunner` (no ROS); this module only wires
+it to topics and timers.
+"""
+
+import signal
 import sys
+import time
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.spg_config import declare_parameters
+from ifc_spg.spg_runner import SpgRunner, status_json
+
+__all__ = ['SpgNode', 'main']
+
+_LEVELS = {'OK': 0, 'WARN': 1, 'ERROR': 2, 'STALE': 3}
+
+
+def _stamp_ns(stamp):
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+class SpgNode:
+    """Wires an :class:`~ifc_spg.spg_runner.SpgRunner` to a node of the active ROS backend.
+
+    Args:
+        node: ``ifc_spg.ros.Node`` (rclpy or the built-in backend).
+        clock: Monotonic clock in [s] for the watchdog (tests may pass a fake one).
+    """
+
+    def __init__(self, node, clock=time.monotonic):
+        from ifc_spg import ros
+        from ifc_spg.ros import msg
+
+        self.node = node
+        self._msg = msg
+        self.config = c = declare_parameters(node)
+        self.runner = SpgRunner(c, clock=clock)
+        self.log = node.get_logger()
+        self.pub_command = node.create_publisher(msg.JointState, c.command_topic, 10)
+        self.pub_status = node.create_publisher(msg.String, c.status_topic, 10)
+        self.pub_diag = node.create_publisher(msg.DiagnosticArray, c.diagnostics_topic, 10)
+        self.sub_states = node.create_subscription(msg.JointState, c.joint_states_topic,
+                                                   self.on_joint_state, 10)
+        self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
+                                                  self.on_task_stack, ros.latched(1))
+        if c.watchdog_timeout > 0:
+            node.create_timer(min(max(c.watchdog_timeout / 4, 0.002), 0.1), self.on_watchdog)
+        node.create_timer(c.diagnostics_period, self.publish_diagnostics)
+        self._logged = {}
+        self.commands_sent = 0
+        self.log.info(f"spg_node: robot '{c.robot}' ({self.runner.robot.n} joints), dt {c.dt} s,"
+                      f" solver {c.solver}, pspm {'on' if c.pspm else 'off'}, watchdog "
+                      f'{c.watchdog_timeout * 1e3:g} ms; waiting for {c.joint_states_topic}')
+        if c.task_stack_file:
+            self.load_file(c.task_stack_file)
+
+    def load_file(self, path):
+        """Run the task stack in file ``path`` (as if it arrived on the task topic)."""
+        try:
+            with open(path, encoding='utf-8') as f:
+                text = f.read()
+        except OSError as exc:
+            raise IfcSpgError(f"parameter 'task_stack_file': cannot read '{path}': "
+                              f'{exc.strerror}') from None
+        event = self.runner.handle_task_stack(text, source=path)
+        if not event.accepted:
+            raise IfcSpgError(event.message)
+        self._report_stack(event)
+
+    # -- callbacks ----------------------------------------------------------------------
+    def on_joint_state(self, message):
+        """Tick: validate, step the SPG, publish the command (and status every N ticks)."""
+        runner = self.runner
+        rejected, trips = sum(runner.rejected.values()), runner.watchdog_trips
+        was_stale = runner.stale
+        cmd = runner.handle_joint_state(message.name, message.position, message.velocity,
+                                        _stamp_ns(message.header.stamp))
+        if sum(runner.rejected.values()) != rejected:
+            self._log_throttled('error', runner.last_error)
+        if runner.watchdog_trips != trips:  # a stamp gap tripped it
+            self.log.warning(runner.last_error)
+        if cmd is None:
+            return
+        out = self._msg.JointState()
+        out.header.stamp = message.header.stamp
+        out.name = list(cmd.names)
+        out.position = cmd.position.tolist()
+        out.velocity = cmd.velocity.tolist()
+        self.pub_command.publish(out)
+        self.commands_sent += 1
+        if cmd.resumed and cmd.tick > 1:
+            text = (f'joint states are back (stamp {cmd.stamp_ns * 1e-9:.3f} s): restarted from '
+                    f'the measured q (restart {runner.resumes})')
+            self.log.warning(text)
+            self.publish_status(('resumed', text))
+        elif cmd.resumed:
+            self.log.info('first joint state: commanding from the measured q')
+        elif was_stale:
+            text = ('joint states are back with continuous stamps (the source paused): '
+                    'continuing without a restart')
+            self.log.info(text)
+            self.publish_status(('continued', text))
+        if cmd.tick % self.config.status_decimation == 0:
+            self.publish_status()
+
+    def on_task_stack(self, message):
+        """A new task stack: accept (hot swap at the next tick) or reject with the reason."""
+        event = self.runner.handle_task_stack(message.data, source=self.sub_stack.topic_name)
+        self._report_stack(event)
+
+    def _report_stack(self, event):
+        if event.accepted:
+            self.log.info(event.message)
+            self.publish_status(('stack_accepted', event.message))
+        else:
+            self.log.error(f'{event.message}; keeping stack '
+                           f"'{event.name or 'none'}'")
+            self.publish_status(('stack_rejected', event.message))
+
+    def on_watchdog(self):
+        """Timer: trip the watchdog when joint states stopped."""
+        if self.runner.check_watchdog():
+            self.log.warning(self.runner.last_error)
+            self.publish_status(('watchdog', self.runner.last_error))
+            self.publish_diagnostics()
+
+    # -- outputs ------------------------------------------------------------------------
+    def publish_status(self, event=None):
+        """Publish the runner's status JSON on the status topic."""
+        self.pub_status.publish(self._msg.String(data=status_json(self.runner.status(event))))
+
+    def publish_diagnostics(self):
+        """Publish one DiagnosticArray with the runner's summary."""
+        msg = self._msg
+        item = self.runner.diagnostics()
+        status = msg.DiagnosticStatus()
+        level = _LEVELS[item.level]
+        status.level = bytes([level]) if isinstance(status.level, bytes) else level
+        status.name = f'{self.node.get_name()}: set-point generator'
+        status.message = item.message or item.level
+        status.hardware_id = self.runner.robot.name
+        status.values = [msg.KeyValue(key=k, value=v) for k, v in item.values.items()]
+        array = msg.DiagnosticArray()
+        now = time.time_ns()
+        array.header.stamp.sec, array.header.stamp.nanosec = divmod(now, 1_000_000_000)
+        array.status = [status]
+        self.pub_diag.publish(array)
+
+    def _log_throttled(self, level, text, period=1.0):
+        key = text.split(':', 1)[0]
+        now = time.monotonic()
+        last, suppressed = self._logged.get(key, (-1e18, 0))
+        if now - last >= period:
+            more = f' ({suppressed} similar suppressed)' if suppressed else ''
+            getattr(self.log, level)(text + more)
+            self._logged[key] = (now, 0)
+        else:
+            self._logged[key] = (last, suppressed + 1)
 
 
 def main(argv=None):
-    """Print usage; this executable is a placeholder until the end-to-end issue lands."""
-    print('usage: spg_node [--ros-args ...]\n(placeholder: lands with the end-to-end issue)')
-    return 0 if '--help' in (argv or sys.argv[1:]) or '-h' in (argv or sys.argv[1:]) else 2
+    """Entry point of the ``spg_node`` executable; returns the exit code."""
+    argv = list(sys.argv if argv is None else argv)
+    if '-h' in argv or '--help' in argv:
+        print(__doc__)
+        return 0
+    from ifc_spg import ros
+
+    try:
+        ros.init(args=argv)
+    except IfcSpgError as exc:
+        print(f'spg_node: {exc}', file=sys.stderr)
+        return 2
+    node = ros.Node('spg_node')
+    try:
+        spg = SpgNode(node)
+    except IfcSpgError as exc:
+        print(f'spg_node: {exc}', file=sys.stderr)
+        node.destroy_node()
+        ros.shutdown()
+        return 2
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        ros.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        node.get_logger().info(f'spg_node: {spg.runner.ticks} ticks, {spg.commands_sent} '
+                               f'commands, rejected {spg.runner.rejected}, '
+                               f'{spg.runner.watchdog_trips} watchdog trip(s)')
+        node.destroy_node()
+        if ros.ok():
+            ros.shutdown()
+    return 0
 
 
 if __name__ == '__main__':

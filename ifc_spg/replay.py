@@ -1,0 +1,219 @@
+"""Recompute the SPG output from a bag and compare it with the recorded commands.
+
+    ifc-spg replay BAG [--tolerance 1e-9] [--robot NAME] [--json]
+
+The SPG configuration comes from the bag (metadata ``custom_data['ifc_spg.spg_config']``,
+else the first ``spg/status`` message carrying ``config``; ``--robot`` is the last resort,
+with default parameters). Every ``joint_states`` message is one tick, in stamp order, fed
+to a fresh :class:`~ifc_spg.spg_runner.SpgRunner` exactly as the live node or the offline
+runner did; each task stack on ``spg/task_stack`` is handed to it before the tick at which
+the recorded run activated it (``stack.since`` in ``spg/status``; without it, the first
+status showing the stack's id; without statuses, the message's log time). The result is
+max |Δq_v| over all ticks and joints between recomputed and recorded
+``command/joint_position`` (matched by header stamp). Exit status 0 when it is within the
+tolerance, 1 when it is not (or commands are missing), 2 on an unreadable bag.
+"""
+
+import argparse
+import dataclasses
+import json
+import sys
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError, ParameterError
+
+__all__ = ['ReplayResult', 'main', 'read_spg_config', 'replay']
+
+
+@dataclasses.dataclass
+class ReplayResult:
+    """Outcome of :func:`replay`.
+
+    Attributes:
+        max_abs_diff: max |Δq_v| over ticks and joints in [rad] (inf if nothing matched).
+        worst_stamp: Stamp [s] of the worst tick (None if none matched).
+        worst_joint: Joint name of the worst difference.
+        ticks: Joint states replayed.
+        compared: Ticks with a recorded command compared.
+        missing: Ticks without a recorded command (or without a recomputed one).
+        stacks: Task stacks handed to the SPG.
+        config: The SPG configuration used (dict).
+    """
+
+    max_abs_diff: float
+    worst_stamp: float
+    worst_joint: str
+    ticks: int
+    compared: int
+    missing: int
+    stacks: int
+    config: dict
+
+
+def read_spg_config(bag, statuses, robot=None):
+    """The :class:`~ifc_spg.spg_config.SpgConfig` a bag was recorded with."""
+    from ifc_spg.runner import CONFIG_KEY
+    from ifc_spg.spg_config import SpgConfig
+
+    doc = None
+    if CONFIG_KEY in bag.custom_data:
+        doc = json.loads(bag.custom_data[CONFIG_KEY])
+    else:
+        doc = next((s['config'] for _, s in statuses if isinstance(s.get('config'), dict)),
+                   None)
+    if doc is None:
+        if robot is None:
+            raise ParameterError(f"bag '{bag.path}' holds no SPG configuration (no custom_data "
+                                 f"'{CONFIG_KEY}', no spg/status with 'config'); pass --robot "
+                                 'NAME to replay with default parameters')
+        return SpgConfig(robot=robot, watchdog_timeout=0.0)
+    known = {f.name for f in dataclasses.fields(SpgConfig)}
+    doc = {k: v for k, v in doc.items() if k in known}
+    if robot is not None:
+        doc['robot'] = robot
+    doc['watchdog_timeout'] = 0.0  # replay has no wall clock; stamps still trip a gap
+    return SpgConfig(**doc)
+
+
+def _activation_times(stack_msgs, statuses, accepted):
+    """Stamp [s] before whose tick each stack message is handed to the SPG (None: never)."""
+    since, first_seen = {}, {}
+    for _, doc in statuses:
+        st = doc.get('stack') if isinstance(doc, dict) else None
+        if not st or not st.get('id'):
+            continue
+        sid = int(st['id'])
+        if st.get('since') is not None:
+            since.setdefault(sid, float(st['since']))
+        if doc.get('stamp') is not None:
+            first_seen.setdefault(sid, float(doc['stamp']))
+    out = []
+    next_id = 0
+    ids = []
+    for ok in accepted:
+        if ok:
+            next_id += 1
+            ids.append(next_id)
+        else:
+            ids.append(None)
+    known = {**first_seen, **since}
+    for i, (t_log, _) in enumerate(stack_msgs):
+        sid = ids[i]
+        if known:
+            if sid is None:
+                out.append(None)  # rejected: no effect on q_v
+                continue
+            # a stack overridden before it ran has no status: hand it over with the next one
+            later = [known[j] for j in range(sid, next_id + 1) if j in known]
+            out.append(later[0] if later else None)
+        else:
+            out.append(t_log * 1e-9)
+    return out
+
+
+def replay(path, robot=None):
+    """Recompute the commands of a bag; returns a :class:`ReplayResult`."""
+    from ifc_spg.bag import BagReader, stamp_ns
+    from ifc_spg.spg_runner import SpgRunner, parse_task_stack
+
+    with BagReader(path) as bag:
+        topics = {t.lstrip('/'): t for t in bag.topics}
+        for need in ('joint_states', 'command/joint_position'):
+            if need not in topics:
+                raise ParameterError(f"bag '{path}' has no '{need}' topic; topics: "
+                                     f"{', '.join(sorted(bag.topics)) or 'none'}")
+        states, commands, stack_msgs, statuses = [], {}, [], []
+        wanted = {topics[k] for k in ('joint_states', 'command/joint_position', 'spg/task_stack',
+                                      'spg/status') if k in topics}
+        for topic, t_log, msg in bag.messages(wanted):
+            name = topic.lstrip('/')
+            if name == 'joint_states':
+                states.append((stamp_ns(msg.header.stamp), msg))
+            elif name == 'command/joint_position':
+                commands.setdefault(stamp_ns(msg.header.stamp), msg)
+            elif name == 'spg/task_stack':
+                stack_msgs.append((t_log, msg.data))
+            else:
+                try:
+                    statuses.append((t_log, json.loads(msg.data)))
+                except json.JSONDecodeError:
+                    pass
+        config = read_spg_config(bag, statuses, robot)
+    spg = SpgRunner(config)
+    accepted = []
+    for _, text in stack_msgs:
+        try:
+            parse_task_stack(text).build(spg.robot)
+            accepted.append(True)
+        except IfcSpgError:
+            accepted.append(False)
+    when = _activation_times(stack_msgs, statuses, accepted)
+    pending = sorted(((w, i) for i, w in enumerate(when) if w is not None))
+    states.sort(key=lambda x: x[0])
+    worst, worst_stamp, worst_joint = 0.0, None, ''
+    compared = missing = handed = 0
+    seen = set()
+    for stamp, msg in states:
+        if stamp in seen:  # a lockstep bridge re-publishes a state it got no answer for
+            continue
+        seen.add(stamp)
+        while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
+            _, i = pending.pop(0)
+            spg.handle_task_stack(stack_msgs[i][1])
+            handed += 1
+        cmd = spg.handle_joint_state(msg.name, msg.position, msg.velocity, stamp)
+        rec = commands.get(stamp)
+        if cmd is None or rec is None:
+            missing += 1
+            continue
+        recorded = np.array(_in_order(rec, cmd.names), dtype=float)
+        diff = np.abs(cmd.position - recorded)
+        compared += 1
+        j = int(np.argmax(diff)) if diff.size else 0
+        d = float(diff[j]) if diff.size else 0.0
+        if not np.all(np.isfinite(diff)):
+            d = float('inf')
+        if d > worst or worst_stamp is None:
+            worst, worst_stamp, worst_joint = d, stamp * 1e-9, cmd.names[j]
+    return ReplayResult(worst if compared else float('inf'), worst_stamp, worst_joint,
+                        len(seen), compared, missing, handed, dataclasses.asdict(config))
+
+
+def _in_order(msg, names):
+    if not msg.name:
+        return list(msg.position)
+    index = {n: i for i, n in enumerate(msg.name)}
+    return [msg.position[index[n]] if n in index else np.nan for n in names]
+
+
+def main(argv=None):
+    """``ifc-spg replay BAG``."""
+    parser = argparse.ArgumentParser(prog='ifc-spg replay', description=__doc__.split('\n')[0])
+    parser.add_argument('bag', help='bag directory')
+    parser.add_argument('--tolerance', type=float, default=1e-9,
+                        help='max |dq_v| [rad] accepted (default 1e-9)')
+    parser.add_argument('--robot', default=None, help='robot, if the bag does not say')
+    parser.add_argument('--json', action='store_true', help='print the result as JSON')
+    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        res = replay(opts.bag, opts.robot)
+    except IfcSpgError as exc:
+        print(f'ifc-spg replay: {exc}', file=sys.stderr)
+        return 2
+    ok = res.compared > 0 and res.missing == 0 and res.max_abs_diff <= opts.tolerance
+    if opts.json:
+        print(json.dumps({**dataclasses.asdict(res), 'tolerance': opts.tolerance, 'ok': ok}))
+    else:
+        print(f'replayed {res.ticks} ticks ({res.stacks} task stack(s), robot '
+              f"'{res.config['robot']}', solver {res.config['solver']}); compared {res.compared}"
+              f' commands, {res.missing} missing')
+        where = '' if res.worst_stamp is None else \
+            f' (t = {res.worst_stamp:.3f} s, joint {res.worst_joint})'
+        print(f'max |dq_v| = {res.max_abs_diff:.3e} rad{where}; tolerance {opts.tolerance:g}: '
+              + ('OK' if ok else 'FAILED'))
+    return 0 if ok else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

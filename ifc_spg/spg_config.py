@@ -1,0 +1,252 @@
+"""The SPG node's configuration: one frozen dataclass, one parameter table.
+
+Every setting of ``spg_node`` is declared ONCE, in :data:`PARAMETERS` (ROS name, field of
+:class:`SpgConfig`, description, range); the default is the dataclass field's default. The
+node declares them with descriptors (:func:`declare_parameters`), the YAML files in
+``config/<robot>.yaml`` only override, and the offline runner builds the same
+:class:`SpgConfig` without ROS::
+
+    config = SpgConfig(robot='lbr4', status_decimation=1)
+    config = config_from_parameters({'robot': 'lbr4', 'pspm.enabled': False})
+
+ROS parameter names are grouped with dots (``pspm.initial_energy``, ``topics.command``);
+in a params file they are nested mappings under ``ros__parameters``.
+"""
+
+from dataclasses import dataclass, fields
+import os
+from typing import NamedTuple
+
+from ifc_spg.errors import ParameterError, did_you_mean
+from ifc_spg.pspm import PspmConfig
+
+__all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
+           'config_from_parameters', 'config_file']
+
+SOLVERS = ('daqp', 'proxsuite', 'nullspace')
+_ROBOTS = ('lbr4', 'lbr_iiwa14', 'icub_upper_body', 'accrea_dual_arm')
+
+
+@dataclass(frozen=True)
+class SpgConfig:
+    """Validated settings of the SPG node (and of :class:`~ifc_spg.spg_runner.SpgRunner`).
+
+    Attributes:
+        robot: Named robot configuration (``RobotModel.from_config``).
+        dt: SPG period dT in [s] (the joint-state period of the robot interface).
+        solver: Cascade solver: 'daqp', 'proxsuite' or 'nullspace' (baseline).
+        rho: Regularization of qdot_v per level (4.45), dimensionless.
+        torque_limits: Add the implicit top-level task |tau_s| <= tau_max (4.3).
+        pspm: Passive set-point modulation (energy tanks) on/off.
+        pspm_initial_energy: E_r,init per joint in [J].
+        pspm_max_energy: E_r,max per joint in [J].
+        pspm_shuffle: dE_shuffle per tick in [J].
+        pspm_shuffle_budget: b^2, total shuffled energy per joint in [J].
+        watchdog_timeout: No joint state for longer than this [s] stops commanding; the
+            next state restarts from the measured q. 0 disables the watchdog.
+        status_decimation: Publish ``spg/status`` every N-th tick.
+        diagnostics_period: Period of ``spg/diagnostics`` in [s].
+        task_stack_file: A task-stack file to run from the start ('' for none).
+        joint_states_topic: Input joint states.
+        command_topic: Output virtual joint positions.
+        task_stack_topic: Input task stacks (latched).
+        status_topic: Output status JSON.
+        diagnostics_topic: Output DiagnosticArray.
+    """
+
+    robot: str = 'lbr_iiwa14'
+    dt: float = 0.002
+    solver: str = 'daqp'
+    rho: float = 0.01
+    torque_limits: bool = True
+    pspm: bool = True
+    pspm_initial_energy: float = 0.5
+    pspm_max_energy: float = 2.0
+    pspm_shuffle: float = 0.0
+    pspm_shuffle_budget: float = 0.0
+    watchdog_timeout: float = 0.05
+    status_decimation: int = 10
+    diagnostics_period: float = 1.0
+    task_stack_file: str = ''
+    joint_states_topic: str = 'joint_states'
+    command_topic: str = 'command/joint_position'
+    task_stack_topic: str = 'spg/task_stack'
+    status_topic: str = 'spg/status'
+    diagnostics_topic: str = 'spg/diagnostics'
+
+    def __post_init__(self):
+        for p in PARAMETERS:
+            value = getattr(self, p.field)
+            default = _DEFAULTS[p.field]
+            if type(value) is not type(default) and not (
+                    isinstance(default, float) and type(value) is int):
+                raise ParameterError(f"parameter '{p.name}': {value!r} is a "
+                                     f'{type(value).__name__}, expected a '
+                                     f'{type(default).__name__} ({p.description})')
+            if p.range is not None and not (p.range[0] <= value <= p.range[1]):
+                raise ParameterError(f"parameter '{p.name}': {value!r} is outside "
+                                     f'[{p.range[0]}, {p.range[1]}] ({p.description})')
+        if self.robot not in _ROBOTS:
+            raise ParameterError(f"parameter 'robot': unknown robot '{self.robot}'"
+                                 f'{did_you_mean(self.robot, _ROBOTS)}; choose one of '
+                                 f"{', '.join(_ROBOTS)}")
+        if self.solver not in SOLVERS:
+            raise ParameterError(f"parameter 'solver': '{self.solver}' is not one of "
+                                 f"{', '.join(SOLVERS)}{did_you_mean(self.solver, SOLVERS)}")
+        self.pspm_config()  # validates the energies (initial <= max)
+        for p in PARAMETERS:
+            if p.field.endswith('_topic') and not getattr(self, p.field):
+                raise ParameterError(f"parameter '{p.name}' must name a topic, got ''")
+
+    def pspm_config(self):
+        """The :class:`~ifc_spg.pspm.PspmConfig`, or False when PSPM is off."""
+        if not self.pspm:
+            return False
+        return PspmConfig(initial_energy=float(self.pspm_initial_energy),
+                          max_energy=float(self.pspm_max_energy),
+                          shuffle=float(self.pspm_shuffle),
+                          shuffle_budget=float(self.pspm_shuffle_budget))
+
+
+class Param(NamedTuple):
+    """One ROS parameter of the node.
+
+    Attributes:
+        name: ROS parameter name (dotted groups).
+        field: The :class:`SpgConfig` field it sets.
+        description: Text with units, shown by ``ros2 param describe``.
+        range: (low, high) for numbers, None otherwise.
+    """
+
+    name: str
+    field: str
+    description: str
+    range: tuple = None
+
+
+PARAMETERS = (
+    Param('robot', 'robot', 'Robot configuration: ' + ', '.join(_ROBOTS)),
+    Param('dt', 'dt', 'SPG period dT in [s] (joint-state period of the interface)',
+          (1e-4, 0.1)),
+    Param('solver', 'solver', 'Cascade solver: ' + ', '.join(SOLVERS)),
+    Param('rho', 'rho', 'Regularization rho of qdot_v in each level (4.45)', (1e-8, 10.0)),
+    Param('torque_limits', 'torque_limits',
+          'Implicit top-level joint torque limit task |K (q_v - q)| <= tau_max (4.3)'),
+    Param('pspm.enabled', 'pspm', 'Passive set-point modulation (energy tanks, Sec. 4.2)'),
+    Param('pspm.initial_energy', 'pspm_initial_energy', 'Initial tank energy E_r,init in [J]',
+          (0.0, 1e4)),
+    Param('pspm.max_energy', 'pspm_max_energy', 'Tank ceiling E_r,max in [J]', (0.0, 1e4)),
+    Param('pspm.shuffle', 'pspm_shuffle', 'Energy shuffled into each tank per tick in [J]',
+          (0.0, 1e3)),
+    Param('pspm.shuffle_budget', 'pspm_shuffle_budget',
+          'Total shuffled energy per joint b^2 in [J]', (0.0, 1e6)),
+    Param('watchdog.timeout', 'watchdog_timeout',
+          'No joint state for longer than this [s] stops commanding (0: off)', (0.0, 60.0)),
+    Param('status.decimation', 'status_decimation', 'Publish spg/status every N-th tick',
+          (1, 1_000_000)),
+    Param('diagnostics.period', 'diagnostics_period', 'Period of spg/diagnostics in [s]',
+          (0.01, 3600.0)),
+    Param('task_stack_file', 'task_stack_file',
+          "Task-stack file (YAML/JSON) to run from the start ('': wait for spg/task_stack)"),
+    Param('topics.joint_states', 'joint_states_topic', 'Input sensor_msgs/JointState topic'),
+    Param('topics.command', 'command_topic', 'Output command sensor_msgs/JointState topic'),
+    Param('topics.task_stack', 'task_stack_topic', 'Input task-stack std_msgs/String (latched)'),
+    Param('topics.status', 'status_topic', 'Output status std_msgs/String (JSON)'),
+    Param('topics.diagnostics', 'diagnostics_topic',
+          'Output diagnostic_msgs/DiagnosticArray topic'),
+)
+
+_DEFAULTS = {f.name: f.default for f in fields(SpgConfig)}
+_BY_NAME = {p.name: p for p in PARAMETERS}
+# Parameters a ROS node may carry without us declaring them.
+_FOREIGN_OK = ('use_sim_time', 'qos_overrides.')
+
+
+def config_from_parameters(values):
+    """Build an :class:`SpgConfig` from ``{ROS parameter name: value}`` (missing: default).
+
+    Raises:
+        ParameterError: An unknown name (with a suggestion), a bad type or range.
+    """
+    kwargs = {}
+    for name, value in values.items():
+        if name not in _BY_NAME:
+            raise ParameterError(f"unknown spg_node parameter '{name}'"
+                                 f'{did_you_mean(name, _BY_NAME)}; valid: '
+                                 f"{', '.join(_BY_NAME)}")
+        field = _BY_NAME[name].field
+        if isinstance(_DEFAULTS[field], float) and type(value) is int:
+            value = float(value)
+        kwargs[field] = value
+    return SpgConfig(**kwargs)
+
+
+def _descriptor(ros, p, default):
+    desc = ros.ParameterDescriptor(description=p.description)
+    if p.range is not None:
+        if isinstance(default, int) and not isinstance(default, bool):
+            desc.integer_range = [ros.IntegerRange(from_value=int(p.range[0]),
+                                                   to_value=int(p.range[1]), step=0)]
+        else:
+            desc.floating_point_range = [ros.FloatingPointRange(
+                from_value=float(p.range[0]), to_value=float(p.range[1]), step=0.0)]
+    return desc
+
+
+def _overrides(node):
+    # The backend's table of -p / --params-file values for this node (rclpy keeps it in
+    # ``_parameter_overrides``); used only to refuse parameters nobody declared.
+    table = getattr(node, '_overrides', None)
+    if table is None:
+        table = getattr(node, '_parameter_overrides', None) or {}
+    return list(table)
+
+
+def declare_parameters(node):
+    """Declare every parameter of :data:`PARAMETERS` on ``node``; return the SpgConfig.
+
+    Each parameter is declared once, with its description and range; the value comes from
+    the command line or params file when given, else the :class:`SpgConfig` default.
+    A value the node does not know (a typo in the YAML) is an error, not silently ignored.
+
+    Raises:
+        ParameterError: Unknown name, wrong type or out of range (backend errors of rclpy
+            are re-raised as ParameterError with their message).
+    """
+    from ifc_spg import ros
+
+    values = {}
+    for p in PARAMETERS:
+        default = _DEFAULTS[p.field]
+        try:
+            values[p.name] = node.declare_parameter(p.name, default,
+                                                    _descriptor(ros, p, default)).value
+        except ParameterError:
+            raise
+        except Exception as exc:  # rclpy's InvalidParameterTypeException and friends
+            raise ParameterError(f"parameter '{p.name}': {exc}") from None
+    unknown = [name for name in _overrides(node) if name not in _BY_NAME and
+               not any(name == f or name.startswith(f) for f in _FOREIGN_OK)]
+    if unknown:
+        raise ParameterError(f"unknown spg_node parameter '{unknown[0]}'"
+                             f'{did_you_mean(unknown[0], _BY_NAME)}; valid: '
+                             f"{', '.join(_BY_NAME)}")
+    return config_from_parameters(values)
+
+
+def config_file(robot):
+    """Path of ``config/<robot>.yaml``: the source tree's, else the installed share dir.
+
+    Raises:
+        ParameterError: No such file (names the places searched).
+    """
+    import sys
+
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    candidates = [os.path.join(here, 'config', f'{robot}.yaml'),
+                  os.path.join(sys.prefix, 'share', 'ifc_spg', 'config', f'{robot}.yaml')]
+    for path in candidates:
+        if os.path.isfile(path):
+            return path
+    raise ParameterError(f"no parameter file for robot '{robot}'; looked in "
+                         f"{', '.join(candidates)}")

@@ -1,0 +1,436 @@
+"""The SPG node's logic without ROS: joint states in, commands, status and diagnostics out.
+
+:class:`SpgRunner` wraps a :class:`~ifc_spg.spg.SetPointGenerator` with everything the
+live node must do around a tick, so that ``spg_node`` stays a thin shell and the offline
+runner and replay reuse the same code::
+
+    runner = SpgRunner(SpgConfig(robot='lbr_iiwa14'))
+    event = runner.handle_task_stack(text)              # StackEvent(accepted, ...)
+    cmd = runner.handle_joint_state(names, q, qdot, stamp_ns)   # Command or None
+    runner.check_watchdog()                             # from a timer; True when it trips
+    runner.status()  /  runner.diagnostics()            # JSON-ready dict / DiagItem
+
+Input checks (each rejected message is counted by reason in ``rejected`` and recorded as
+an error; nothing raises): a wrong number of joints, unknown or repeated joint names,
+non-finite values, a stamp older than the last one (``stamp_backwards``) and a repeated
+stamp (``duplicate_stamp``: the last command is returned again, so a lockstep bridge that
+re-publishes a state it got no answer for is answered, but the SPG does not tick twice).
+
+Watchdog: when no joint state was handled for more than ``watchdog_timeout`` [s] of the
+``clock`` (checked by :meth:`check_watchdog`, measured from the end of the last tick, so
+the SPG's own computing time does not count), the runner is *stale*: it reports it and
+commands nothing. Whether the next state restarts the SPG is decided by the stamps alone,
+so a replay of the recorded states reproduces it: a stamp more than the timeout after the
+last one (the robot moved on without us), or, while stale, a stamp older than the last one
+(a restarted driver or simulator), restarts from the measured q (q_v := q, the tanks
+refilled, the running stack re-activated: ``init`` values are captured at the measured
+pose and its task time starts again). A state that continues the stamps (a lockstep
+simulator that paused, or a backlog after this process stalled) continues without a jump.
+
+Task time comes from the stamps only; ``clock`` is used for the watchdog alone.
+"""
+
+from collections import deque
+import dataclasses
+import json
+import math
+import time
+from typing import NamedTuple
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.model import RobotModel
+from ifc_spg.spg import SetPointGenerator
+from ifc_spg.spg_config import SpgConfig
+
+__all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
+           'parse_task_stack', 'status_json']
+
+REJECT_REASONS = ('wrong_count', 'unknown_name', 'duplicate_name', 'non_finite',
+                  'stamp_backwards', 'duplicate_stamp')
+_MAX_ERRORS = 8
+
+
+class Command(NamedTuple):
+    """One output of a tick (the ``command/joint_position`` message).
+
+    Attributes:
+        stamp_ns: Stamp of the joint state it answers in [ns] (header stamp to publish).
+        names: Joint names in model order.
+        position: Virtual joint positions q_v in [rad] (n,).
+        velocity: Virtual joint velocities qdot_v in [rad/s] (n,).
+        tick: Tick counter (1 for the first tick).
+        resumed: True for the first command after a start or a watchdog restart.
+    """
+
+    stamp_ns: int
+    names: tuple
+    position: np.ndarray
+    velocity: np.ndarray
+    tick: int
+    resumed: bool
+
+
+class StackEvent(NamedTuple):
+    """The outcome of :meth:`SpgRunner.handle_task_stack`.
+
+    Attributes:
+        accepted: True if the stack replaces the running one at the next tick.
+        stack_id: Id of the stack that runs next (1, 2, ... per accepted stack; 0: none).
+        name: Name of the stack that runs next ('' for none).
+        message: What happened; for a rejected stack the error naming the field.
+    """
+
+    accepted: bool
+    stack_id: int
+    name: str
+    message: str
+
+
+class DiagItem(NamedTuple):
+    """One diagnostic status: ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
+
+    level: str
+    name: str
+    message: str
+    values: dict
+
+
+def parse_task_stack(text, source=None):
+    """Parse a task-stack document (YAML or JSON text) with :mod:`ifc_spg.task_stack`.
+
+    Raises:
+        IfcSpgError: ``TaskStackError`` naming the field path, line and column.
+    """
+    from ifc_spg.task_stack import TaskStack
+
+    for name in ('from_text', 'from_yaml'):
+        parse = getattr(TaskStack, name, None)
+        if parse is not None:
+            try:
+                return parse(text, source=source) if source else parse(text)
+            except TypeError:
+                return parse(text)
+    raise IfcSpgError('ifc_spg.task_stack.TaskStack has no from_text/from_yaml parser')
+
+
+def _finite(x):
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    return x
+
+
+def status_json(status):
+    """Serialize a status dict as strict JSON (non-finite numbers become null)."""
+    return json.dumps(_finite(status), allow_nan=False, separators=(',', ':'))
+
+
+class SpgRunner:
+    """The SPG node body: validated ticks, hot-swapped stacks, watchdog, status.
+
+    Args:
+        config: :class:`~ifc_spg.spg_config.SpgConfig`.
+        robot: The :class:`~ifc_spg.model.RobotModel` (default: ``config.robot``).
+        clock: Monotonic clock in [s] for the watchdog (default ``time.monotonic``).
+        parse_stack: ``parse_stack(text) -> stack`` (default :func:`parse_task_stack`).
+    """
+
+    def __init__(self, config=None, robot=None, clock=time.monotonic, parse_stack=None):
+        self.config = config = config or SpgConfig()
+        self.robot = robot or RobotModel.from_config(config.robot)
+        self.spg = SetPointGenerator(self.robot, None, dt=config.dt, pspm=config.pspm_config(),
+                                     solver=config.solver, rho=config.rho,
+                                     torque_limits=config.torque_limits)
+        self.clock = clock
+        self._parse = parse_stack or parse_task_stack
+        self.joint_names = tuple(self.robot.joint_names)
+        self._n = len(self.joint_names)
+        self._index = {n: i for i, n in enumerate(self.joint_names)}
+        self._perm = {}                 # names tuple -> index array (validated once)
+        self.rejected = dict.fromkeys(REJECT_REASONS, 0)
+        self.errors = deque(maxlen=_MAX_ERRORS)
+        self.last_error = ''
+        self.ticks = 0
+        self.watchdog_trips = 0
+        self.resumes = 0
+        self.stale = False              # watchdog tripped, not yet resumed
+        self.started = False            # at least one tick since the start/restart
+        self.stack_id = 0
+        self.stack_name = ''
+        self._stack_since = None
+        self._config_sent = False
+        self._next_id = 0
+        self._pending_name = None
+        self._last_stamp = None
+        self._last_seen = None
+        self._last_q = None
+        self._last_command = None
+        self._period = deque(maxlen=500)    # stamp differences [s]
+        self._tick_times = deque(maxlen=500)
+
+    # -- inputs -------------------------------------------------------------------------
+    def handle_task_stack(self, text, source=None):
+        """Parse, build and schedule a task stack; a bad one leaves the running one.
+
+        Args:
+            text: YAML or JSON document.
+            source: Name for error messages (e.g. the topic or file name).
+        """
+        try:
+            stack = self._parse(text) if source is None else self._parse_with(text, source)
+            self.spg.set_stack(stack)
+        except IfcSpgError as exc:
+            message = f'task stack rejected: {exc}'
+            self._error('task_stack', message)
+            return StackEvent(False, self.stack_id if self._pending_name is None else
+                              self._next_id, self._pending_name or self.stack_name, message)
+        except Exception as exc:  # a parser bug must not take the node down
+            message = f'task stack rejected (internal error {type(exc).__name__}): {exc}'
+            self._error('task_stack', message)
+            return StackEvent(False, self.stack_id, self.stack_name, message)
+        self._next_id += 1
+        self._pending_name = str(getattr(stack, 'name', '') or f'stack_{self._next_id}')
+        written_for = getattr(stack, 'robot', None)
+        note = f" (written for '{written_for}')" if written_for not in (
+            None, self.robot.name) else ''
+        return StackEvent(True, self._next_id, self._pending_name,
+                          f"task stack '{self._pending_name}' (id {self._next_id}) accepted"
+                          f'{note}; active from the next tick')
+
+    def _parse_with(self, text, source):
+        try:
+            return self._parse(text, source=source)
+        except TypeError:
+            return self._parse(text)
+
+    def handle_joint_state(self, names, position, velocity, stamp_ns):
+        """One tick for one joint-state message; None when the message is rejected.
+
+        Args:
+            names: Joint names (any order; all joints of the model exactly once).
+            position: Measured joint positions q in [rad], same order as ``names``.
+            velocity: Measured joint velocities in [rad/s] (empty: finite differences of
+                the positions over the stamps, zero on the first tick).
+            stamp_ns: Measurement stamp in [ns] (sets task time and the command stamp).
+        """
+        names = tuple(names)
+        perm = self._perm.get(names)
+        if perm is None:
+            perm = self._check_names(names)
+            if perm is None:
+                return None
+        position = np.asarray(position, dtype=float)
+        velocity = np.asarray(velocity, dtype=float)
+        if position.shape != (self._n,) or velocity.shape not in ((0,), (self._n,)):
+            return self._reject('wrong_count', f'{position.size} positions and {velocity.size}'
+                                f' velocities for {self._n} joints')
+        q = np.empty(self._n)
+        q[perm] = position
+        if not np.all(np.isfinite(q)) or not np.all(np.isfinite(velocity)):
+            return self._reject('non_finite', 'non-finite joint position or velocity')
+        stamp_ns = int(stamp_ns)
+        last = self._last_stamp
+        timeout_ns = int(self.config.watchdog_timeout * 1e9)
+        restart = not self.started
+        if last is not None:
+            if stamp_ns == last:
+                self._reject('duplicate_stamp', f'stamp {stamp_ns * 1e-9:.9f} s seen before; '
+                             'answering with the last command again')
+                return self._last_command
+            if stamp_ns < last:
+                if not self.stale:
+                    return self._reject('stamp_backwards', f'stamp {stamp_ns * 1e-9:.9f} s is '
+                                        f'older than the last one {last * 1e-9:.9f} s')
+                restart = True  # a new session (restarted driver or simulator)
+            elif timeout_ns and stamp_ns - last > timeout_ns:
+                if not self.stale:
+                    self._trip(f'joint-state stamps jumped by {(stamp_ns - last) * 1e-9:.3f} s'
+                               f' > watchdog.timeout {self.config.watchdog_timeout} s')
+                restart = True
+        if velocity.size:
+            qdot = np.empty(self._n)
+            qdot[perm] = velocity
+        elif not restart:
+            qdot = (q - self._last_q) / ((stamp_ns - last) * 1e-9)
+        else:
+            qdot = np.zeros(self._n)
+        resumed = restart
+        if restart:
+            self._restart(q)
+        self.stale = False
+        if last is not None and not resumed:
+            self._period.append((stamp_ns - last) * 1e-9)
+        q_v = self.spg.step(q, qdot, stamp_ns * 1e-9)
+        if self._pending_name is not None and self.spg.stack is not None and \
+                self.spg._pending is None:
+            self.stack_id, self.stack_name = self._next_id, self._pending_name
+            self._pending_name = None
+            self._stack_since = stamp_ns * 1e-9
+        info = self.spg.info
+        if info.status in ('fallback', 'hold', 'bad_input'):
+            self._error('spg', f'{info.status}: {info.message}')
+        self.ticks += 1
+        self._tick_times.append(info.tick_time or 0.0)
+        self._last_stamp, self._last_q = stamp_ns, q
+        qdot_v = np.array(self.spg.qdot_v, dtype=float)
+        self._last_command = Command(stamp_ns, self.joint_names, q_v, qdot_v, self.ticks,
+                                     resumed)
+        self._last_seen = self.clock()
+        return self._last_command
+
+    def _check_names(self, names):
+        if len(names) != self._n:
+            return self._reject('wrong_count', f'{len(names)} joint names, expected {self._n} '
+                                f"({', '.join(self.joint_names)})")
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            return self._reject('duplicate_name', f'joint names repeated: {dup}')
+        unknown = [n for n in names if n not in self._index]
+        if unknown:
+            from ifc_spg.errors import did_you_mean
+            return self._reject('unknown_name', f"unknown joint '{unknown[0]}' for robot "
+                                f"'{self.robot.name}'{did_you_mean(unknown[0], self.joint_names)}")
+        perm = np.array([self._index[n] for n in names], dtype=int)
+        if len(self._perm) < 64:
+            self._perm[names] = perm
+        return perm
+
+    def _restart(self, q):
+        """Start (or restart after the watchdog) from the measured ``q``."""
+        self.spg.reset(q)  # also re-activates the stack: init values, task time from here
+        if self.started:
+            self.resumes += 1
+        self.started = True
+        self.stale = False
+
+    def _reject(self, reason, message):
+        self.rejected[reason] += 1
+        self._error('joint_states', f'joint state rejected ({reason}): {message}')
+        return None
+
+    def _error(self, where, message):
+        self.errors.append({'tick': self.ticks, 'source': where, 'message': message})
+        self.last_error = message
+
+    # -- watchdog ----------------------------------------------------------------------
+    def check_watchdog(self):
+        """Trip the watchdog if the last tick is older than the timeout; True if it tripped."""
+        timeout = self.config.watchdog_timeout
+        if not timeout or self.stale or self._last_seen is None:
+            return False
+        idle = self.clock() - self._last_seen
+        if idle > timeout:
+            self._trip(f'no joint state for {idle * 1e3:.0f} ms > watchdog.timeout '
+                       f'{timeout * 1e3:.0f} ms: commanding stopped (a restart from the '
+                       'measured q follows if the stamps jumped)')
+            return True
+        return False
+
+    def mark_stale(self, message='marked stale'):
+        """Trip the watchdog now (offline replay of a recorded ``watchdog`` status event)."""
+        if not self.stale:
+            self._trip(message)
+
+    def _trip(self, message):
+        self.stale = True
+        self.watchdog_trips += 1
+        self._error('watchdog', message)
+
+    @property
+    def state(self):
+        """'waiting' (no state yet), 'running' or 'stale' (watchdog tripped)."""
+        if self.stale:
+            return 'stale'
+        return 'running' if self.started else 'waiting'
+
+    # -- outputs -----------------------------------------------------------------------
+    def status(self, event=None):
+        """The ``spg/status`` document (JSON-ready dict; use :func:`status_json`).
+
+        Keys: robot, state, tick, stamp [s], stack {id, name, since [s] (stamp of its first
+        tick), task_time [s]}, pending_stack, spg {status, message, solver}, levels [{name,
+        residual (max violation of the level's velocity bounds), slack}], tank_energy [J],
+        solve_time / tick_time [s], qdot_v [rad/s], rejected {reason: count}, watchdog
+        {timeout, trips, resumes}, errors (the last few), event {type, message} (when given)
+        and config (the :class:`SpgConfig` as a dict; in the first document and every event).
+
+        Args:
+            event: Optional event name and message, e.g. ``('stack_rejected', text)``.
+        """
+        info = self.spg.info
+        levels = []
+        for i, name in enumerate(info.level_names or []):
+            residual = info.residuals[i] if i < len(info.residuals or []) else np.zeros(0)
+            slack = info.slacks[i] if i < len(info.slacks or []) else None
+            levels.append({
+                'name': name,
+                'residual': float(np.max(residual)) if np.size(residual) else 0.0,
+                'slack': None if slack is None else [float(x) for x in np.ravel(slack)]})
+        doc = {
+            'robot': self.robot.name,
+            'state': self.state,
+            'tick': self.ticks,
+            'stamp': None if self._last_stamp is None else self._last_stamp * 1e-9,
+            'stack': {'id': self.stack_id, 'name': self.stack_name, 'since': self._stack_since,
+                      'task_time': info.task_time} if self.stack_id else None,
+            'pending_stack': None if self._pending_name is None else
+            {'id': self._next_id, 'name': self._pending_name},
+            'spg': {'status': info.status, 'message': info.message or '',
+                    'solver': info.solver},
+            'levels': levels,
+            'tank_energy': None if info.tank_energy is None else
+            [float(x) for x in info.tank_energy],
+            'solve_time': info.solve_time,
+            'tick_time': info.tick_time,
+            'qdot_v': None if info.qdot_v is None else [float(x) for x in info.qdot_v],
+            'rejected': dict(self.rejected),
+            'watchdog': {'timeout': self.config.watchdog_timeout,
+                         'trips': self.watchdog_trips, 'resumes': self.resumes},
+            'errors': list(self.errors),
+        }
+        if event is not None:
+            doc['event'] = {'type': event[0], 'message': event[1]}
+        if event is not None or not self._config_sent:
+            doc['config'] = dataclasses.asdict(self.config)  # replay rebuilds the runner
+            self._config_sent = True
+        return doc
+
+    def diagnostics(self):
+        """A :class:`DiagItem` summarizing the node (for a ~1 Hz DiagnosticArray)."""
+        values = {'ticks': str(self.ticks), 'state': self.state,
+                  'stack': f'{self.stack_name} (id {self.stack_id})' if self.stack_id else '',
+                  'spg_status': self.spg.info.status,
+                  'watchdog_trips': str(self.watchdog_trips), 'resumes': str(self.resumes)}
+        for reason, count in self.rejected.items():
+            values[f'rejected.{reason}'] = str(count)
+        if self._period:
+            period = float(np.median(self._period))
+            values['period_median_s'] = f'{period:.6f}'
+        if self._tick_times:
+            tt = np.sort(np.array(self._tick_times))
+            values['tick_time_p50_ms'] = f'{tt[len(tt) // 2] * 1e3:.3f}'
+            values['tick_time_max_ms'] = f'{tt[-1] * 1e3:.3f}'
+        if self.state == 'waiting':
+            return DiagItem('STALE', 'spg_node', 'waiting for joint states', values)
+        if self.state == 'stale':
+            return DiagItem('STALE', 'spg_node', self._last_error_of('watchdog'), values)
+        if self.spg.info.status in ('hold', 'bad_input'):
+            return DiagItem('ERROR', 'spg_node', self.spg.info.message, values)
+        if self.spg.info.status == 'fallback' or any(self.rejected.values()):
+            return DiagItem('WARN', 'spg_node', self.last_error, values)
+        if self._period and abs(float(np.median(self._period)) - self.config.dt) > \
+                0.2 * self.config.dt:
+            return DiagItem('WARN', 'spg_node', f'joint-state period {values["period_median_s"]}'
+                            f' s differs from dt {self.config.dt} s', values)
+        return DiagItem('OK', 'spg_node', 'running', values)
+
+    def _last_error_of(self, source):
+        for err in reversed(self.errors):
+            if err['source'] == source:
+                return err['message']
+        return ''

@@ -1,0 +1,20 @@
+"""The demo runs end to end with a short duration and prints where its files are."""
+
+import json
+
+from ifc_spg.demo import main
+
+
+def test_demo_short(tmp_path, capsys):
+    out = tmp_path / 'demo'
+    assert main(['--duration', '2.5', '-o', str(out), '-q']) == 0
+    text = capsys.readouterr().out
+    assert str(out / 'bag') in text and 'index.html' in text and 'tick time p50' in text
+    m = json.loads((out / 'metrics.json').read_text())
+    assert m['ticks'] == 1250 and m['limit_violations'] == 0 and m['missed_ticks'] == 0
+    # pressing on the table after the approach (t = 2 s): virtual force at 8 N
+    assert m['final_task_errors']['contact_force']['virtual'] < 0.5
+    assert (out / 'plots' / 'index.html').is_file()
+    # a second run replaces the old demo output
+    assert main(['--duration', '0.1', '-o', str(out), '-q', '--no-plots']) == 0
+    assert json.loads((out / 'metrics.json').read_text())['ticks'] == 50

@@ -1,0 +1,273 @@
+"""In-process tests of ``spg_node`` on the built-in Cyclone DDS backend (loopback, own domain):
+the node and a fake robot (joint-state publisher, command/status listener) in one process."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ifc_spg.model import RobotModel
+from ifc_spg.pspm import PspmConfig
+from ifc_spg.ros import dds, messages
+from ifc_spg.ros.qos import latched
+from ifc_spg.ros.testing import LOOPBACK_CONFIG, random_domain_id
+from ifc_spg.spg import SetPointGenerator
+from ifc_spg.spg_config import PARAMETERS
+from ifc_spg.spg_node import SpgNode, main
+from ifc_spg.task_stack import TaskStack
+
+pytestmark = pytest.mark.dds
+
+CONFIG = Path(__file__).resolve().parent.parent / 'config'
+DT_NS = 2_000_000
+TARGET = [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
+STACK = f"""version: 1
+name: reach
+tasks:
+  - name: posture
+    type: joint_position
+    equal: {TARGET}
+    gain: 5.0
+"""
+BAD_STACK = STACK.replace('type: joint_position', 'type: joint_positon')
+
+
+def _parse(text):
+    return (TaskStack.from_text if hasattr(TaskStack, 'from_text') else
+            TaskStack.from_yaml)(text)
+
+
+@pytest.fixture
+def domain(monkeypatch):
+    monkeypatch.setenv('CYCLONEDDS_URI', LOOPBACK_CONFIG)
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(random_domain_id()))
+    monkeypatch.setenv('IFC_SPG_ROS_BACKEND', 'cyclonedds')
+    yield
+    dds.shutdown()
+
+
+class FakeRobot:
+    """Publishes joint states and stacks; records commands, status documents, diagnostics."""
+
+    def __init__(self, node, spg_node):
+        self.node, self.nodes = node, (spg_node, node)
+        self.commands, self.status, self.diag = [], [], []
+        self.pub = node.create_publisher(messages.JointState, 'joint_states', 10)
+        self.stack_pub = node.create_publisher(messages.String, 'spg/task_stack', latched(1))
+        node.create_subscription(messages.JointState, 'command/joint_position',
+                                 self.commands.append, 10)
+        node.create_subscription(messages.String, 'spg/status',
+                                 lambda m: self.status.append(json.loads(m.data)), 10)
+        node.create_subscription(messages.DiagnosticArray, 'spg/diagnostics', self.diag.append,
+                                 10)
+        assert self.spin_until(lambda: self.pub.get_subscription_count() == 1 and
+                               self.stack_pub.get_subscription_count() == 1)
+
+    def spin_until(self, condition, timeout=5.0):
+        return dds.spin_until(condition, timeout, nodes=self.nodes)
+
+    def send(self, names, q, qdot, stamp_ns):
+        msg = messages.JointState(name=list(names), position=list(map(float, q)),
+                                  velocity=list(map(float, qdot)))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 10**9)
+        self.pub.publish(msg)
+
+    def tick(self, names, q, qdot, stamp_ns):
+        """Send one state and return the command answering it."""
+        n = len(self.commands)
+        self.send(names, q, qdot, stamp_ns)
+        assert self.spin_until(lambda: len(self.commands) > n), 'no command'
+        assert len(self.commands) == n + 1
+        return self.commands[-1]
+
+    def events(self, kind):
+        return [s['event'] for s in self.status if s.get('event', {}).get('type') == kind]
+
+    def publish_stack(self, text, kind):
+        n = len(self.events(kind))
+        self.stack_pub.publish(messages.String(data=text))
+        assert self.spin_until(lambda: len(self.events(kind)) > n), f'no {kind} event'
+        return self.events(kind)[-1]
+
+
+def _start(params):
+    args = ['spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml')]
+    for p in params:
+        args += ['-p', p]
+    dds.init(args)
+    node = dds.Node('spg_node')
+    spg = SpgNode(node)
+    return spg, FakeRobot(dds.Node('fake_robot'), node)
+
+
+def _stamp_ns(msg):
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def _reference(robot, config):
+    return SetPointGenerator(robot, _parse(STACK), dt=config.dt,
+                             pspm=PspmConfig(config.pspm_initial_energy, config.pspm_max_energy),
+                             solver=config.solver, rho=config.rho,
+                             torque_limits=config.torque_limits)
+
+
+def _closed_loop(robot, spg, ref, fake, q, ticks, k0=0, names=None):
+    """Perfectly tracking robot (q <- q_v); the node's commands must equal ``ref``'s."""
+    qdot = np.zeros(robot.n)
+    names = list(names or robot.joint_names)
+    order = [robot.joint_names.index(n) for n in names]
+    for k in range(k0, k0 + ticks):
+        cmd = fake.tick(names, q[order], qdot[order], k * DT_NS)
+        assert _stamp_ns(cmd) == k * DT_NS and list(cmd.name) == list(robot.joint_names)
+        expected = ref.step(q, qdot, k * DT_NS * 1e-9)
+        np.testing.assert_array_equal(cmd.position, expected)
+        np.testing.assert_array_equal(cmd.velocity, ref.qdot_v)
+        qdot = (np.asarray(cmd.position) - q) / spg.config.dt
+        q = np.asarray(cmd.position)
+    return q
+
+
+def test_commands_equal_the_library_and_follow_the_stack(domain):
+    spg, fake = _start(['watchdog.timeout:=0.0', 'status.decimation:=25'])
+    robot = spg.runner.robot
+    event = fake.publish_stack(STACK, 'stack_accepted')
+    assert "'reach'" in event['message']
+    ref = _reference(robot, spg.config)
+    q0 = robot.q_home.copy()
+    q = _closed_loop(robot, spg, ref, fake, q0, 150, names=list(reversed(robot.joint_names)))
+    err0, err = np.abs(q0 - TARGET).max(), np.abs(q - TARGET).max()
+    assert err < 0.35 * err0, (err0, err)  # 0.3 s with gain 5/s: exp(-1.5) = 0.22
+    assert fake.spin_until(lambda: len([s for s in fake.status if 'event' not in s]) == 6)
+    periodic = [s for s in fake.status if 'event' not in s]
+    assert [s['tick'] for s in periodic] == [25, 50, 75, 100, 125, 150]
+    last = periodic[-1]
+    assert last['stack'] == {'id': 1, 'name': 'reach', 'since': 0.0,
+                             'task_time': pytest.approx(149 * 0.002)}
+    assert not any('config' in s for s in periodic)  # sent with the first document only
+    assert fake.events('stack_accepted') and \
+        [s for s in fake.status if 'event' in s][0]['config']['robot'] == 'lbr_iiwa14'
+    assert [lv['name'] for lv in last['levels']] == ['torque_limits', 'posture']
+    assert len(last['tank_energy']) == 7 and last['state'] == 'running'
+
+
+def test_bad_stack_is_reported_with_its_field_and_the_old_one_continues(domain):
+    spg, fake = _start(['watchdog.timeout:=0.0'])
+    robot = spg.runner.robot
+    fake.publish_stack(STACK, 'stack_accepted')
+    ref = _reference(robot, spg.config)
+    q = _closed_loop(robot, spg, ref, fake, robot.q_home.copy(), 20)
+    event = fake.publish_stack(BAD_STACK, 'stack_rejected')
+    assert 'tasks[0].type' in event['message'] and 'joint_positon' in event['message']
+    _closed_loop(robot, spg, ref, fake, q, 20, k0=20)  # same commands as without it
+    assert spg.runner.stack_id == 1 and fake.status[-1]['errors'][-1]['source'] == 'task_stack'
+
+
+def test_bad_messages_are_counted_not_fatal(domain):
+    spg, fake = _start(['watchdog.timeout:=0.0', 'status.decimation:=1'])
+    names = list(spg.runner.joint_names)
+    q, z = spg.runner.robot.q_home.copy(), np.zeros(7)
+    first = fake.tick(names, q, z, 5 * DT_NS)
+    np.testing.assert_array_equal(first.position, q)  # no stack: q_v starts at (and holds) q
+    bad = [(names[:6], q[:6], z[:6], 6), (names[:6] + ['a7'], q, z, 6),
+           (names[:6] + ['A1'], q, z, 6), (names, np.full(7, np.nan), z, 6),
+           (names, q, z, 4)]
+    for k, (n, qq, zz, stamp) in enumerate(bad):
+        fake.send(n, qq, zz, stamp * DT_NS)
+        cmd = fake.tick(names, q, z, (6 + k) * DT_NS)  # the next good one is answered
+        assert _stamp_ns(cmd) == (6 + k) * DT_NS
+    again = fake.tick(names, q, z, 10 * DT_NS)  # duplicate stamp: the same answer again
+    assert _stamp_ns(again) == 10 * DT_NS and again.position == fake.commands[-2].position
+    fake.tick(names, q, z, 11 * DT_NS)
+    assert fake.spin_until(lambda: fake.status[-1]['tick'] == 7)
+    status = fake.status[-1]
+    assert status['rejected'] == {'wrong_count': 1, 'unknown_name': 1, 'duplicate_name': 1,
+                                  'non_finite': 1, 'stamp_backwards': 1, 'duplicate_stamp': 1}
+    assert spg.runner.ticks == 7
+    assert any("unknown joint 'a7'" in e['message'] for e in status['errors'])
+    spg.publish_diagnostics()
+    assert fake.spin_until(lambda: fake.diag)
+    values = {kv.key: kv.value for kv in fake.diag[-1].status[0].values}
+    assert fake.diag[-1].status[0].level == messages.DiagnosticStatus.WARN
+    assert values['rejected.non_finite'] == '1' and values['ticks'] == '7'
+
+
+def test_watchdog_stops_commanding_and_resumes_from_the_measured_q(domain):
+    spg, fake = _start(['watchdog.timeout:=0.05', 'status.decimation:=1000'])
+    robot = spg.runner.robot
+    fake.publish_stack(STACK, 'stack_accepted')
+    names, q, z = list(robot.joint_names), robot.q_home.copy(), np.zeros(7)
+    for k in range(10):  # the robot does not follow: q_v runs away from q
+        cmd = fake.tick(names, q, z, k * DT_NS)
+    q_v = np.asarray(cmd.position)
+    assert np.abs(q_v - q).max() > 1e-3
+    n = len(fake.commands)
+    assert fake.spin_until(lambda: fake.events('watchdog'), 2.0)
+    assert 'no joint state' in fake.events('watchdog')[-1]['message']
+    assert fake.spin_until(lambda: fake.diag and fake.diag[-1].status[0].level ==
+                           messages.DiagnosticStatus.STALE, 2.0)
+    assert len(fake.commands) == n  # nothing commanded while stale
+    q_new = q + 0.05  # the robot sagged meanwhile
+    cmd = fake.tick(names, q_new, z, 200 * DT_NS)
+    assert fake.spin_until(lambda: fake.events('resumed'))
+    step = np.asarray(cmd.position) - q_new
+    assert np.all(np.abs(step) <= robot.v_max * spg.config.dt + 1e-12)  # no jump
+    fresh = _reference(robot, spg.config)
+    np.testing.assert_allclose(cmd.position, fresh.step(q_new, z, 0.0), atol=1e-9)
+    assert spg.runner.watchdog_trips >= 1 and spg.runner.resumes == 1
+
+
+@pytest.mark.parametrize('param, message', [
+    ('dt:=1', "'dt': value 1 has type PARAMETER_INTEGER, expected PARAMETER_DOUBLE"),
+    ('dt:=0.5', "'dt': value 0.5 is outside its range"),
+    ('status.decimation:=0', "'status.decimation': value 0 is outside its range"),
+    ('solver:=qp', "'solver': 'qp' is not one of"),
+    ('pspm.initial_enrgy:=1.0', "did you mean 'pspm.initial_energy'"),
+])
+def test_bad_parameters_exit_2_naming_them(domain, capsys, param, message):
+    assert main(['spg_node', '--ros-args', '-p', param]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_task_stack_file_parameter(domain, tmp_path, capsys):
+    good, bad = tmp_path / 'good.yaml', tmp_path / 'bad.yaml'
+    good.write_text(STACK)
+    bad.write_text(BAD_STACK)
+    assert main(['spg_node', '--ros-args', '-p', f'task_stack_file:={bad}']) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and 'tasks[0].type' in err
+    dds.init(['spg_node', '--ros-args', '-p', f'task_stack_file:={good}'])
+    spg = SpgNode(dds.Node('spg_node'))
+    assert spg.runner.spg._pending is not None and spg.runner.status()['pending_stack'] == \
+        {'id': 1, 'name': 'reach'}
+
+
+def test_help_exits_0(capsys):
+    assert main(['spg_node', '--help']) == 0
+    assert 'watchdog.timeout' in capsys.readouterr().out
+
+
+def _flatten(prefix, mapping, out):
+    for key, value in mapping.items():
+        name = f'{prefix}.{key}' if prefix else key
+        if isinstance(value, dict):
+            _flatten(name, value, out)
+        else:
+            out[name] = value
+    return out
+
+
+@pytest.mark.parametrize('robot', ['lbr_iiwa14', 'lbr4', 'icub_upper_body', 'accrea_dual_arm'])
+def test_config_files_load_into_the_node(domain, robot):
+    path = CONFIG / f'{robot}.yaml'
+    expected = _flatten('', yaml.safe_load(path.read_text())['/**']['ros__parameters'], {})
+    dds.init(['spg_node', '--ros-args', '--params-file', str(path)])
+    node = dds.Node('spg_node')
+    spg = SpgNode(node)
+    assert spg.config.robot == robot and spg.runner.robot.name == robot
+    by_name = {p.name: p.field for p in PARAMETERS}
+    for name, value in expected.items():
+        assert getattr(spg.config, by_name[name]) == value, name
+        assert node.describe_parameter(name).description
+    assert RobotModel.from_config(robot).n == len(spg.runner.joint_names)

@@ -1,0 +1,118 @@
+"""End to end over loopback DDS: ``sim_bridge`` (lockstep, iiwa, free scene), ``spg_node`` and
+``task_publisher`` as three processes through their console scripts; this test listens."""
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ifc_spg.model import RobotModel
+from ifc_spg.ros import dds, messages
+from ifc_spg.ros.testing import loopback_env
+
+pytestmark = pytest.mark.dds
+
+BIN = Path(sys.executable).parent
+CONFIG = Path(__file__).resolve().parent.parent / 'config'
+TARGET = np.array([0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3])
+SIM_SECONDS = 3.0
+STACK = f"""version: 1
+name: reach
+robot: lbr_iiwa14
+tasks:
+  - name: posture
+    type: joint_position
+    equal: {TARGET.tolist()}
+    gain: 5.0
+"""
+
+
+def _stop(proc):
+    """Terminate a child we started, by PID, and reap it."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+
+
+def _stamp(msg):
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypatch):
+    env = loopback_env()
+    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
+        monkeypatch.setenv(key, env[key])
+    stack = tmp_path / 'reach.yaml'
+    stack.write_text(STACK)
+    robot = RobotModel.from_config('lbr_iiwa14')
+    dds.init(['test'])
+    node = dds.Node('listener')
+    states, commands, status = [], [], []
+    node.create_subscription(messages.JointState, 'joint_states', states.append, 100)
+    node.create_subscription(messages.JointState, 'command/joint_position', commands.append, 100)
+    node.create_subscription(messages.String, 'spg/status',
+                             lambda m: status.append(json.loads(m.data)), 100)
+    procs = []
+    logs = {}
+
+    def start(name, *args):
+        logs[name] = open(tmp_path / f'{name}.log', 'w+')
+        procs.append(subprocess.Popen([str(BIN / name), *args], env=env, stdout=logs[name],
+                                      stderr=subprocess.STDOUT))
+        return procs[-1]
+
+    def log(name):
+        logs[name].flush()
+        return (tmp_path / f'{name}.log').read_text()
+
+    try:
+        spg = start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
+                    '-p', 'status.decimation:=50')
+        start('task_publisher', str(stack))
+        accepted = dds.spin_until(lambda: any(s.get('event', {}).get('type') == 'stack_accepted'
+                                              for s in status) or spg.poll() is not None,
+                                  60.0, nodes=node)
+        assert accepted and spg.poll() is None, log('spg_node')
+        bridge = start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
+                       'scene:=free', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}')
+        deadline = time.monotonic() + 90.0
+        while bridge.poll() is None and time.monotonic() < deadline:
+            dds.spin_until(lambda: False, 0.2, nodes=node)
+        assert bridge.returncode == 0, log('sim_bridge')
+        ticks = round(SIM_SECONDS / 0.002)
+        assert dds.spin_until(lambda: len(commands) >= ticks, 10.0, nodes=node), \
+            (len(commands), log('spg_node'))
+    finally:
+        for proc in reversed(procs):
+            _stop(proc)
+        for f in logs.values():
+            f.close()
+        dds.shutdown()
+    assert spg.returncode == 0  # a clean exit on SIGTERM
+
+    # One command per tick, answering each state by its stamp (the lockstep bridge re-sends a
+    # state it got no answer for; a repeated stamp is answered with the same command).
+    state_stamps = sorted({_stamp(m) for m in states})
+    command_stamps = [_stamp(m) for m in commands]
+    assert sorted(set(command_stamps)) == state_stamps[:len(set(command_stamps))]
+    assert len(set(command_stamps)) >= ticks
+    q_v = np.array([m.position for m in commands])
+    assert all(list(m.name) == list(robot.joint_names) for m in commands)
+    assert np.all(np.isfinite(q_v)) and np.all(np.isfinite([m.velocity for m in commands]))
+    assert np.all(q_v >= robot.q_min) and np.all(q_v <= robot.q_max)
+    steps = np.abs(np.diff(q_v, axis=0))
+    assert np.all(steps <= robot.v_max * 0.002 + 1e-12)  # never faster than v_max
+    # The simulated robot (not just q_v) reached the stack's target.
+    q_final = np.array(max(states, key=_stamp).position)
+    np.testing.assert_allclose(q_final, TARGET, atol=0.01)
+    last = [s for s in status if 'event' not in s][-1]
+    assert last['stack']['name'] == 'reach' and last['state'] == 'running'
+    assert sum(last['rejected'].values()) == 0

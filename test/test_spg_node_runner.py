@@ -1,0 +1,219 @@
+"""ROS-free tests of the SPG node's logic (SpgRunner) and its configuration (SpgConfig)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from ifc_spg.errors import ParameterError
+from ifc_spg.model import RobotModel
+from ifc_spg.pspm import PspmConfig
+from ifc_spg.spg import SetPointGenerator
+from ifc_spg.spg_config import PARAMETERS, SpgConfig, config_from_parameters
+from ifc_spg.spg_runner import REJECT_REASONS, SpgRunner, status_json
+from ifc_spg.task_stack import TaskStack
+
+DT_NS = 2_000_000
+TARGET = [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
+STACK = f"""version: 1
+name: reach
+tasks:
+  - name: posture
+    type: joint_position
+    equal: {TARGET}
+    gain: 5.0
+"""
+
+
+def _parse(text):
+    return (TaskStack.from_text if hasattr(TaskStack, 'from_text') else
+            TaskStack.from_yaml)(text)
+
+
+class FakeClock:
+    """A monotonic clock the test advances by hand [s]."""
+
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+@pytest.fixture(scope='module')
+def robot():
+    return RobotModel.from_config('lbr_iiwa14')
+
+
+def _reference(robot, config):
+    return SetPointGenerator(robot, _parse(STACK), dt=config.dt,
+                             pspm=PspmConfig(config.pspm_initial_energy, config.pspm_max_energy),
+                             solver=config.solver, rho=config.rho,
+                             torque_limits=config.torque_limits)
+
+
+def test_ticks_equal_the_set_point_generator_with_any_name_order(robot):
+    config = SpgConfig(watchdog_timeout=0.0)
+    runner = SpgRunner(config, robot)
+    ref = _reference(robot, config)
+    assert runner.handle_task_stack(STACK).accepted
+    rng = np.random.default_rng(7)
+    q = robot.q_home.copy()
+    qdot = np.zeros(robot.n)
+    names = np.array(robot.joint_names)
+    for k in range(60):
+        perm = rng.permutation(robot.n)
+        cmd = runner.handle_joint_state(names[perm], q[perm], qdot[perm], k * DT_NS)
+        expected = ref.step(q, qdot, k * DT_NS * 1e-9)
+        np.testing.assert_array_equal(cmd.position, expected)
+        np.testing.assert_array_equal(cmd.velocity, ref.qdot_v)
+        assert cmd.names == robot.joint_names and cmd.stamp_ns == k * DT_NS
+        assert cmd.resumed == (k == 0)
+        qdot = (cmd.position - q) / config.dt
+        q = cmd.position
+    assert runner.stack_id == 1 and runner.stack_name == 'reach'
+    doc = json.loads(status_json(runner.status()))
+    assert [lv['name'] for lv in doc['levels']] == ['torque_limits', 'posture']
+    assert doc['stack'] == {'id': 1, 'name': 'reach', 'since': 0.0,
+                            'task_time': pytest.approx(59 * 0.002)}
+    assert SpgConfig(**doc['config']) == config  # enough to rebuild the runner
+
+
+def test_every_bad_input_is_counted_and_the_next_good_one_ticks(robot):
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot)
+    names, q, z = list(robot.joint_names), robot.q_home.copy(), np.zeros(robot.n)
+    first = runner.handle_joint_state(names, q, z, 10 * DT_NS)
+    bad = {
+        'wrong_count': (names[:6], q[:6], z[:6], 11 * DT_NS),
+        'unknown_name': (names[:6] + ['A8'], q, z, 11 * DT_NS),
+        'duplicate_name': (names[:6] + ['A1'], q, z, 11 * DT_NS),
+        'non_finite': (names, np.where(np.arange(7) == 3, np.nan, q), z, 11 * DT_NS),
+        'stamp_backwards': (names, q, z, 9 * DT_NS),
+    }
+    for reason, args in bad.items():
+        assert runner.handle_joint_state(*args) is None, reason
+    assert runner.handle_joint_state(names, q, z, 10 * DT_NS) is first  # answered again
+    assert runner.rejected == dict.fromkeys(REJECT_REASONS, 1)
+    assert "did you mean 'A1'" in ' '.join(e['message'] for e in runner.errors) or \
+        "unknown joint 'A8'" in ' '.join(e['message'] for e in runner.errors)
+    assert runner.handle_joint_state(names, q, z, 11 * DT_NS).tick == 2
+    assert runner.diagnostics().level == 'WARN'
+
+
+def test_watchdog_stops_and_restarts_from_the_measured_q(robot):
+    clock = FakeClock()
+    config = SpgConfig(watchdog_timeout=0.05)
+    runner = SpgRunner(config, robot, clock=clock)
+    runner.handle_task_stack(STACK)
+    q, z, names = robot.q_home.copy(), np.zeros(robot.n), robot.joint_names
+    for k in range(30):
+        clock.t += 0.002
+        cmd = runner.handle_joint_state(names, q, z, k * DT_NS)
+    assert np.max(np.abs(cmd.position - q)) > 1e-3  # q_v moved away from the held robot
+    clock.t += 0.049
+    assert not runner.check_watchdog() and runner.state == 'running'
+    clock.t += 0.002
+    assert runner.check_watchdog() and runner.state == 'stale'
+    assert runner.diagnostics().level == 'STALE'
+    q_sag = q + 0.02  # the robot moved while nobody commanded it
+    cmd = runner.handle_joint_state(names, q_sag, z, 100 * DT_NS)
+    assert cmd.resumed and runner.state == 'running' and runner.resumes == 1
+    fresh = _reference(robot, config)
+    np.testing.assert_allclose(cmd.position, fresh.step(q_sag, z, 0.0), atol=1e-9)
+    assert np.all(np.abs(cmd.position - q_sag) <= robot.v_max * config.dt + 1e-12)
+    assert runner.status()['stack']['task_time'] == 0.0  # the stack restarted
+
+
+def test_stamp_gap_trips_and_a_restarted_clock_is_accepted_after_it(robot):
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.05), robot, clock=FakeClock())
+    q, z, names = robot.q_home.copy(), np.zeros(robot.n), robot.joint_names
+    runner.handle_joint_state(names, q, z, 1000 * DT_NS)
+    cmd = runner.handle_joint_state(names, q + 0.01, z, 1000 * DT_NS + 60_000_000)
+    assert cmd.resumed and runner.watchdog_trips == 1
+    np.testing.assert_allclose(cmd.position, q + 0.01, atol=1e-12)  # idle: q_v = q
+    assert runner.handle_joint_state(names, q, z, 0) is None  # backwards while running
+    runner.clock.t += 0.06
+    assert runner.check_watchdog()  # stale: a restarted bridge may count from 0 again
+    assert runner.handle_joint_state(names, q, z, 5 * DT_NS).resumed and runner.resumes == 2
+    runner.mark_stale('replayed watchdog event')
+    assert runner.handle_joint_state(names, q, z, 0).resumed and runner.resumes == 3
+
+
+def test_a_paused_source_with_continuous_stamps_continues_without_restart(robot):
+    clock = FakeClock()
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.05), robot, clock=clock)
+    ref = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot)
+    for r in (runner, ref):
+        r.handle_task_stack(STACK)
+    q, z, names = robot.q_home.copy(), np.zeros(robot.n), robot.joint_names
+    for k in range(20):
+        if k == 10:  # a lockstep simulator pauses for 0.2 s of wall time
+            clock.t += 0.2
+            assert runner.check_watchdog() and runner.state == 'stale'
+        cmd = runner.handle_joint_state(names, q, z, k * DT_NS)
+        np.testing.assert_array_equal(cmd.position,
+                                      ref.handle_joint_state(names, q, z, k * DT_NS).position)
+        assert cmd.resumed == (k == 0)
+    assert runner.watchdog_trips == 1 and runner.resumes == 0 and runner.state == 'running'
+
+
+def test_missing_velocities_are_finite_differences(robot):
+    seen = []
+
+    class Recorder:
+        name = 'rec'
+
+        def build(self, robot):
+            return []
+
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot, parse_stack=lambda t: Recorder())
+    step = runner.spg.step
+    runner.spg.step = lambda q, qdot, t: (seen.append(qdot.copy()), step(q, qdot, t))[1]
+    q = robot.q_home.copy()
+    runner.handle_joint_state(robot.joint_names, q, [], 0)
+    runner.handle_joint_state(robot.joint_names, q + 0.004, [], DT_NS)
+    np.testing.assert_array_equal(seen[0], np.zeros(robot.n))
+    np.testing.assert_allclose(seen[1], np.full(robot.n, 2.0))
+
+
+def test_bad_stack_keeps_the_running_one(robot):
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot)
+    assert runner.handle_task_stack(STACK).accepted
+    runner.handle_joint_state(robot.joint_names, robot.q_home, np.zeros(7), 0)
+    event = runner.handle_task_stack(STACK.replace('joint_position', 'joint_positon'))
+    assert not event.accepted and (event.stack_id, event.name) == (1, 'reach')
+    assert 'tasks[0].type' in event.message and 'joint_positon' in event.message
+    assert runner.spg.stack is not None and runner.spg._pending is None
+    doc = runner.status(('stack_rejected', event.message))
+    assert doc['event']['type'] == 'stack_rejected' and doc['errors'][-1]['source'] == \
+        'task_stack'
+
+
+@pytest.mark.parametrize('values, match', [
+    ({'rho': 1}, None),                      # an int for a double is fine offline
+    ({'dt': 0.5}, r"'dt': 0.5 is outside \[0.0001, 0.1\]"),
+    ({'solver': 'qpoases'}, "'qpoases' is not one of daqp, proxsuite, nullspace"),
+    ({'robot': 'lbr_iiwa'}, "did you mean 'lbr_iiwa14'"),
+    ({'pspm.initial_enrgy': 1.0}, "did you mean 'pspm.initial_energy'"),
+    ({'status.decimation': 2.5}, "'status.decimation': 2.5 is a float, expected a int"),
+    ({'pspm.initial_energy': 3.0}, 'must not exceed'),
+    ({'topics.command': ''}, "'topics.command' must name a topic"),
+])
+def test_config_errors_name_the_parameter(values, match):
+    if match is None:
+        rho = config_from_parameters(values).rho
+        assert rho == 1.0 and type(rho) is float
+        return
+    with pytest.raises(ParameterError, match=match):
+        config_from_parameters(values)
+
+
+def test_every_config_field_has_exactly_one_parameter():
+    fields = [p.field for p in PARAMETERS]
+    assert sorted(fields) == sorted(SpgConfig.__dataclass_fields__)
+    assert len({p.name for p in PARAMETERS}) == len(PARAMETERS)
+
+
+def test_status_json_is_strict():
+    text = status_json({'a': float('inf'), 'b': [1.0, float('nan')], 'c': {'d': -float('inf')}})
+    assert json.loads(text) == {'a': None, 'b': [1.0, None], 'c': {'d': None}}

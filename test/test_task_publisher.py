@@ -1,0 +1,164 @@
+"""Tests of ``task_publisher``: validation like ``ifc-spg check``, latched delivery, timed
+sequences, exit codes (in-process and as a process, loopback DDS, own domain)."""
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.ros import dds, messages
+from ifc_spg.ros.qos import latched
+from ifc_spg.ros.testing import loopback_env
+from ifc_spg.task_publisher import main, parse_entry
+from ifc_spg.task_stack.check import main as check_main
+
+pytestmark = pytest.mark.dds
+
+BIN = Path(sys.executable).parent
+STACK = """version: 1
+name: {name}
+robot: lbr_iiwa14
+tasks:
+  - name: posture
+    type: joint_position
+    equal: [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
+    gain: 5.0
+"""
+
+
+@pytest.fixture
+def env(monkeypatch):
+    e = loopback_env()
+    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
+        monkeypatch.setenv(key, e[key])
+    yield e
+    dds.shutdown()
+
+
+def _file(tmp_path, name, text=None):
+    path = tmp_path / f'{name}.yaml'
+    path.write_text(STACK.format(name=name) if text is None else text)
+    return str(path)
+
+
+def _stop(proc):
+    """Terminate a child we started, by PID, and reap it; return its exit code."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+    return proc.returncode
+
+
+class Listener:
+    """A subscription on spg/task_stack in its own context (own DDS participant)."""
+
+    def __init__(self):
+        self.context = dds.Context(['listener'])
+        self.node = dds.Node('listener', context=self.context)
+        self.received = []
+        self.node.create_subscription(messages.String, 'spg/task_stack',
+                                      lambda m: self.received.append((time.monotonic(),
+                                                                      m.data)), latched(1))
+
+    def spin_until(self, condition, timeout):
+        return dds.spin_until(condition, timeout, nodes=self.node)
+
+    def close(self):
+        self.context.shutdown()
+
+
+@pytest.mark.parametrize('entry, expected', [
+    ('a.yaml', ('a.yaml', 0.0)), ('a.yaml@2.5', ('a.yaml', 2.5)),
+    ('dir@x/a.yaml@3', ('dir@x/a.yaml', 3.0)), ('a.yaml@0', ('a.yaml', 0.0))])
+def test_parse_entry(entry, expected):
+    assert parse_entry(entry) == expected
+
+
+@pytest.mark.parametrize('entry', ['a.yaml@x', 'a.yaml@-1', 'a.yaml@inf', 'a.yaml@nan'])
+def test_parse_entry_rejects_bad_times(entry):
+    with pytest.raises(IfcSpgError, match="the time after '@'"):
+        parse_entry(entry)
+
+
+@pytest.mark.parametrize('edit', [
+    lambda s: s.replace('joint_position', 'joint_positon'),         # unknown type
+    lambda s: s.replace('0.3, 0.7, 0.2, ', '0.3, '),                  # wrong dimension
+    lambda s: s.replace('robot: lbr_iiwa14', 'robot: lbr_iiwa'),     # unknown robot
+    lambda s: s.replace('gain: 5.0', 'gain: .nan'),                  # NaN
+])
+def test_invalid_files_exit_2_with_the_messages_of_ifc_spg_check(tmp_path, capsys, edit):
+    good = _file(tmp_path, 'good')
+    bad = _file(tmp_path, 'bad', edit(STACK.format(name='bad')))
+    assert main(['task_publisher', good, f'{bad}@1', '--once']) == 2
+    err = capsys.readouterr().err
+    assert check_main([bad]) == 2
+    expected = capsys.readouterr().err
+    assert err == expected and bad in err and 'line' in err
+
+
+def test_unreadable_file_and_bad_options_exit_2(tmp_path, capsys):
+    assert main(['task_publisher', str(tmp_path / 'missing.yaml')]) == 2
+    assert 'missing.yaml' in capsys.readouterr().err
+    assert main(['task_publisher', _file(tmp_path, 'a'), '--linger', '-1']) == 2
+    assert main(['task_publisher']) == 2
+
+
+def test_once_waits_for_a_subscriber_and_delivers(tmp_path, env):
+    path = _file(tmp_path, 'reach')
+    listener = Listener()
+    try:
+        assert main(['task_publisher', path, '--once', '--timeout', '20']) == 0
+        assert listener.spin_until(lambda: listener.received, 5.0)
+        assert [text for _, text in listener.received] == [Path(path).read_text()]
+    finally:
+        listener.close()
+
+
+def test_once_without_subscriber_exits_1(tmp_path, env):
+    assert main(['task_publisher', _file(tmp_path, 'a'), '--once', '--timeout', '0.3']) == 1
+
+
+def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, env):
+    a, b = _file(tmp_path, 'first'), _file(tmp_path, 'second')
+    listener = Listener()
+    proc = subprocess.Popen([str(BIN / 'task_publisher'), f'{b}@0.8', a,
+                             '--wait-subscribers', '1', '--linger', '0.5'],
+                            env=env, stderr=subprocess.PIPE, text=True)
+    late = None
+    try:
+        assert listener.spin_until(lambda: len(listener.received) == 2, 30.0), \
+            proc.stderr.read() if proc.poll() is not None else ''
+        (t_a, text_a), (t_b, text_b) = listener.received
+        assert 'name: first' in text_a and 'name: second' in text_b
+        assert 0.7 <= t_b - t_a <= 2.0  # published 0.8 s apart (wall clock)
+        late = Listener()  # joins after both: the latched topic gives it the latest only
+        assert late.spin_until(lambda: late.received, 10.0)
+        assert [text for _, text in late.received] == [text_b]
+        assert proc.wait(timeout=10) == 0  # --linger 0.5 s after the last one
+        assert 'published' in proc.stderr.read()
+    finally:
+        _stop(proc)
+        listener.close()
+        if late is not None:
+            late.close()
+
+
+def test_stays_alive_until_sigterm_and_exits_0(tmp_path, env):
+    listener = Listener()
+    proc = subprocess.Popen([str(BIN / 'task_publisher'), _file(tmp_path, 'a')], env=env,
+                            stderr=subprocess.DEVNULL)
+    try:
+        assert listener.spin_until(lambda: listener.received, 30.0)
+        time.sleep(0.3)
+        assert proc.poll() is None
+    finally:
+        code = _stop(proc)
+        listener.close()
+    assert code == 0
