@@ -26,6 +26,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/schema', ['ifc_spg/schema/task_stack.schema.json']),
         *tree('config', os.path.join('share', package_name, 'config')),
     ],
     install_requires=['setuptools'],
