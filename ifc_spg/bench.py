@@ -138,6 +138,7 @@ def bench_pink(ticks):
     import pink
     from pink.tasks import FrameTask, PostureTask
     import pinocchio as pin
+
     from ifc_spg import RobotModel
     from ifc_spg.spg import SetPointGenerator
     from ifc_spg.tasks import CartesianPoseTask, JointPositionTask
@@ -205,7 +206,7 @@ def format_report(res):
     for r in res['stacks']:
         p99t, maxt = TARGETS.get(r['stack'], (None, None))
         ok = (p99t is None or r['p99_us'] <= p99t) and (maxt is None or r['max_us'] <= maxt)
-        target = f"p99<={p99t:.0f}" + (f",max<={maxt:.0f}" if maxt else '')
+        target = f'p99<={p99t:.0f}' + (f',max<={maxt:.0f}' if maxt else '')
         lines.append(f"{r['stack']:<16}{r['solver']:<11}{r['levels']:>6}{r['p50_us']:>9.1f}"
                      f"{r['p99_us']:>9.1f}{r['max_us']:>9.1f}  {target:<14}"
                      f"{'met' if ok else 'MISSED'} {r['status']}")

@@ -70,6 +70,7 @@ class CascadeSolver:
     """
 
     name = 'base'
+    lock_tolerance = 1e-9  # half-width of a locked row's band, per unit of its 1-norm
 
     def __init__(self, n, rho=0.01):
         if not (np.isfinite(rho) and rho > 0):
@@ -113,12 +114,13 @@ class CascadeSolver:
             qdot = x
             slacks.append(s)
             a = lev.A @ x
-            lo = np.where(eq_cur, a, np.minimum(lev.lower + s, a))
-            hi = np.where(eq_cur, a, np.maximum(lev.upper + s, a))
+            band = self.lock_tolerance * (1.0 + np.abs(lev.A).sum(axis=1))
+            lo = np.where(eq_cur, a, np.minimum(lev.lower + s, a)) - band
+            hi = np.where(eq_cur, a, np.maximum(lev.upper + s, a)) + band
             A_bar = np.vstack([lev.A, A_bar]) if m else A_bar
             b_lo = np.concatenate([lo, b_lo])
             b_hi = np.concatenate([hi, b_hi])
-            eq_bar = np.concatenate([eq_cur, eq_bar])
+            eq_bar = np.concatenate([np.zeros(m, dtype=bool), eq_bar])
         return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, 'ok', -1,
                              _outside(qdot, box_lo, box_hi))
 
@@ -136,8 +138,6 @@ class DaqpCascade(CascadeSolver):
     """
 
     name = 'daqp'
-
-    lock_tolerance = 1e-9  # half-width of a locked row's band, per unit of its 1-norm
 
     def __init__(self, n, rho=0.01, primal_tol=1e-6):
         super().__init__(n, rho)
@@ -326,26 +326,26 @@ class ProxsuiteCascade(CascadeSolver):
         lo = np.concatenate([lower, b_lo])
         hi = np.concatenate([upper, b_hi])
         E, e = C[eq_rows], lo[eq_rows]
-        I, il, iu = C[~eq_rows], lo[~eq_rows], hi[~eq_rows]
+        G, il, iu = C[~eq_rows], lo[~eq_rows], hi[~eq_rows]
         il = np.clip(il, -_BIG, _BIG)
         iu = np.clip(iu, -_BIG, _BIG)
         H = np.diag(np.concatenate([np.full(n, self.rho), np.ones(m)]))
         lb = np.concatenate([box_lo, np.full(m, -_BIG)])
         ub = np.concatenate([box_hi, np.full(m, _BIG)])
-        key = (n + m, E.shape[0], I.shape[0])
+        key = (n + m, E.shape[0], G.shape[0])
         qp = self._qps.get(key)
         if qp is None:
-            qp = self._proxqp.dense.QP(n + m, E.shape[0], I.shape[0], True)
+            qp = self._proxqp.dense.QP(n + m, E.shape[0], G.shape[0], True)
             qp.settings.eps_abs = self._eps
             qp.settings.eps_rel = 0.0
             qp.settings.max_iter = 10000
             qp.settings.verbose = False
-            qp.init(H, np.zeros(n + m), E, e, I, il, iu, lb, ub)
+            qp.init(H, np.zeros(n + m), E, e, G, il, iu, lb, ub)
             self._qps[key] = qp
         else:
             qp.settings.initial_guess = \
                 self._proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            qp.update(H, np.zeros(n + m), E, e, I, il, iu, lb, ub)
+            qp.update(H, np.zeros(n + m), E, e, G, il, iu, lb, ub)
         qp.solve()
         ok = qp.results.info.status == self._proxqp.QPSolverOutput.PROXQP_SOLVED
         x = np.array(qp.results.x)

@@ -23,7 +23,8 @@ def test_colcon_build_installs_executables_and_ament_marker(tmp_path):
     install = tmp_path / 'install' / 'ifc_spg'
     for exe in ('spg_node', 'sim_bridge', 'task_publisher', 'ifc-spg'):
         assert (install / 'lib' / 'ifc_spg' / exe).is_file(), exe
-    assert (install / 'share' / 'ament_index' / 'resource_index' / 'packages' / 'ifc_spg').is_file()
+    index = install / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    assert (index / 'ifc_spg').is_file()
     assert (install / 'share' / 'ifc_spg' / 'package.xml').is_file()
     assert (install / 'share' / 'ifc_spg' / 'config' / 'lbr_iiwa14.yaml').is_file()
     site = next((install / 'lib').glob('python3*/site-packages'))

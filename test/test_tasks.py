@@ -197,7 +197,7 @@ def test_rotation_error_is_log3_not_euler():
     (dict(frame='tool', axes=['x'], equal=1.0, lower=0.0), "either 'equal' or"),
     (dict(frame='tool', axes=['x']), 'no bounds'),
     (dict(frame='tool', axes=['x'], equal=1.0, gain=-1.0), 'gain must be'),
-    (dict(frame='tool', axes=['x'], equal=1.0, subspace_frame='world'), "unknown; use one of"),
+    (dict(frame='tool', axes=['x'], equal=1.0, subspace_frame='world'), 'unknown; use one of'),
 ])
 def test_bad_task_arguments_name_the_problem(kwargs, match):
     with pytest.raises((IfcSpgError, UnknownFrame), match=match):

@@ -12,8 +12,7 @@ import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.tasks.subspace import SUBSPACE_FRAMES, axes_matrix, check_orthonormal
-from ifc_spg.tasks.subspace import subspace_in_base
+from ifc_spg.tasks.subspace import cartesian_subspace, subspace_in_base
 from ifc_spg.tasks.task import Task
 
 __all__ = ['CartesianPoseTask']
@@ -39,15 +38,7 @@ class CartesianPoseTask(Task):
                  orientation='init', relative=False, **kwargs):
         self.frame = frame
         self.frame_id = robot.frame_id(frame)
-        if subspace is not None and axes is not None:
-            raise IfcSpgError("give either 'axes' or an explicit 'subspace', not both")
-        S = axes_matrix(axes or ('x', 'y', 'z', 'rx', 'ry', 'rz')) if subspace is None \
-            else check_orthonormal(np.asarray(subspace, dtype=float))
-        if S.shape[0] != 6:
-            raise IfcSpgError(f'a Cartesian subspace has 6 rows (x y z rx ry rz), got {S.shape[0]}')
-        if subspace_frame not in SUBSPACE_FRAMES:
-            raise IfcSpgError(f"subspace frame '{subspace_frame}' unknown; use one of "
-                              f"{', '.join(SUBSPACE_FRAMES)}")
+        S = cartesian_subspace(axes, subspace, subspace_frame)
         self.S = S
         self.subspace_frame = subspace_frame
         if isinstance(orientation, str):
@@ -89,12 +80,6 @@ class CartesianPoseTask(Task):
         Jx[3:] = pin.Jlog3(R_e) @ R_e.T @ J[3:]
         St = self._S_base(R).T
         return St @ x, St @ Jx, np.zeros(self.dim)
-
-    def compute_value(self, kin):
-        return self.compute(kin)[0]
-
-    def compute_jacobian(self, kin):
-        return self.compute(kin)[1]
 
     def compute_measured_rate(self, kin):
         _, R, J = kin.frame(self.frame_id, virtual=False)

@@ -1,6 +1,5 @@
 """Joint torque task: alpha = tau_s (selected joints), A = K, gamma = K qdot (Table 3.1)."""
 
-import numpy as np
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.tasks.joint_position_task import joint_indices
@@ -34,12 +33,6 @@ class JointTorqueTask(Task):
         tau, A, g = static_torque(self.robot, kin)
         i = self.indices
         return tau[i], A[i], g[i]
-
-    def compute_value(self, kin):
-        return self.compute(kin)[0]
-
-    def compute_jacobian(self, kin):
-        return self.compute(kin)[1]
 
     def compute_gamma(self, kin):
         return self.compute(kin)[2]

@@ -9,8 +9,8 @@ import numpy as np
 
 from ifc_spg.errors import IfcSpgError, did_you_mean
 
-__all__ = ['AXES', 'WRENCH_AXES', 'SUBSPACE_FRAMES', 'axes_matrix', 'check_orthonormal',
-           'subspace_in_base']
+__all__ = ['AXES', 'WRENCH_AXES', 'SUBSPACE_FRAMES', 'axes_matrix', 'cartesian_subspace',
+           'check_orthonormal', 'subspace_in_base']
 
 AXES = ('x', 'y', 'z', 'rx', 'ry', 'rz')
 WRENCH_AXES = ('fx', 'fy', 'fz', 'tx', 'ty', 'tz')
@@ -61,3 +61,26 @@ def subspace_in_base(S, frame, R):
     out[:3] = S[:3] if frame == 'ee_orientation' else R @ S[:3]
     out[3:] = R @ S[3:]
     return out
+
+
+def cartesian_subspace(axes, subspace, frame, wrench=False):
+    """Validate a Cartesian task's subspace; return S (6 x m).
+
+    Args:
+        axes: Named directions (default all six), or None when ``subspace`` is given.
+        subspace: Explicit 6 x m matrix with orthonormal columns, or None.
+        frame: The frame S is given in: 'base', 'ee' or 'ee_orientation'.
+        wrench: Name the rows ``fx .. tz`` (wrench) instead of ``x .. rz`` (pose).
+    """
+    names = WRENCH_AXES if wrench else AXES
+    if subspace is not None and axes is not None:
+        raise IfcSpgError("give either 'axes' or an explicit 'subspace', not both")
+    S = axes_matrix(axes or names, wrench=wrench) if subspace is None \
+        else check_orthonormal(np.asarray(subspace, dtype=float))
+    if S.shape[0] != 6:
+        raise IfcSpgError(f"a {'wrench' if wrench else 'Cartesian'} subspace has 6 rows "
+                          f"({' '.join(names)}), got {S.shape[0]}")
+    if frame not in SUBSPACE_FRAMES:
+        raise IfcSpgError(f"subspace frame '{frame}' unknown; use one of "
+                          f"{', '.join(SUBSPACE_FRAMES)}")
+    return S

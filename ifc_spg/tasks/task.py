@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.tasks.bounds import Bound, INIT, as_bound
+from ifc_spg.tasks.bounds import INIT, Bound, as_bound
 
 __all__ = ['Level', 'Task']
 
@@ -104,14 +104,18 @@ class Task:
         self._active_lower = None
         self._active_upper = None
 
-    # -- to implement -----------------------------------------------------------------
+    # -- to implement: either compute() or the compute_* methods ----------------------------
+    def compute(self, kin):
+        """Return ``(alpha (m,), A (m, n), gamma (m,))`` at this tick's configuration."""
+        return self.compute_value(kin), self.compute_jacobian(kin), self.compute_gamma(kin)
+
     def compute_value(self, kin):
         """Task value alpha (m,) at this tick's configuration."""
-        raise NotImplementedError
+        return self.compute(kin)[0]
 
     def compute_jacobian(self, kin):
         """Task Jacobian A = d(alpha)/d(q_v), shape (m, n)."""
-        raise NotImplementedError
+        return self.compute(kin)[1]
 
     def compute_gamma(self, kin):
         """Velocity compensation gamma (m,) (Table 3.1); zero for position tasks."""
@@ -120,10 +124,6 @@ class Task:
     def compute_measured_rate(self, kin):
         """Rate of alpha due to the measured joint velocity (m,)."""
         return -self.compute_gamma(kin)
-
-    def compute(self, kin):
-        """Return ``(alpha, A, gamma)``; subclasses override to share work."""
-        return self.compute_value(kin), self.compute_jacobian(kin), self.compute_gamma(kin)
 
     # -- activation and levels ------------------------------------------------------------
     @property
