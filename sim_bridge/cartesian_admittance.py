@@ -2,12 +2,21 @@
 
 Per chain with admittance parameters (M_x, D_x, K_x, all diagonal), at physics rate:
 
-    M_x Δẍ + D_x Δẋ + K_x Δx = h,     Δx = x_c − x_d,     x_d = FK(q_v)
+    M_x Δẍ + D_x Δẋ + K_x Δx = h_f,     Δx = x_c − x_d,     x_d = FK(q_v)
 
 ``h`` is the wrist F/T sensor reading with the tool weight removed (what the environment
-exerts on the tool, base frame, moment about the chain frame). ``K_x = 0`` gives force
-following (2.23). Poses are compared as ``[p_c − p; log(R_c Rᵀ)]`` and ``x_c`` is formed
-as ``p_c = p_d + Δp``, ``R_c = exp(Δθ) R_d``.
+exerts on the tool, base frame, moment about the chain frame); ``h_f`` is ``h`` after a
+first-order low-pass with cutoff ``ft_cutoff`` (default 100 Hz, about the bandwidth of a
+filtered industrial F/T sensor; it costs ~5° of phase at the 10 Hz contact mode below).
+``K_x = 0`` gives force following (2.23). Poses are compared as ``[p_c − p; log(R_c Rᵀ)]``
+and ``x_c`` is formed as ``p_c = p_d + Δp``, ``R_c = exp(Δθ) R_d``.
+
+The admittance is integrated with backward Euler (implicit in D_x and K_x):
+
+    Δẋ⁺ = (M_x Δẋ + Δt (h_f − K_x Δx)) / (M_x + Δt D_x + Δt² K_x),   Δx⁺ = Δx + Δt Δẋ⁺
+
+which is unconditionally stable for any M_x, D_x, K_x >= 0 (M_x may be 0: a pure damper)
+and exact in steady state (Δx = K_x⁻¹ h; Δẋ = h / D_x when K_x = 0).
 
 The compliant pose x_c is tracked by an inner joint position loop: differential IK on
 the joint reference (one damped Gauss-Newton step per physics step, all admittance
@@ -15,21 +24,31 @@ chains stacked, the null space pulled towards q_v)
 
     q_ref += g J⁺(q_ref) (x_c ⊖ FK(q_ref)) + (I − J⁺J) k_null Δt (q_v − q_ref)
 
-and stiff joint PD servos (MuJoCo actuators, gains ``joint_gains``) tracking q_ref with
-gravity and dynamics compensation and integral action (``joint_ki``). The IK is kinematic (it does not use the measured q):
-feeding the measured pose back through an integrator makes the loop unstable against a
-stiff environment (Routh: M k_ik K_servo > D K), the classic admittance pitfall.
+and stiff joint PD servos (MuJoCo actuators, gains ``joint_gains``, damping integrated
+implicitly) tracking q_ref with gravity and dynamics compensation and a small, clamped
+integral action (``joint_ki``, ``joint_ki_limit``: removes the servo's static deflection
+under load, so the admittance static check holds, without windup). The IK is kinematic
+(it does not use the measured q): feeding the measured pose back through an integrator
+makes the loop unstable against a stiff environment (Routh: M k_ik K_servo > D K), the
+classic admittance pitfall.
 
-Stability with a rigid grasp (weld to a drawer, door, crank) needs enough virtual mass or
-damping: with the 1-step F/T delay of a 1 kHz loop, M_x = 2 kg (ζ = 1) oscillates while
-M_x = 10 kg (D_x = 2 sqrt(K_x M_x)) is stable in every mechanism scene; stiffer servos
-make it worse, not better.
+Stability with a rigid grasp (weld/connect to a drawer, door, crank): the environment then
+closes a force loop through the servo's Cartesian stiffness K_c (~2·10⁴ N/m, ~3·10³ Nm/rad
+here), a mass-spring-damper M_x, D_x, K_x + K_c whose damping ratio is
+``D_x / (2 sqrt(K_c M_x))``. A critically damped admittance (D_x = 2 sqrt(K_x M_x)) has
+``sqrt(K_x / K_c) ~ 0.16`` there for every M_x, and with the F/T delay it oscillated
+(±40 N at M_x = 2 and 10 kg); so D_x must be sized against K_c, not K_x: D_x >= ~1.4
+sqrt(K_c M_x). The registry defaults (``accrea_dual_arm``) do this; the integral gain was
+lowered from 30000 to 3000 Nm/(rad s) (at 30000 its phase lag made a slow x_d ramp
+oscillate by ±40 N).
 """
 
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+
+from ifc_spg.errors import ParameterError
 
 __all__ = ['CartesianAdmittanceLaw', 'exp3', 'log3']
 
@@ -71,8 +90,10 @@ class _Chain:
     stiffness: np.ndarray
     p_d: np.ndarray = field(default_factory=lambda: np.zeros(3))
     r_d: np.ndarray = field(default_factory=lambda: np.eye(3))
+    denom: np.ndarray = field(default_factory=lambda: np.ones(6))
     dx: np.ndarray = field(default_factory=lambda: np.zeros(6))
     dxd: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    h_f: np.ndarray = None
 
 
 class CartesianAdmittanceLaw:
@@ -82,6 +103,9 @@ class CartesianAdmittanceLaw:
         admittance: Chain id -> object with ``stiffness``, ``damping``, ``mass`` (6 each).
         joint_gains: (K_p [Nm/rad], K_d [Nms/rad]) of the inner joint position servos.
         joint_ki: Integral gain K_i [Nm/(rad s)] of the servos (exact static tracking).
+        joint_ki_limit: Clamp of the integral torque as a fraction of each joint's torque
+            limit (anti-windup).
+        ft_cutoff: Cutoff [Hz] of the first-order F/T low-pass; ``None``: unfiltered.
         ik_gain: Fraction of the Gauss-Newton IK step taken per physics step (0, 1].
         k_null: Null-space gain towards q_v in [1/s].
         ik_damping: Damping λ of the least-squares pseudo-inverse.
@@ -89,12 +113,18 @@ class CartesianAdmittanceLaw:
 
     name = 'accrea'
 
-    def __init__(self, admittance, joint_gains=(3000.0, 30.0), joint_ki=30000.0, ik_gain=1.0,
-                 k_null=5.0, ik_damping=1e-3):
+    def __init__(self, admittance, joint_gains=(3000.0, 30.0), joint_ki=3000.0,
+                 joint_ki_limit=0.3, ft_cutoff=100.0, ik_gain=1.0, k_null=5.0,
+                 ik_damping=1e-3):
         self.admittance = dict(admittance)
         self.joint_gains = tuple(float(g) for g in joint_gains)
         self.ik_gain = float(ik_gain)
         self.joint_ki = float(joint_ki)
+        self.joint_ki_limit = float(joint_ki_limit)
+        if ft_cutoff is not None and not float(ft_cutoff) > 0:
+            raise ParameterError(f'ft_cutoff must be > 0 Hz or None (unfiltered), got '
+                                 f'{ft_cutoff!r}')
+        self.ft_cutoff = None if ft_cutoff is None else float(ft_cutoff)
         self.k_null = float(k_null)
         self.ik_damping = float(ik_damping)
         self.chains = []
@@ -107,12 +137,20 @@ class CartesianAdmittanceLaw:
             m.actuator_gainprm[a, 0] = kp
             m.actuator_biasprm[a, :3] = (0.0, -kp, -kd)
         self.chains = []
+        dt = sim.dt
         for chain, adm in self.admittance.items():
-            self.chains.append(_Chain(
-                name=chain, site_id=sim.site_id(chain),
-                mass=np.asarray(adm.mass, float).copy(),
-                damping=np.asarray(adm.damping, float).copy(),
-                stiffness=np.asarray(adm.stiffness, float).copy()))
+            mass, damping, stiffness = (_params(getattr(adm, what), chain, what) for what in
+                                        ('mass', 'damping', 'stiffness'))
+            denom = mass + dt * damping + dt * dt * stiffness
+            if np.any(mass + damping <= 0):
+                raise ParameterError(f"admittance of chain '{chain}': M_x and D_x are both 0 "
+                                     f'on axes {np.nonzero(mass + damping <= 0)[0].tolist()}; '
+                                     'give every axis a mass or a damping > 0')
+            self.chains.append(_Chain(name=chain, site_id=sim.site_id(chain), mass=mass,
+                                      damping=damping, stiffness=stiffness, denom=denom))
+        self._alpha = 1.0 if self.ft_cutoff is None else \
+            1.0 - np.exp(-2.0 * np.pi * self.ft_cutoff * dt)
+        self._ki_limit = self.joint_ki_limit * np.asarray(sim.robot.tau_max, dtype=float)
         n = len(sim.joint_names)
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
@@ -134,6 +172,7 @@ class CartesianAdmittanceLaw:
         for c in self.chains:
             c.dx[:] = 0.0
             c.dxd[:] = 0.0
+            c.h_f = None  # the filter starts at the first reading
 
     def command(self, sim, q_v, qd_v=None, tau_offset=None):
         """Latch q_v and map it to the desired poses x_d = FK(q_v)."""
@@ -158,8 +197,11 @@ class CartesianAdmittanceLaw:
         kin = sim.kinematics_data(self.q_ref, jacobians=True)
         for k, c in enumerate(self.chains):
             h = sim.ft_external(c.name)
-            acc = (h - c.damping * c.dxd - c.stiffness * c.dx) / c.mass
-            c.dxd += dt * acc
+            if c.h_f is None:
+                c.h_f = h.copy()
+            else:
+                c.h_f += self._alpha * (h - c.h_f)
+            c.dxd[:] = (c.mass * c.dxd + dt * (c.h_f - c.stiffness * c.dx)) / c.denom
             c.dx += dt * c.dxd
             p = kin.site_xpos[c.site_id]
             r = kin.site_xmat[c.site_id].reshape(3, 3)
@@ -178,4 +220,13 @@ class CartesianAdmittanceLaw:
         d.ctrl[sim.actuator_index] = self.q_ref
         if self.joint_ki:
             self.tau_i += (self.joint_ki * dt) * (self.q_ref - d.qpos[sim.qpos_index])
+            np.clip(self.tau_i, -self._ki_limit, self._ki_limit, out=self.tau_i)
         d.qfrc_applied[sim.dof_index] = d.qfrc_bias[sim.dof_index] + self.tau_i
+
+
+def _params(value, chain, what):
+    a = np.asarray(value, dtype=float).reshape(-1).copy()
+    if a.shape != (6,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ParameterError(f"admittance {what} of chain '{chain}' must be 6 finite numbers "
+                             f'>= 0, got {value!r}')
+    return a

@@ -10,7 +10,8 @@ scene                     what
 ========================  ==============================================================
 ``free``                  free space
 ``table``                 a table whose top is ``gap`` below the tool frame; contact
-                          stiffness via ``solref = (timeconst [s], dampratio)``
+                          stiffness via ``solref = (timeconst [s], dampratio)``, tool
+                          friction ``friction`` (0.3) and ``solref_friction``
 ``obstacle``              a box ``offset`` [m] (world frame) from the tool
 ``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel
 ``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel
@@ -23,6 +24,23 @@ Mechanism scenes grasp the handle with ``grasp='weld'`` (default; tool and handl
 welded), ``'connect'`` (ball joint at the tool frame) or ``'none'``. Tool/mechanism
 contacts are excluded (the grasp carries the load). Scene geoms collide with the robot only
 (``contype=1, conaffinity=2``), never with each other.
+
+Tool contacts with the table and the obstacle are explicit contact pairs (every geom of the
+tool subtree against the scene geom; their body-level dynamic contacts are excluded) with
+Coulomb friction ``friction`` (sliding, default 0.3: a plastic or metal pen tip on a
+varnished table), a separate, slow friction reference ``solref_friction`` (1 s; MuJoCo
+``solreffriction``, effective with the elliptic cones the simulation uses) and impedance
+:data:`TOOL_SOLIMP`. Why: MuJoCo's convex soft-contact model lets a sliding contact
+"hydroplane" — by the elliptic cone's complementarity conditions the normal acceleration
+gains about ``mu * b * |v_t|``, ``b ~ 2 / timeconst`` the friction reference damping —
+and with the normal ``solref`` (10 ms) also used for friction, a pen sliding at 6 cm/s
+lifted off by ~20 µm, dropped back and chattered at ~70 Hz: the ground-truth normal force
+alternated between 0 and twice its mean (even for mu = 0.05). With the slow friction
+reference and d = 0.7 the hover term stays below the normal constraint's preload term
+``(1 - d)/d f_n / m`` down to ~1 N of normal force. The price: below ~1 cm/s of slip the
+friction is viscous rather than Coulomb (about 0.05 f_n at 2 mm/s, the full mu f_n from
+~2 cm/s; ``impratio`` 10 keeps this creep small), and the normal stiffness is ~0.1 mm of
+penetration at 8 N.
 
 Break-away doors use a *latch*: a joint equality holding the door closed until the torque
 it carries reaches ``force × lever``; then it releases and the door swings with only a
@@ -42,6 +60,13 @@ __all__ = ['SCENES', 'Anchor', 'Latch', 'SceneInfo', 'build_scene', 'scene_names
 SCENE_CONTYPE = 1
 SCENE_CONAFFINITY = 2
 _GRASPS = ('weld', 'connect', 'none')
+#: Impedance (d0, dwidth, width [m], midpoint, power) of the tool/table and tool/obstacle
+#: contacts: d = 0.7 instead of MuJoCo's 0.9-0.95 (about 0.1 mm penetration at 8 N), which
+#: makes the normal constraint's own preload term (1 - d)/d f_n/m large enough that a
+#: sliding tool does not hover (see the module doc).
+TOOL_SOLIMP = (0.7, 0.7, 0.001, 0.5, 2.0)
+#: Friction reference (timeconst [s], dampratio) of the tool contacts (``solreffriction``).
+TOOL_SOLREF_FRICTION = (1.0, 1.0)
 #: Distance [m] from the handle to the mechanism's front (drawer front, door, crank plane)
 #: along u, so that a wrist above a downward-pointing tool clears the mechanism.
 STANDOFF = 0.1
@@ -180,18 +205,58 @@ def _free(spec, anchor):
     return {}
 
 
-def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4)):
+def _subtree(body):
+    yield body
+    for child in body.bodies:
+        yield from _subtree(child)
+
+
+def _tool_contact_pairs(spec, anchor, scene_body, scene_geom, friction, solref,
+                        solref_friction):
+    """Explicit contact pairs between every tool geom and ``scene_geom`` (see the module doc).
+
+    Args:
+        friction: Sliding friction coefficient mu (>= 0).
+        solref: Normal contact reference (timeconst [s], dampratio).
+        solref_friction: Friction reference (timeconst [s], dampratio); slow on purpose.
+    """
+    mu = float(friction)
+    if not np.isfinite(mu) or mu < 0:
+        raise ParameterError(f'friction must be a number >= 0, got {friction!r}')
+    for name, ref in (('solref', solref), ('solref_friction', solref_friction)):
+        ref = np.asarray(ref, dtype=float).reshape(-1)
+        if ref.shape != (2,) or not np.all(ref > 0):
+            raise ParameterError(f'{name} must be (timeconst [s] > 0, dampratio > 0), got '
+                                 f'{list(ref)}')
+    for body in _subtree(spec.body(anchor.tool_body)):
+        spec.add_exclude(bodyname1=body.name, bodyname2=scene_body)
+        for i, geom in enumerate(body.geoms):
+            if not geom.name:
+                geom.name = f'{body.name}_geom{i}'
+            spec.add_pair(name=f'{geom.name}_{scene_geom}', geomname1=geom.name,
+                          geomname2=scene_geom, condim=3,
+                          friction=[mu, mu, 0.005, 1e-4, 1e-4], solref=list(solref),
+                          solimp=list(TOOL_SOLIMP), solreffriction=list(solref_friction))
+
+
+def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4), friction=0.3,
+           solref_friction=TOOL_SOLREF_FRICTION):
     top = anchor.tool_pos[2] - gap
     table = spec.worldbody.add_body(name='table', pos=[anchor.tool_pos[0], anchor.tool_pos[1],
                                                       top - 0.02])
     g = _box(table, [0, 0, 0], [size[0], size[1], 0.02], name='table_top')
     g.solref = list(solref)
+    _tool_contact_pairs(spec, anchor, 'table', 'table_top', friction, solref, solref_friction)
     return {}
 
 
-def _obstacle(spec, anchor, offset=(0.0, 0.15, 0.0), half_size=(0.04, 0.04, 0.1)):
+def _obstacle(spec, anchor, offset=(0.0, 0.15, 0.0), half_size=(0.04, 0.04, 0.1),
+              friction=0.3, solref=(0.01, 1.0), solref_friction=TOOL_SOLREF_FRICTION):
     body = spec.worldbody.add_body(name='obstacle', pos=anchor.tool_pos + np.asarray(offset))
-    _box(body, [0, 0, 0], half_size, name='obstacle', rgba=(0.8, 0.2, 0.2, 1))
+    g = _box(body, [0, 0, 0], half_size, name='obstacle', rgba=(0.8, 0.2, 0.2, 1))
+    g.solref = list(solref)
+    _tool_contact_pairs(spec, anchor, 'obstacle', 'obstacle', friction, solref,
+                        solref_friction)
     return {}
 
 
@@ -254,7 +319,8 @@ def _door(spec, anchor, side, force, lever, mass, damping=0.05, friction=0.05, g
         eq.solref = [0.004, 1.0]
         latches = (Latch(joint='door', equality='latch', force=float(force),
                          lever=float(lever)),)
-    return {'env_joints': ('door',), 'handle_site': 'handle', 'grasp': grasp_eq, 'latches': latches}
+    return {'env_joints': ('door',), 'handle_site': 'handle', 'grasp': grasp_eq,
+            'latches': latches}
 
 
 def _cupboard_door(spec, anchor, force=20.0, lever=0.35, mass=1.5, **kw):

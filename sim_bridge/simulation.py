@@ -7,7 +7,7 @@ held between updates (zero-order hold; the node writes it at 500 Hz). One physic
     mj_step1          kinematics, qfrc_bias (gravity + Coriolis) at the current state
     law.control       IFC: compensation torques, admittance/IK (actuators hold K, D)
     pushes            person-like wrenches -> xfrc_applied
-    mj_step2          constraint forces, sensors, integration (implicitfast)
+    mj_step2          constraint forces, sensors, integration (implicitfast, elliptic cones)
     latches           break-away doors release/re-engage
 
 The robot base frame is the world frame (robot root body at the origin, as pinocchio
@@ -191,6 +191,11 @@ class Simulation(RobotInterface):
                               ctrllimited=mujoco.mjtLimited.mjLIMITED_FALSE)
         spec.option.timestep = self.dt
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        # Elliptic friction cones: exact Coulomb cones, and the only cone for which a
+        # contact pair's separate friction reference (solreffriction) applies; the scenes
+        # use it against sliding-contact chatter (see sim_bridge.scenes).
+        spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        spec.option.impratio = 10.0
         try:
             self.model = spec.compile()
         except ValueError as exc:

@@ -165,7 +165,9 @@ def test_accrea_admittance_and_frames():
     for adm in robot.admittance.values():
         k, d, m = adm.stiffness, adm.damping, adm.mass
         assert k.shape == d.shape == m.shape == (6,)
-        np.testing.assert_allclose(d, 2 * np.sqrt(k * m), rtol=1e-12)
+        # at least critically damped on its own; the defaults damp against the stiff inner
+        # position loop of a rigid grasp (see robots.py), which needs more
+        assert np.all(d >= 2 * np.sqrt(k * m))
     # Home: both tools in front of the torso, pointing down, mirror images of each other.
     data = robot.create_data()
     pin.framesForwardKinematics(robot.model, data, robot.q_home)

@@ -208,15 +208,21 @@ ACCREA_SHOULDER = (0.0, 0.12, 1.2)
 ACCREA_TORSO = dict(mass=20.0, size=(0.1, 0.12, 0.65))
 
 # Cartesian admittance defaults per tool chain: K_x [N/m]*3 + [Nm/rad]*3, M_x [kg]*3 +
-# [kg m^2]*3, D_x = 2 sqrt(K_x M_x) (critically damped).
+# [kg m^2]*3, D_x [Ns/m]*3 + [Nms/rad]*3. D_x is sized for a rigid grasp, not for
+# critical damping of M_x/K_x: grasping a drawer, door or crank closes a force loop through
+# the inner position servo's Cartesian stiffness K_c (~2e4 N/m, ~3e3 Nm/rad for the
+# emulation's servos), whose damping ratio is D_x / (2 sqrt(K_c M_x)); the critically damped
+# 2 sqrt(K_x M_x) gives sqrt(K_x / K_c) ~ 0.16 for any M_x and oscillated (+-40 N). These
+# give ~0.75 (translation) and ~0.7 (rotation); in free space the admittance is then
+# overdamped (slow pole K_x / D_x ~ 1.7 rad/s, force following at 1 / D_x = 3.3 mm/s per N).
 _ACCREA_K_X = (500.0,) * 3 + (50.0,) * 3
 _ACCREA_M_X = (2.0,) * 3 + (0.1,) * 3
+_ACCREA_D_X = (300.0,) * 3 + (25.0,) * 3
 
 
 def _accrea_admittance():
-    k = np.array(_ACCREA_K_X)
-    m = np.array(_ACCREA_M_X)
-    return CartesianAdmittance(stiffness=k, damping=2.0 * np.sqrt(k * m), mass=m)
+    return CartesianAdmittance(stiffness=np.array(_ACCREA_K_X), damping=np.array(_ACCREA_D_X),
+                               mass=np.array(_ACCREA_M_X))
 
 
 # iCub upper body (thesis 3.3.2, SPEC 8).
