@@ -202,3 +202,22 @@ def test_rotation_error_is_log3_not_euler():
 def test_bad_task_arguments_name_the_problem(kwargs, match):
     with pytest.raises((IfcSpgError, UnknownFrame), match=match):
         CartesianPoseTask(ROBOTS['lbr_iiwa14'], **kwargs)
+
+
+def test_include_damping_adds_the_measured_damping_torque():
+    robot = ROBOTS['lbr_iiwa14']
+    rng = np.random.default_rng(21)
+    q, qdot, q_v = random_state(robot, rng)
+    kin = kin_at(robot, q, qdot, q_v)
+    plain = WrenchTask(robot, frame='tool', equal=0.0)
+    damped = WrenchTask(robot, frame='tool', equal=0.0, include_damping=True)
+    h0, A0, g0 = plain.compute(kin)
+    h1, A1, g1 = damped.compute(kin)
+    J = kin.frame(robot.frame_id('tool'), virtual=False)[2]
+    P = np.linalg.solve(J @ J.T + 1e-6 * np.eye(6), J)  # J^{+T}, damped as in the task
+    np.testing.assert_allclose(h1 - h0, -P @ (robot.damping * qdot), atol=1e-9)
+    np.testing.assert_array_equal(A0, A1)
+    np.testing.assert_array_equal(g0, g1)
+    t0 = JointTorqueTask(robot, equal=0.0).compute_value(kin)
+    t1 = JointTorqueTask(robot, equal=0.0, include_damping=True).compute_value(kin)
+    np.testing.assert_allclose(t1 - t0, -robot.damping * qdot)

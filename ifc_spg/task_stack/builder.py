@@ -286,6 +286,8 @@ class _Builder:
                                             what='feedforward')[0]
         kw['velocity_gain'] = spec.velocity_gain
         kw['compensate_velocity'] = spec.compensate_velocity
+        if spec.type in ('wrench', 'joint_torque'):
+            kw['include_damping'] = spec.include_damping
         if spec.type in ('cartesian_pose', 'wrench'):
             kw['frame'] = spec.frame
             sub = spec.subspace

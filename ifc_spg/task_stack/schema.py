@@ -102,6 +102,10 @@ def _task(ttype):
                                                     'rate to the feed-forward (Table 4.5).')
     props['compensate_velocity'] = {'type': 'boolean',
                                     'description': 'Velocity compensation gamma (Table 5.1).'}
+    if ttype in ('wrench', 'joint_torque'):
+        props['include_damping'] = {
+            'type': 'boolean', 'description': 'The static value includes the IFC damping of '
+            'the measured motion, -D qdot (default false, as in the thesis).'}
     required = ['type']
     if ttype in ('cartesian_pose', 'wrench'):
         props['frame'] = {'type': 'string', 'description': 'Chain id, e.g. tool.'}

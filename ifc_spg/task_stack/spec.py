@@ -51,9 +51,9 @@ _COMMON = ('name', 'type', 'description', 'equal', 'lower', 'upper', 'gain', 'fe
            'velocity_gain', 'compensate_velocity')
 TASK_FIELDS = {
     'joint_position': _COMMON + ('joints',),
-    'joint_torque': _COMMON + ('joints',),
+    'joint_torque': _COMMON + ('joints', 'include_damping'),
     'cartesian_pose': _COMMON + ('frame', 'subspace', 'orientation', 'relative'),
-    'wrench': _COMMON + ('frame', 'subspace'),
+    'wrench': _COMMON + ('frame', 'subspace', 'include_damping'),
     'constrained_manipulation': ('name', 'type', 'description', 'frame'),  # + free options
 }
 SUBSPACE_FIELDS = ('axes', 'columns', 'frame')
@@ -161,6 +161,7 @@ class TaskSpec:
         compensate_velocity: Add the velocity compensation gamma.
         orientation: 'init' or a 3 x 3 rotation (rows) for ``cartesian_pose``.
         relative: Positions relative to the position at activation (``cartesian_pose``).
+        include_damping: The static value includes -D qdot (``wrench``, ``joint_torque``).
         options: Further fields of ``constrained_manipulation`` (read-only mapping).
         description: Free text.
     """
@@ -180,6 +181,7 @@ class TaskSpec:
     compensate_velocity: bool = True
     orientation: object = 'init'
     relative: bool = False
+    include_damping: bool = False
     options: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     description: str = None
 
@@ -247,6 +249,8 @@ def task_to_data(t):
         out['orientation'] = t.orientation if isinstance(t.orientation, str) \
             else [list(r) for r in t.orientation]
         out['relative'] = t.relative
+    if t.type in ('wrench', 'joint_torque'):
+        out['include_damping'] = t.include_damping
     return out
 
 
@@ -427,6 +431,9 @@ class _Parser:
             kw['orientation'] = self.orientation(path + ('orientation',), x['orientation'])
         if 'relative' in x:
             kw['relative'] = self.boolean(path + ('relative',), x['relative'])
+        if 'include_damping' in x:
+            kw['include_damping'] = self.boolean(path + ('include_damping',),
+                                                 x['include_damping'])
         return TaskSpec(**kw)
 
     def nonnegative_vector(self, path, v, what):

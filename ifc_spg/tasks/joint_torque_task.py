@@ -16,12 +16,15 @@ class JointTorqueTask(Task):
         robot: The :class:`~ifc_spg.model.RobotModel`.
         joints: Joint names (default: all compliant joints). Stiff joints have no static
             torque and are rejected.
+        include_damping: The value includes the IFC damping of the measured motion,
+            tau_s = K (q_v - q) - D qdot (the thesis' static value omits -D qdot).
         **kwargs: Bounds in [Nm], gain, feed-forward (see Task).
     """
 
     kind = 'joint_torque'
 
-    def __init__(self, robot, *, joints=None, **kwargs):
+    def __init__(self, robot, *, joints=None, include_damping=False, **kwargs):
+        self.include_damping = bool(include_damping)
         self.indices = joint_indices(robot, joints, exclude_stiff=True)
         stiff = [robot.joint_names[i] for i in self.indices if robot.stiff_mask[i]]
         if stiff:
@@ -30,7 +33,7 @@ class JointTorqueTask(Task):
         super().__init__(robot, dim=len(self.indices), **kwargs)
 
     def compute(self, kin):
-        tau, A, g = static_torque(self.robot, kin)
+        tau, A, g = static_torque(self.robot, kin, self.include_damping)
         i = self.indices
         return tau[i], A[i], g[i]
 

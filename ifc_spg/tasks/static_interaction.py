@@ -29,6 +29,11 @@ def compliant_stiffness(robot):
     return np.where(robot.stiff_mask, 0.0, robot.stiffness)
 
 
+def compliant_damping(robot):
+    """Per-joint damping with zeros at stiff (position-controlled) joints, in [Nms/rad]."""
+    return np.where(robot.stiff_mask, 0.0, robot.damping)
+
+
 def check_admittance_chain(robot, frame):
     """Raise unless ``frame`` has Cartesian admittance parameters."""
     if frame not in robot.admittance:
@@ -51,10 +56,13 @@ def _admittance_wrench(robot, kin, frame):
     return Kx * x, Kx[:, None] * A, Kx * g, J
 
 
-def static_wrench(robot, kin, frame):
+def static_wrench(robot, kin, frame, include_damping=False):
     """Return ``(h_s (6,), A (6, n), gamma (6,), R (3, 3))`` of chain ``frame`` in base frame.
 
-    R is the measured orientation of the frame (used for end-effector subspaces).
+    R is the measured orientation of the frame (used for end-effector subspaces). With
+    ``include_damping`` the joint-impedance value also holds the damping torque of the
+    measured motion, h_s = J^{+T} (K (q_v - q) - D qdot): the wrench the IFC actually
+    applies while moving (A and gamma are unchanged: qdot does not depend on qdot_v).
     """
     fid = robot.frame_id(frame)
     _, R, J = kin.frame(fid, virtual=False)
@@ -65,14 +73,20 @@ def static_wrench(robot, kin, frame):
     Jc = J * (~robot.stiff_mask)
     P = np.linalg.solve(Jc @ Jc.T + DAMPING ** 2 * np.eye(6), Jc)  # J^{+T}
     PK = P * K
-    return PK @ (kin.q_v - kin.q), PK, PK @ kin.qdot, R
+    tau = K * (kin.q_v - kin.q)
+    if include_damping:
+        tau = tau - compliant_damping(robot) * kin.qdot
+    return P @ tau, PK, PK @ kin.qdot, R
 
 
-def static_torque(robot, kin):
-    """Return ``(tau_s (n,), A (n, n), gamma (n,))``."""
+def static_torque(robot, kin, include_damping=False):
+    """Return ``(tau_s (n,), A (n, n), gamma (n,))``; see :func:`static_wrench` for damping."""
     if robot.ifc == JOINT_IMPEDANCE:
         K = compliant_stiffness(robot)
-        return K * (kin.q_v - kin.q), np.diag(K), K * kin.qdot
+        tau = K * (kin.q_v - kin.q)
+        if include_damping:
+            tau = tau - compliant_damping(robot) * kin.qdot
+        return tau, np.diag(K), K * kin.qdot
     n = robot.n
     tau, A, g = np.zeros(n), np.zeros((n, n)), np.zeros(n)
     for frame in robot.admittance:

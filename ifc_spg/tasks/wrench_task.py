@@ -18,14 +18,18 @@ class WrenchTask(Task):
         axes: Named directions (``fx fy fz tx ty tz``), default all six.
         subspace: Explicit 6 x m matrix with orthonormal columns (instead of ``axes``).
         subspace_frame: 'base', 'ee' or 'ee_orientation' (measured end-effector frame).
+        include_damping: The value includes the IFC damping of the measured motion,
+            h_s = J^{+T} (K (q_v - q) - D qdot) (the force actually applied while moving;
+            the thesis' static value omits -D qdot). Joint impedance only.
         **kwargs: Bounds in [N] / [Nm], gain, feed-forward (see Task).
     """
 
     kind = 'wrench'
 
     def __init__(self, robot, *, frame, axes=None, subspace=None, subspace_frame='base',
-                 **kwargs):
+                 include_damping=False, **kwargs):
         self.frame = frame
+        self.include_damping = bool(include_damping)
         robot.frame_id(frame)
         if robot.ifc != JOINT_IMPEDANCE:
             check_admittance_chain(robot, frame)
@@ -35,7 +39,7 @@ class WrenchTask(Task):
         super().__init__(robot, dim=S.shape[1], **kwargs)
 
     def compute(self, kin):
-        h, A, g, R = static_wrench(self.robot, kin, self.frame)
+        h, A, g, R = static_wrench(self.robot, kin, self.frame, self.include_damping)
         St = subspace_in_base(self.S, self.subspace_frame, R).T
         return St @ h, St @ A, St @ g
 
