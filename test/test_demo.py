@@ -13,7 +13,9 @@ def test_demo_short(tmp_path, capsys):
     m = json.loads((out / 'metrics.json').read_text())
     assert m['ticks'] == 1250 and m['limit_violations'] == 0 and m['missed_ticks'] == 0
     # pressing on the table after the approach (t = 2 s): virtual force at 8 N
-    assert m['final_task_errors']['contact_force']['virtual'] < 0.5
+    # 0.5 s into the circle: the modelled and the measured force are within 2 N of 8 N
+    assert m['final_task_errors']['contact_force']['virtual'] < 2.0
+    assert m['final_task_errors']['contact_force']['physical'] < 2.0
     assert (out / 'plots' / 'index.html').is_file()
     # a second run replaces the old demo output
     assert main(['--duration', '0.1', '-o', str(out), '-q', '--no-plots']) == 0
