@@ -2,14 +2,14 @@
 ``cyclonedds`` CLI seeing the ROS type on ``rt/...`` of a running node."""
 
 import json
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
-from ifc_spg.ros.testing import loopback_env
+from ifc_spg.ros.testing import loopback_env, stop_process
 
 pytestmark = pytest.mark.dds
 
@@ -18,16 +18,6 @@ IFC_SPG = str(BIN / 'ifc-spg')
 CYCLONEDDS = str(BIN / 'cyclonedds')
 RATE_HZ, DURATION_S = 500.0, 10.0
 
-
-def _stop(proc):
-    """Terminate a child we started, by PID, and reap it."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
 
 
 def _read_line(proc, timeout):
@@ -66,7 +56,7 @@ def test_talker_listener_500hz_for_10s_loses_nothing():
     finally:
         for proc in (talker, listener):
             if proc is not None:
-                _stop(proc)
+                stop_process(proc)
     summary = json.loads(l_out.strip().splitlines()[-1])
     print(f"\n500 Hz JointState(7) over loopback, {summary['received']} msgs: "
           f"p50 {summary['p50_ms']:.3f} ms, p99 {summary['p99_ms']:.3f} ms, "
@@ -98,7 +88,7 @@ def test_cyclonedds_cli_shows_ros_type_on_rt_topic():
             env=env, capture_output=True, text=True, timeout=30).stdout
         assert talker.poll() is None, talker.stderr.read()
     finally:
-        _stop(talker)
+        stop_process(talker)
     assert 'module sensor_msgs' in typeof and 'module dds_' in typeof, typeof
     assert 'struct JointState_' in typeof, typeof
     for line in ('std_msgs::msg::dds_::Header_ header;', 'sequence<string>  name;',

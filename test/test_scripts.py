@@ -2,19 +2,19 @@
 that must stop every process they started."""
 
 import os
+from pathlib import Path
 import re
 import signal
 import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 import pytest
 
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import latched
-from ifc_spg.ros.testing import LOOPBACK_CONFIG, loopback_env
+from ifc_spg.ros.testing import LOOPBACK_CONFIG, loopback_env, stop_process
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPTS = sorted((ROOT / 'scripts').glob('*.sh'))
@@ -51,17 +51,6 @@ def _gone(pid):
     except ProcessLookupError:
         return True
     return False
-
-
-def _stop(proc):
-    """Terminate a child we started, by PID, and reap it."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
 
 
 @pytest.mark.parametrize('script', SCRIPTS, ids=lambda p: p.name)
@@ -156,6 +145,6 @@ def test_sim_lbr_trap_stops_its_processes_on_sigterm(tmp_path):
         err += proc.stderr.read()
         assert proc.wait(timeout=30) == 130
     finally:
-        _stop(proc)
+        stop_process(proc, timeout=10)
     assert all(_gone(p) for p in pids), err
     assert err.count('stopped PID') == 2

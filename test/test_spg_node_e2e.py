@@ -2,17 +2,17 @@
 ``task_publisher`` as three processes through their console scripts; this test listens."""
 
 import json
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ifc_spg.model import RobotModel
 from ifc_spg.ros import dds, messages
-from ifc_spg.ros.testing import loopback_env
+from ifc_spg.ros.testing import loopback_env, stop_process
 
 pytestmark = pytest.mark.dds
 
@@ -30,16 +30,6 @@ tasks:
     gain: 5.0
 """
 
-
-def _stop(proc):
-    """Terminate a child we started, by PID, and reap it."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
 
 
 def _stamp(msg):
@@ -92,7 +82,7 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
             (len(commands), log('spg_node'))
     finally:
         for proc in reversed(procs):
-            _stop(proc)
+            stop_process(proc)
         for f in logs.values():
             f.close()
         dds.shutdown()

@@ -1,17 +1,17 @@
 """Tests of ``task_publisher``: validation like ``ifc-spg check``, latched delivery, timed
 sequences, exit codes (in-process and as a process, loopback DDS, own domain)."""
 
+from pathlib import Path
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import latched
-from ifc_spg.ros.testing import loopback_env
+from ifc_spg.ros.testing import loopback_env, stop_process
 from ifc_spg.task_publisher import main, parse_entry
 from ifc_spg.task_stack.check import main as check_main
 
@@ -43,17 +43,6 @@ def _file(tmp_path, name, text=None):
     path.write_text(STACK.format(name=name) if text is None else text)
     return str(path)
 
-
-def _stop(proc):
-    """Terminate a child we started, by PID, and reap it; return its exit code."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
-    return proc.returncode
 
 
 class Listener:
@@ -144,7 +133,7 @@ def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, env)
         assert proc.wait(timeout=10) == 0  # --linger 0.5 s after the last one
         assert 'published' in proc.stderr.read()
     finally:
-        _stop(proc)
+        stop_process(proc)
         listener.close()
         if late is not None:
             late.close()
@@ -159,6 +148,6 @@ def test_stays_alive_until_sigterm_and_exits_0(tmp_path, env):
         time.sleep(0.3)
         assert proc.poll() is None
     finally:
-        code = _stop(proc)
+        code = stop_process(proc)
         listener.close()
     assert code == 0

@@ -9,8 +9,9 @@ participants find each other by unicast to 127.0.0.1).
 
 import os
 import random
+import subprocess
 
-__all__ = ['LOOPBACK_CONFIG', 'loopback_env', 'random_domain_id']
+__all__ = ['LOOPBACK_CONFIG', 'loopback_env', 'random_domain_id', 'stop_process']
 
 LOOPBACK_CONFIG = (
     '<CycloneDDS><Domain Id="any"><General>'
@@ -35,3 +36,15 @@ def loopback_env(domain_id=None, base=None):
     env['ROS_DOMAIN_ID'] = str(random_domain_id() if domain_id is None else domain_id)
     env['IFC_SPG_ROS_BACKEND'] = 'cyclonedds'
     return env
+
+
+def stop_process(proc, timeout=5.0):
+    """Terminate a child process we started (by its PID), reap it; return its exit code."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=timeout)
+    return proc.returncode
