@@ -35,6 +35,9 @@ A scenario file (YAML)::
       - force_error_rms: {axis: fz, target: 8.0, after: 2.0}
       - task_error_rms: {task: circle, after: 2.0}
     progress: 10                 # print a progress line every N % (0: none)
+    sim: {joint_damping: 0.1}    # bridge overrides: joint_damping, frictionloss, armature,
+                                 #  contact_chain; stiffness K / damping D of the IFC
+                                 #  (scalar or per joint; used by the bridge AND the SPG)
 
 Metrics: ``final_task_errors`` (per task of the last stack: distance of the value at the
 measured q, and of the virtual value, to the bounds), ``max_contact_force`` [N],
@@ -79,7 +82,8 @@ _SCENARIO_KEYS = ('name', 'description', 'robot', 'interface', 'scene', 'scene_o
 _DEFAULT_METRICS = ('final_task_errors', 'max_contact_force', 'tank_energy_min',
                     'limit_violations', 'tick_time', 'missed_ticks')
 _METRICS = _DEFAULT_METRICS + ('force_error_rms', 'task_error_rms')
-_SIM_KEYS = ('joint_damping', 'frictionloss', 'armature', 'contact_chain')
+_SIM_KEYS = ('joint_damping', 'frictionloss', 'armature', 'contact_chain', 'stiffness',
+             'damping')
 
 
 def find_config_dir():
@@ -397,10 +401,11 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
         raise ParameterError(f"'{bag_path}' exists; choose another -o directory or remove it")
     duration = scenario.duration if duration is None else float(duration)
     config = scenario.spg
-    sim = Simulation(SimConfig(robot=scenario.robot, interface=scenario.interface,
+    sim_opts = {k: v for k, v in scenario.sim.items() if k not in ('stiffness', 'damping')}
+    sim = Simulation(SimConfig(robot=_robot_with_ifc(scenario), interface=scenario.interface,
                                scene=scenario.scene, scene_options=scenario.scene_options,
                                q0=scenario.q0, timestep=scenario.timestep,
-                               command_period=scenario.dt, **scenario.sim))
+                               command_period=scenario.dt, **sim_opts))
     runner = SpgRunner(config, robot=sim.robot)
     probe = _TaskProbe(sim.robot)
     robot = sim.robot
@@ -544,6 +549,34 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
     metrics_path = out_dir / 'metrics.json'
     metrics_path.write_text(json.dumps(metrics, indent=2, allow_nan=False) + '\n')
     return RunResult(out_dir, bag_path, metrics_path, metrics)
+
+
+def _robot_with_ifc(scenario):
+    """The scenario's robot; ``sim: {stiffness, damping}`` override its IFC gains K [Nm/rad]
+    and D [Nms/rad] (scalar or per joint) for the simulated controller AND the SPG."""
+    import copy
+
+    from ifc_spg.model import RobotModel
+
+    robot = RobotModel.from_config(scenario.robot)
+    if 'stiffness' not in scenario.sim and 'damping' not in scenario.sim:
+        return robot
+    robot = copy.copy(robot)
+    for key in ('stiffness', 'damping'):
+        if key in scenario.sim:
+            value = np.asarray(scenario.sim[key], dtype=float).reshape(-1)
+            if value.size == 1:
+                value = np.full(robot.n, value[0])
+            if value.shape != (robot.n,) or not np.all(np.isfinite(value)) or np.any(
+                    value < 0) or (
+                    key == 'stiffness' and np.any(value <= 0)):
+                raise ParameterError(f"scenario '{scenario.path}': sim.{key} must be "
+                                     f'{"> 0" if key == "stiffness" else ">= 0"} '
+                                     f'(scalar or {robot.n} values), got {scenario.sim[key]!r}')
+            value = value.copy()
+            value.setflags(write=False)
+            setattr(robot, key, value)
+    return robot
 
 
 def _wrench(m, stamp, frame, w):

@@ -1,0 +1,1113 @@
+"""Reproduce the thesis experiments in simulation: ``python -m ifc_spg.reproduce``.
+
+    python -m ifc_spg.reproduce [--quick] [-o DIR] [--only NAME ...] [--list]
+
+Each experiment runs one or more scenarios of ``config/scenarios/thesis_*.yaml`` with the
+offline lockstep runner (:func:`ifc_spg.runner.run_scenario`; bags and ``metrics.json`` in
+``DIR/runs/<run>/``), evaluates the thesis claim as a pass/fail check with the numbers it
+rests on, draws a figure in the style of the thesis figure (``DIR/figures/<name>.png``) and
+writes ``DIR/REPORT.md`` (a table: experiment, thesis claim, our numbers, verdict) and
+``DIR/results.json``. ``--quick`` runs shortened versions (what the test suite runs); the
+checks are the same, with thresholds stated in each check's text.
+
+Sweeps (Figs. 3.14/3.15) are built from ``thesis_3_2_surface_tracking.yaml`` by scenario
+overrides: the joint stiffness K (``sim: {stiffness, damping}``; D scaled with sqrt(K) for a
+constant damping ratio) and the circle frequency (an inline copy of the Table 3.2 stack).
+Table 5.1 reuses :mod:`ifc_spg.constrained.evaluate`.
+
+The exit status is 0 when every check ran (whether it passed or not) and 2 on an error;
+``--strict`` makes a failed check exit 1.
+"""
+
+import argparse
+import dataclasses
+import json
+import math
+from pathlib import Path
+import shutil
+import sys
+import time
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+
+__all__ = ['EXPERIMENTS', 'Check', 'Experiment', 'RunSpec', 'main', 'run_experiment',
+           'run_experiments', 'write_report']
+
+_LBR4_DAMPING = np.array([23.0, 30.0, 12.0, 13.0, 2.5, 2.2, 2.0])  # lbr4 default D [Nms/rad]
+_T_CIRCLE = 2.0  # stack switch of the table scenarios (press -> experiment) [s]
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSpec:
+    """One simulation run of an experiment.
+
+    Attributes:
+        label: Run name (directory under ``runs/``).
+        scenario: Scenario file name in ``config/scenarios``.
+        overrides: Scenario keys replaced (see :func:`ifc_spg.runner.load_scenario`).
+        duration: Full-run duration [s] (None: the scenario's).
+        quick: Duration of the ``--quick`` run [s].
+    """
+
+    label: str
+    scenario: str
+    overrides: dict = dataclasses.field(default_factory=dict)
+    duration: float = None
+    quick: float = 4.0
+
+
+@dataclasses.dataclass
+class Check:
+    """The outcome of an experiment's claim: verdict, numbers and a one-line summary."""
+
+    passed: bool
+    numbers: dict
+    summary: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Experiment:
+    """A thesis experiment: its runs, its claim, how to check it and how to draw it."""
+
+    name: str
+    table: str
+    claim: str
+    runs: tuple
+    check: object
+    figure: object = None
+    figure_title: str = ''
+
+
+# -- series helpers -------------------------------------------------------------------------
+
+class Run:
+    """A finished run: its metrics, bag series and per-task time series."""
+
+    def __init__(self, spec, result):
+        from ifc_spg.plot import _task_series, load_series
+
+        self.spec = spec
+        self.metrics = result.metrics
+        self.s = load_series(result.bag)
+        self.tasks = _task_series(self.s)
+        self._since = {}
+        self.robot = None
+        self.scenario = None
+        self.pushes = []
+
+    def task(self, name, since=None):
+        """Task series (t, value, physical, lower, upper) of ``name``; with ``since`` [s]
+        only the statuses from then on (a task of the same name in an earlier stack may
+        have another dimension)."""
+        if name not in self.tasks:
+            raise IfcSpgError(f"run '{self.spec.label}': no task '{name}' in the status "
+                              f"(tasks: {', '.join(self.tasks)})")
+        if since is None:
+            return self.tasks[name]
+        key = (name, since)
+        if key not in self._since:
+            from ifc_spg.plot import BagSeries, _task_series
+
+            sub = BagSeries()
+            keep = [i for i, t in enumerate(self.s.t_status) if t >= since - 1e-9]
+            sub.t_status = [self.s.t_status[i] for i in keep]
+            sub.status = [self.s.status[i] for i in keep]
+            self._since[key] = _task_series(sub)[name]
+        return self._since[key]
+
+    def after(self, t0, t=None):
+        t = self.s.t_js if t is None else t
+        return t >= t0 - 1e-9
+
+    def tool_positions(self, chain='tool', virtual=False):
+        """Frame positions [m] at the measured (or commanded) q per joint-state sample."""
+        import pinocchio as pin
+
+        from ifc_spg.model import RobotModel
+
+        if self.robot is None:
+            self.robot = RobotModel.from_config(self.metrics['robot'])
+        robot = self.robot
+        data = robot.create_data()
+        fid = robot.frame_id(chain)
+        qs = self.s.q_v if virtual else self.s.q
+        pos, rot = [], []
+        for q in qs:
+            pin.framesForwardKinematics(robot.model, data, np.asarray(q))
+            pos.append(data.oMf[fid].translation.copy())
+            rot.append(data.oMf[fid].rotation.copy())
+        return np.array(pos), np.array(rot)
+
+    def static_torque(self, stiffness):
+        """tau_s = K (q_v - q) [Nm] per joint-state sample (q_v of the previous command)."""
+        n = min(len(self.s.q), len(self.s.q_v))
+        q_v = np.vstack([self.s.q[:1], self.s.q_v[:n - 1]])
+        return np.asarray(stiffness) * (q_v - self.s.q[:n])
+
+    def contact_force(self):
+        """Force the robot exerts on the environment [N] (base frame)."""
+        return -self.s.cw[:, :3]
+
+
+def _rot_angle(R0, R):
+    """Rotation angle [rad] between R0 and each R."""
+    c = (np.einsum('ij,nij->n', R0, R) - 1.0) / 2.0
+    return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def _rms(x):
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(np.square(x)))) if x.size else float('nan')
+
+
+def _smooth(x, n):
+    if n <= 1 or len(x) < n:
+        return np.asarray(x)
+    k = np.ones(n) / n
+    return np.convolve(x, k, mode='same')
+
+
+def _band_err(d, comps=None):
+    from ifc_spg.runner import band_error
+
+    sl = slice(None) if comps is None else list(comps)
+    ev = band_error(d['value'], d['lower'], d['upper'])[:, sl]
+    ep = band_error(d['physical'], d['lower'], d['upper'])[:, sl]
+    return np.linalg.norm(ev, axis=1), np.linalg.norm(np.nan_to_num(ep), axis=1)
+
+
+def _fmt(x, unit='', digits=3):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return 'n/a'
+    return f'{x:.{digits}g}{(" " + unit) if unit else ""}'
+
+
+# -- figures --------------------------------------------------------------------------------
+
+def _plt():
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update({'font.size': 8, 'axes.grid': True, 'grid.alpha': 0.3,
+                         'axes.spines.top': False, 'axes.spines.right': False,
+                         'legend.fontsize': 7, 'legend.frameon': False, 'lines.linewidth': 1.0})
+    return plt
+
+
+def _save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+
+
+def _task_panel(ax, d, comp, label, scale=1.0, ylabel=''):
+    t = d['t']
+    ax.plot(t, d['physical'][:, comp] * scale, color='#d62728', label=f'{label} physical')
+    ax.plot(t, d['value'][:, comp] * scale, color='#1f77b4', label=f'{label} virtual')
+    lo, hi = d['lower'][:, comp] * scale, d['upper'][:, comp] * scale
+    ax.plot(t, lo, 'k--', lw=0.8, label='bounds')
+    if not np.allclose(lo, hi, equal_nan=True):
+        ax.plot(t, hi, 'k--', lw=0.8)
+    ax.set_ylabel(ylabel)
+
+
+# -- experiment definitions ------------------------------------------------------------------
+
+def _surface_stack(frequency):
+    """The Table 3.2 stack with another circle frequency (speed sweep)."""
+    import yaml
+
+    from ifc_spg.runner import find_config_dir
+
+    doc = yaml.safe_load((find_config_dir() / 'tasks' /
+                          'table_3_2_surface_tracking.yaml').read_text(encoding='utf8'))
+    for task in doc['tasks']:
+        if task['name'] == 'circle':
+            task['equal']['frequency'] = float(frequency)
+    doc['name'] = f'table_3_2_surface_tracking_f{frequency:g}'
+    return doc
+
+
+def _surface_overrides(stiffness=None, frequency=None):
+    import yaml
+
+    from ifc_spg.runner import find_config_dir
+
+    over = {}
+    if stiffness is not None:
+        scale = math.sqrt(stiffness / 200.0)
+        over['sim'] = {'stiffness': float(stiffness),
+                       'damping': [round(float(x), 4) for x in _LBR4_DAMPING * scale]}
+    if frequency is not None:
+        doc = yaml.safe_load((find_config_dir() / 'scenarios' /
+                              'thesis_3_2_surface_tracking.yaml').read_text(encoding='utf8'))
+        stacks = doc['stacks']
+        stacks[-1] = {'at': stacks[-1]['at'], 'stack': _surface_stack(frequency)}
+        over['stacks'] = stacks
+    return over
+
+
+K_SWEEP = (40.0, 100.0, 200.0, 400.0)
+K_SWEEP_QUICK = (40.0, 400.0)
+F_SWEEP = (0.08, 0.16, 0.32, 0.48)  # [Hz] at R = 0.05 m: 0.025 ... 0.15 m/s
+F_SWEEP_QUICK = (0.08, 0.48)
+R_CIRCLE = 0.05
+
+
+def _tracking_errors(run, t0):
+    """(position error RMS [m] (physical, x-y of the circle), virtual, force error RMS [N])."""
+    ev, ep = _band_err(run.task('circle'), comps=(0, 1))
+    m = run.task('circle')['t'] >= t0
+    f = run.contact_force()[:, 2]
+    mf = run.after(t0, run.s.t_cw)
+    return _rms(ep[m]), _rms(ev[m]), _rms(f[mf] - (-8.0))
+
+
+def _check_3_2(runs, quick):
+    r = runs['surface']
+    t0 = _T_CIRCLE + 0.5
+    pos, pos_v, ferr = _tracking_errors(r, t0)
+    f = r.contact_force()[:, 2][r.after(t0, r.s.t_cw)]
+    lost = float(np.mean(_smooth(f, 25) > -1.0))  # share of samples with < 1 N contact force
+    ok = pos < 0.02 and ferr < 4.0 and lost < 0.05
+    return Check(ok, {'position_error_rms_m': pos, 'virtual_position_error_rms_m': pos_v,
+                      'force_error_rms_n': ferr, 'contact_lost_share': lost},
+                 f'circle error RMS {pos * 1e3:.1f} mm (virtual {pos_v * 1e3:.2f} mm), '
+                 f'force error RMS {ferr:.2f} N at 8 N, contact lost {100 * lost:.1f} % '
+                 '(pass: < 20 mm, < 4 N, < 5 %)')
+
+
+def _sweep_numbers(runs, prefix, values):
+    pos, ferr = [], []
+    for v in values:
+        p, _, fe = _tracking_errors(runs[f'{prefix}{v:g}'], _T_CIRCLE + 0.5)
+        pos.append(p)
+        ferr.append(fe)
+    return np.array(pos), np.array(ferr)
+
+
+def _trend(y, rising, margin=0.1):
+    """Endpoints differ by > margin (relative) in the direction; Spearman sign of the rest."""
+    y = np.asarray(y)
+    first, last = y[0], y[-1]
+    if rising:
+        return bool(last > first * (1 + margin))
+    return bool(last < first * (1 - margin))
+
+
+def _check_k_sweep(runs, quick):
+    ks = K_SWEEP_QUICK if quick else K_SWEEP
+    pos, ferr = _sweep_numbers(runs, 'K', ks)
+    ok = _trend(pos, rising=False)
+    pairs = ', '.join(f'K={k:g}: {p * 1e3:.1f} mm / {f:.2f} N' for k, p, f in zip(ks, pos, ferr))
+    return Check(ok, {'stiffness': list(ks), 'position_error_rms_m': pos.tolist(),
+                      'force_error_rms_n': ferr.tolist()},
+                 f'position / force error RMS: {pairs} (pass: position error at the highest '
+                 'K > 10 % below the lowest K)')
+
+
+def _check_speed_sweep(runs, quick):
+    fs = F_SWEEP_QUICK if quick else F_SWEEP
+    pos, ferr = _sweep_numbers(runs, 'f', fs)
+    ok_p, ok_f = _trend(pos, rising=True), _trend(ferr, rising=True)
+    pairs = ', '.join(f'{2 * math.pi * R_CIRCLE * f * 100:.1f} cm/s: {p * 1e3:.1f} mm / '
+                      f'{e:.2f} N' for f, p, e in zip(fs, pos, ferr))
+    return Check(ok_p and ok_f, {'frequency_hz': list(fs),
+                                 'speed_m_s': [2 * math.pi * R_CIRCLE * f for f in fs],
+                                 'position_error_rms_m': pos.tolist(),
+                                 'force_error_rms_n': ferr.tolist(),
+                                 'position_rises': ok_p, 'force_rises': ok_f},
+                 f'position / force error RMS: {pairs} (pass: both > 10 % higher at the '
+                 'highest speed)')
+
+
+def _fig_sweep(prefix):
+    """Figure of a sweep (``prefix`` 'f': speed, Fig. 3.14; 'K': stiffness, Fig. 3.15)."""
+    def draw(runs, quick, path):
+        plt = _plt()
+        values = (F_SWEEP_QUICK if quick else F_SWEEP) if prefix == 'f' else \
+            (K_SWEEP_QUICK if quick else K_SWEEP)
+        fig, axes = plt.subplots(1, 2, figsize=(8, 2.6), sharex=True)
+        for i, v in enumerate(values):
+            r = runs[f'{prefix}{v:g}']
+            c = plt.cm.viridis(i / max(1, len(values) - 1))
+            lab = f'{2 * math.pi * R_CIRCLE * v * 100:.1f} cm/s' if prefix == 'f' else \
+                f'K = {v:g} Nm/rad'
+            d = r.task('circle')
+            _, ep = _band_err(d, comps=(0, 1))
+            m = d['t'] >= _T_CIRCLE
+            axes[0].plot(d['t'][m], ep[m] * 1e3, color=c, label=lab)
+            mf = r.after(_T_CIRCLE, r.s.t_cw)
+            f = _smooth(r.contact_force()[mf, 2], 25)
+            axes[1].plot(r.s.t_cw[mf], np.abs(f + 8.0), color=c, label=lab)
+        axes[0].set_ylabel('position error |p - p_d| [mm]')
+        axes[1].set_ylabel('force error |f - f_d| [N]')
+        for ax in axes:
+            ax.set_xlabel('time [s]')
+        axes[0].legend()
+        _save(fig, path)
+    return draw
+
+
+def _check_3_3(runs, quick):
+    r = runs['wiping']
+    t0 = _T_CIRCLE + 0.5
+    ev, ep = _band_err(r.task('wipe'), comps=(0, 1))
+    m = r.task('wipe')['t'] >= t0
+    f = r.contact_force()[:, 2][r.after(t0, r.s.t_cw)]
+    ferr = _rms(f + 8.0)
+    lost = float(np.mean(_smooth(f, 25) > -1.0))
+    pos = _rms(ep[m])
+    ok = pos < 0.03 and ferr < 4.0 and lost < 0.05
+    return Check(ok, {'position_error_rms_m': pos, 'virtual_position_error_rms_m': _rms(ev[m]),
+                      'force_error_rms_n': ferr, 'contact_lost_share': lost},
+                 f'wiping error RMS {pos * 1e3:.1f} mm (virtual {_rms(ev[m]) * 1e3:.2f} mm), '
+                 f'force error RMS {ferr:.2f} N at 8 N, contact lost {100 * lost:.1f} % '
+                 '(pass: < 30 mm, < 4 N, < 5 %)')
+
+
+def _fig_3_3(runs, quick, path):
+    plt = _plt()
+    r = runs['wiping']
+    d = r.task('wipe')
+    fig, axes = plt.subplots(1, 3, figsize=(8, 2.6))
+    m = d['t'] >= _T_CIRCLE
+    axes[0].plot(d['lower'][m, 0], d['lower'][m, 1], 'k--', lw=0.8, label='desired')
+    axes[0].plot(d['physical'][m, 0], d['physical'][m, 1], color='#d62728', label='physical')
+    axes[0].set_xlabel('x [m]')
+    axes[0].set_ylabel('y [m]')
+    axes[0].legend()
+    _task_panel(axes[1], d, 1, 'y', ylabel='y [m]')
+    axes[1].set_xlabel('time [s]')
+    mf = r.after(0.0, r.s.t_cw)
+    axes[2].plot(r.s.t_cw[mf], r.contact_force()[mf, 2], color='#d62728', lw=0.6,
+                 label='f_z measured')
+    axes[2].axhline(-8.0, color='k', ls='--', lw=0.8)
+    axes[2].set_ylabel('f_z [N]')
+    axes[2].set_xlabel('time [s]')
+    _save(fig, path)
+
+
+def _fig_3_2(runs, quick, path):
+    plt = _plt()
+    r = runs['surface']
+    d = r.task('circle')
+    fig, axes = plt.subplots(1, 3, figsize=(8, 2.6))
+    _task_panel(axes[0], d, 0, 'x', ylabel='x [m]')
+    _task_panel(axes[1], d, 1, 'y', ylabel='y [m]')
+    axes[0].legend()
+    mf = r.after(0.0, r.s.t_cw)
+    axes[2].plot(r.s.t_cw[mf], r.contact_force()[mf, 2], color='#d62728', lw=0.6)
+    axes[2].axhline(-8.0, color='k', ls='--', lw=0.8)
+    axes[2].set_ylabel('f_z [N] (robot on table)')
+    for ax in axes:
+        ax.set_xlabel('time [s]')
+    _save(fig, path)
+
+
+def _qdot_norm(run, t0):
+    m = run.after(t0)
+    return run.s.t_js[m], np.linalg.norm(run.s.qd[m], axis=1)
+
+
+def _check_3_4(runs, quick):
+    from ifc_spg.model import RobotModel
+
+    robot = RobotModel.from_config('lbr4')
+    out, txt = {}, []
+    for v in ('full', 'relaxed'):
+        r = runs[v]
+        t, qn = _qdot_norm(r, _T_CIRCLE)
+        qv = r.s.q_v[r.after(_T_CIRCLE, r.s.t_cmd)]
+        at_limit = int(np.sum(np.any((qv <= robot.q_min + 1e-3) | (qv >= robot.q_max - 1e-3),
+                                     axis=1)))
+        jump = float(np.max(np.abs(np.diff(qn)))) if len(qn) > 1 else 0.0
+        ev, ep = _band_err(r.task('circle'), comps=(0, 1))
+        out[v] = {'peak_qdot_norm_rad_s': float(qn.max()), 'ticks_at_joint_limit': at_limit,
+                  'max_qdot_norm_jump_rad_s': jump,
+                  'position_error_rms_m': _rms(ep[r.task('circle')['t'] >= _T_CIRCLE + 0.5])}
+        txt.append(f'{v}: peak |qdot| {qn.max():.3f} rad/s, {at_limit} ticks at a joint '
+                   f'limit, largest tick-to-tick jump of |qdot| {jump:.3f} rad/s')
+    ok = (out['full']['ticks_at_joint_limit'] > 0 and out['relaxed']['ticks_at_joint_limit'] == 0
+          and out['relaxed']['peak_qdot_norm_rad_s'] < out['full']['peak_qdot_norm_rad_s'])
+    return Check(ok, out, '; '.join(txt) + ' (pass: full orientation clamps at a limit, '
+                 'relaxed does not, and the relaxed peak |qdot| is lower)')
+
+
+def _fig_3_4(runs, quick, path):
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(8, 2.6))
+    for v, c, lab in (('full', '#1f77b4', 'constant orientation'),
+                      ('relaxed', '#2ca02c', 'rotation about the pen free')):
+        r = runs[v]
+        t, qn = _qdot_norm(r, 0.0)
+        axes[0].plot(t, qn, color=c, label=lab)
+        m = r.after(0.0, r.s.t_cmd)
+        axes[1].plot(r.s.t_cmd[m], np.rad2deg(r.s.q_v[m, 6]), color=c, label=lab)
+    axes[1].axhline(170.0, color='k', ls='--', lw=0.8, label='A7 limit')
+    axes[0].set_ylabel('|qdot| [rad/s]')
+    axes[1].set_ylabel('A7 (q_v) [deg]')
+    axes[0].legend()
+    axes[1].legend()
+    for ax in axes:
+        ax.set_xlabel('time [s]')
+    _save(fig, path)
+
+
+def _push_windows(run):
+    return [(p['at'], p['at'] + p['duration']) for p in run.pushes]
+
+
+def _check_cup(runs, quick, chain, task, wrist=None):
+    r = runs['cup']
+    pos, rot = r.tool_positions(chain)
+    ang = np.rad2deg(_rot_angle(rot[0], rot))
+    _, rot_v = r.tool_positions(chain, virtual=True)
+    ang_v = np.rad2deg(_rot_angle(rot[0], rot_v))
+    disp = float(np.max(np.linalg.norm(pos - pos[0], axis=1)))
+    t = r.s.t_js[:len(ang)]
+    pushed = np.zeros(len(t), dtype=bool)
+    for a, b in _push_windows(r):
+        pushed |= (t >= a) & (t < b + 0.5)  # during a push and 0.5 s settling after it
+    settled = float(ang[~pushed].max())
+    out = {'max_displacement_m': disp, 'max_orientation_error_deg': float(ang.max()),
+           'max_orientation_error_settled_deg': settled,
+           'max_virtual_orientation_error_deg': float(ang_v.max())}
+    ok = disp > 0.03 and settled < 3.0 and ang_v.max() < 0.5
+    txt = (f'{chain} moved up to {disp * 100:.1f} cm by the pushes; orientation error max '
+           f'{settled:.2f} deg between pushes, {ang.max():.2f} deg while pushed (the IFC '
+           f'compliance), virtual {ang_v.max():.3f} deg')
+    if wrist is not None:
+        idx = [r.s.joint_names.index(j) for j in wrist]
+        werr = float(np.rad2deg(np.max(np.abs(r.s.q[:, idx] - r.s.q[0, idx]))))
+        out['max_wrist_deviation_deg'] = werr
+        ok = ok and werr < 3.0
+        txt += f'; stiff wrist joints moved at most {werr:.2f} deg'
+    return Check(bool(ok), out, txt + ' (pass: > 3 cm moved, < 3 deg physical between pushes, '
+                 '< 0.5 deg virtual' + (', wrist < 3 deg)' if wrist else ')'))
+
+
+def _fig_cup(runs, quick, path, chain):
+    plt = _plt()
+    r = runs['cup']
+    pos, rot = r.tool_positions(chain)
+    ang = np.rad2deg(_rot_angle(rot[0], rot))
+    _, rot_v = r.tool_positions(chain, virtual=True)
+    ang_v = np.rad2deg(_rot_angle(rot[0], rot_v))
+    t = r.s.t_js[:len(pos)]
+    fig, axes = plt.subplots(1, 2, figsize=(8, 2.6))
+    for i, (lab, c) in enumerate(zip('xyz', ('#1f77b4', '#d62728', '#2ca02c'))):
+        axes[0].plot(t, (pos[:, i] - pos[0, i]) * 100, color=c, label=f'{lab}')
+    axes[0].set_ylabel(f'{chain} position - initial [cm]')
+    axes[0].legend()
+    axes[1].plot(t, ang, color='#d62728', label='physical')
+    axes[1].plot(r.s.t_cmd[:len(ang_v)], ang_v, color='#1f77b4', label='virtual')
+    axes[1].set_ylabel('orientation error [deg]')
+    axes[1].legend()
+    for ax in axes:
+        for a, b in _push_windows(r):
+            ax.axvspan(a, b, color='0.9', zorder=0)
+        ax.set_xlabel('time [s]')
+    _save(fig, path)
+
+
+def _check_3_7(runs, quick):
+    r = runs['wipe_cup']
+    t0 = 1.0
+    f = r.contact_force()[:, 2][r.after(t0, r.s.t_cw)]
+    ferr = _rms(f + 7.0)
+    lost = float(np.mean(_smooth(f, 25) > -1.0))
+    d = r.task('left_hand_wipe')
+    ev, ep = _band_err(d)
+    m = d['t'] >= t0
+    pos, rot = r.tool_positions('r_palm')
+    ang = np.rad2deg(_rot_angle(rot[0], rot))
+    rdisp = float(np.max(np.linalg.norm(pos - pos[0], axis=1)))
+    lpos, _ = r.tool_positions('l_palm')
+    ly = float(np.ptp(lpos[:, 1]))
+    out = {'force_error_rms_n': ferr, 'contact_lost_share': lost,
+           'left_hand_wipe_error_rms_m': _rms(ep[m]), 'left_hand_y_range_m': ly,
+           'right_hand_orientation_error_max_deg': float(ang.max()),
+           'right_hand_displacement_max_m': rdisp}
+    need_y = 0.04 if not quick else 0.0
+    ok = ferr < 3.5 and lost < 0.1 and ang.max() < 3.0 and rdisp < 0.02 and ly >= need_y
+    return Check(bool(ok), out,
+                 f'left wrist force error RMS {ferr:.2f} N at 7 N (contact lost '
+                 f'{100 * lost:.1f} %), left hand y range {ly * 100:.1f} cm, wipe error RMS '
+                 f'{_rms(ep[m]) * 1e3:.1f} mm; right hand orientation error max '
+                 f'{ang.max():.2f} deg, displacement max {rdisp * 1e3:.1f} mm (pass: < 3.5 N, '
+                 f'< 10 %, y range >= {need_y * 100:.0f} cm, < 3 deg, < 20 mm)')
+
+
+def _fig_3_7(runs, quick, path):
+    plt = _plt()
+    r = runs['wipe_cup']
+    fig, axes = plt.subplots(1, 3, figsize=(8, 2.6))
+    _task_panel(axes[0], r.task('left_hand_wipe'), 1, 'y', ylabel='left hand y [m]')
+    axes[0].legend()
+    mf = r.after(0.0, r.s.t_cw)
+    axes[1].plot(r.s.t_cw[mf], r.contact_force()[mf, 2], color='#d62728', lw=0.6)
+    axes[1].axhline(-7.0, color='k', ls='--', lw=0.8)
+    axes[1].set_ylabel('left wrist f_z [N]')
+    pos, rot = r.tool_positions('r_palm')
+    axes[2].plot(r.s.t_js[:len(rot)], np.rad2deg(_rot_angle(rot[0], rot)), color='#d62728',
+                 label='orientation [deg]')
+    axes[2].plot(r.s.t_js[:len(pos)], np.linalg.norm(pos - pos[0], axis=1) * 1e3,
+                 color='#1f77b4', label='position [mm]')
+    axes[2].set_ylabel('right hand error')
+    axes[2].legend()
+    for ax in axes:
+        ax.set_xlabel('time [s]')
+    _save(fig, path)
+
+
+_K_LBR = 200.0
+
+
+def _check_4_1(runs, quick):
+    out, txt = {}, []
+    ok = True
+    t0 = _T_CIRCLE + 0.2
+    for v in ('1a_3a', '1b_3a', '1a_3b', '1b_3b'):
+        r = runs[v]
+        tq = r.task('torque_limits')
+        mt = tq['t'] >= _T_CIRCLE + 1.0  # the torques enter the 1b band within ~0.5 s
+        tau_v = float(np.max(np.abs(tq['value'][mt])))
+        cf = r.task('contact_force', since=_T_CIRCLE)
+        mc = cf['t'] >= t0
+        f_model = cf['value'][mc]
+        tang_model = float(np.max(np.abs(f_model[:, 1:]))) if f_model.shape[1] > 1 else None
+        mf = r.after(t0, r.s.t_cw)
+        fc = _smooth(np.linalg.norm(r.contact_force()[mf, :2], axis=1), 25)
+        tang_meas = float(np.max(fc))
+        fz = _rms(r.contact_force()[mf, 2] + 10.0)
+        tr = r.task('trajectory')
+        ev, ep = _band_err(tr, comps=(0, 1))
+        m = tr['t'] >= t0
+        out[v] = {'max_abs_static_torque_nm': tau_v,
+                  'max_abs_static_tangential_force_n': tang_model,
+                  'max_measured_tangential_force_n': tang_meas, 'normal_force_error_rms_n': fz,
+                  'trajectory_error_rms_m': _rms(ep[m])}
+        txt.append(f'{v}: max |tau_s| {tau_v:.1f} Nm, static tangential force max '
+                   f'{_fmt(tang_model, "N")}, measured tangential (25-tick mean) '
+                   f'{tang_meas:.1f} N, path error RMS {_rms(ep[m]) * 100:.1f} cm')
+        if v.startswith('1b'):
+            ok = ok and tau_v <= 5.0 + 0.25
+        if v.endswith('3b'):
+            ok = ok and tang_model is not None and tang_model <= 10.0 + 0.5
+    ok = ok and out['1a_3a']['max_measured_tangential_force_n'] > 10.0 + 0.5
+    return Check(bool(ok), out, '; '.join(txt) + ' (pass, 1 s after the switch: 1b |tau_s| '
+                 '<= 5.25 Nm, 3b static '
+                 'tangential forces <= 10.5 N, 1a_3a exceeds 10.5 N measured)')
+
+
+def _fig_4_1(runs, quick, path):
+    plt = _plt()
+    variants = ('1a_3a', '1b_3a', '1a_3b')
+    fig, axes = plt.subplots(3, 3, figsize=(8.5, 5.5), sharex=True)
+    for col, v in enumerate(variants):
+        r = runs[v]
+        tq = r.task('torque_limits')
+        for j in range(tq['value'].shape[1]):
+            axes[0, col].plot(tq['t'], tq['value'][:, j], lw=0.7)
+        lim = 5.0 if v.startswith('1b') else 50.0
+        for s in (-1, 1):
+            axes[0, col].axhline(s * lim, color='k', ls='--', lw=0.8)
+        axes[0, col].set_title(f'variant {v}')
+        mf = r.after(0.0, r.s.t_cw)
+        f = r.contact_force()[mf]
+        for i, (lab, c) in enumerate(zip(('f_x', 'f_y', 'f_z'),
+                                         ('#1f77b4', '#d62728', '#2ca02c'))):
+            axes[1, col].plot(r.s.t_cw[mf], _smooth(f[:, i], 25), color=c, label=lab)
+        if v.endswith('3b'):
+            for s in (-1, 1):
+                axes[1, col].axhline(s * 10.0, color='k', ls='--', lw=0.8)
+        d = r.task('trajectory')
+        _task_panel(axes[2, col], d, 1, 'y', ylabel='tool y [m]' if col == 0 else '')
+        axes[2, col].set_xlabel('time [s]')
+    axes[0, 0].set_ylabel('static torques [Nm]')
+    axes[1, 0].set_ylabel('contact force [N]')
+    axes[1, 0].legend()
+    axes[2, 0].legend()
+    _save(fig, path)
+
+
+_BOX_LO, _BOX_HI = np.array([0.2, 0.2, 0.4]), np.array([0.5, 0.5, 0.7])
+
+
+def _check_4_2(runs, quick):
+    out, txt = {}, []
+    for v, k in (('high_k', 200.0), ('low_k', 50.0)):
+        r = runs[v]
+        pos, _ = r.tool_positions()
+        pos_v, _ = r.tool_positions(virtual=True)
+        out_p = np.maximum(pos - _BOX_HI, 0) + np.maximum(_BOX_LO - pos, 0)
+        out_v = np.maximum(pos_v - _BOX_HI, 0) + np.maximum(_BOX_LO - pos_v, 0)
+        moved = float(np.max(np.linalg.norm(pos - pos[0], axis=1)))
+        out[v] = {'stiffness': k, 'max_virtual_outside_m': float(out_v.max()),
+                  'max_physical_outside_m': float(out_p.max()), 'max_displacement_m': moved}
+        txt.append(f'K = {k:g}: virtual tool at most {out_v.max() * 1e3:.2f} mm outside, '
+                   f'physical up to {out_p.max() * 1e3:.1f} mm outside (moved '
+                   f'{moved * 100:.1f} cm)')
+    ok = all(out[v]['max_virtual_outside_m'] < 1e-3 for v in out) and \
+        out['low_k']['max_physical_outside_m'] > 1.5 * out['high_k']['max_physical_outside_m'] \
+        and out['high_k']['max_physical_outside_m'] > 1e-3
+    return Check(bool(ok), out, '; '.join(txt) + ' (pass: virtual < 1 mm outside, physical '
+                 'pushed out > 1 mm, and > 1.5x further at the lower K)')
+
+
+def _fig_4_2(runs, quick, path):
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(8, 2.6), sharey=True)
+    for ax, (v, k) in zip(axes, (('high_k', 200.0), ('low_k', 50.0))):
+        r = runs[v]
+        pos, _ = r.tool_positions()
+        pos_v, _ = r.tool_positions(virtual=True)
+        ax.plot(r.s.t_js[:len(pos)], pos[:, 0], color='#d62728', label='x physical')
+        ax.plot(r.s.t_cmd[:len(pos_v)], pos_v[:, 0], color='#1f77b4', label='x virtual')
+        ax.plot(r.s.t_js[:len(pos)], pos[:, 1], color='#d62728', ls=':', label='y physical')
+        ax.plot(r.s.t_cmd[:len(pos_v)], pos_v[:, 1], color='#1f77b4', ls=':',
+                label='y virtual')
+        ax.axhline(_BOX_HI[0], color='k', ls='--', lw=0.8, label='box face x = 0.5')
+        ax.axhline(_BOX_LO[1], color='0.5', ls='--', lw=0.8, label='box face y = 0.2')
+        for a, b in _push_windows(r):
+            ax.axvspan(a, b, color='0.9', zorder=0)
+        ax.set_title(f'K = {k:g} Nm/rad')
+        ax.set_xlabel('time [s]')
+    axes[0].set_ylabel('tool position [m]')
+    axes[0].legend(ncol=2)
+    _save(fig, path)
+
+
+def _windows(run, t):
+    """Masks of (small push, large push, after the pushes + 1.5 s settling)."""
+    (a1, b1), (a2, b2) = _push_windows(run)[:2]
+    return ((t > a1 + 0.5) & (t < b1), (t > a2 + 0.5) & (t < b2), t > b2 + 1.5)
+
+
+def _check_4_3(runs, quick):
+    r = runs['pose']
+    pos, _ = r.tool_positions()
+    t = r.s.t_js[:len(pos)]
+    err = np.linalg.norm(pos - pos[0], axis=1)
+    small, large, after = _windows(r, t)
+    fs = r.task('force_limits')
+    tf = fs['t']
+    sm_f, lg_f, _ = _windows(r, tf)
+    fmax_small = float(np.max(np.abs(fs['value'][sm_f]))) if sm_f.any() else float('nan')
+    fmax_large = float(np.max(np.abs(fs['value'][lg_f]))) if lg_f.any() else float('nan')
+    out = {'error_small_push_m': float(err[small].max()),
+           'error_large_push_m': float(err[large].max()),
+           'error_after_m': float(err[after].max()) if after.any() else None,
+           'error_end_m': float(err[-1]),
+           'time_after_push_s': float(t[-1] - _push_windows(r)[1][1]),
+           'static_force_small_push_n': fmax_small, 'static_force_large_push_n': fmax_large}
+    ok = out['error_small_push_m'] < 0.005 and out['error_large_push_m'] > 0.02 and \
+        out['error_end_m'] < 0.15 * out['error_large_push_m']
+    return Check(bool(ok), out,
+                 f'position error max: {err[small].max() * 1e3:.1f} mm during the 5 N push '
+                 f'(static force {fmax_small:.1f} N), {err[large].max() * 1e3:.1f} mm during '
+                 f'the 25 N push (static force {fmax_large:.1f} N), '
+                 f'{_fmt(None if out["error_after_m"] is None else out["error_after_m"] * 1e3)} '
+                 f'mm 1.5 s after it, {err[-1] * 1e3:.2f} mm {out["time_after_push_s"]:.1f} s '
+                 'after it (the return runs along the -10 N bound) (pass: < 5 mm, > 20 mm, '
+                 'end < 15 % of the peak)')
+
+
+def _fig_4_3(runs, quick, path):
+    plt = _plt()
+    r = runs['pose']
+    fig, axes = plt.subplots(1, 2, figsize=(8, 2.6))
+    _task_panel(axes[0], r.task('force_limits'), 0, 'f_x', ylabel='static force f_x [N]')
+    axes[0].legend()
+    pos, _ = r.tool_positions()
+    pos_v, _ = r.tool_positions(virtual=True)
+    axes[1].plot(r.s.t_js[:len(pos)], (pos[:, 0] - pos[0, 0]) * 1e3, color='#d62728',
+                 label='physical')
+    axes[1].plot(r.s.t_cmd[:len(pos_v)], (pos_v[:, 0] - pos[0, 0]) * 1e3, color='#1f77b4',
+                 label='virtual')
+    axes[1].set_ylabel('x - x_init [mm]')
+    axes[1].legend()
+    for ax in axes:
+        for a, b in _push_windows(r):
+            ax.axvspan(a, b, color='0.9', zorder=0)
+        ax.set_xlabel('time [s]')
+    _save(fig, path)
+
+
+def _check_4_4(runs, quick):
+    r = runs['free_z']
+    pos, rot = r.tool_positions()
+    z_ee = rot[0][:, 2]
+    d = pos - pos[0]
+    along = d @ z_ee
+    perp = np.linalg.norm(d - np.outer(along, z_ee), axis=1)
+    t = r.s.t_js[:len(pos)]
+    w = _push_windows(r)
+    # displacement left after each push (0.5 s after it ends)
+    left = []
+    for _, b in w:
+        i = int(np.searchsorted(t, min(b + 0.5, t[-1])))
+        i = min(i, len(t) - 1)
+        left.append((float(along[i]), float(perp[i])))
+    out = {'max_along_z_ee_m': float(np.max(np.abs(along))),
+           'max_perpendicular_m': float(perp.max()),
+           'after_each_push_along_perp_m': left}
+    ok = out['max_along_z_ee_m'] > 0.02 and all(abs(p) < 0.003 for _, p in left) and \
+        abs(left[0][0]) > 0.01
+    return Check(bool(ok), out,
+                 f'tool moved up to {out["max_along_z_ee_m"] * 100:.1f} cm along z_ee; '
+                 f'perpendicular: {perp.max() * 1e3:.1f} mm at most while pushed, '
+                 f'{max(abs(p) for _, p in left) * 1e3:.2f} mm left after the pushes; '
+                 f'{abs(left[0][0]) * 100:.1f} cm left along z_ee after the first push '
+                 '(pass: > 2 cm along, < 3 mm perpendicular left, > 1 cm kept along)')
+
+
+def _fig_4_4(runs, quick, path):
+    plt = _plt()
+    r = runs['free_z']
+    pos, rot = r.tool_positions()
+    z_ee = rot[0][:, 2]
+    d = pos - pos[0]
+    along = d @ z_ee
+    perp = d - np.outer(along, z_ee)
+    t = r.s.t_js[:len(pos)]
+    fig, ax = plt.subplots(1, 1, figsize=(5, 2.6))
+    ax.plot(t, along * 100, color='#d62728', label='along z_ee')
+    ax.plot(t, perp[:, 0] * 100, color='#1f77b4', label='perpendicular, x')
+    ax.plot(t, perp[:, 1] * 100, color='#2ca02c', label='perpendicular, y')
+    for a, b in _push_windows(r):
+        ax.axvspan(a, b, color='0.9', zorder=0)
+    ax.set_ylabel('tool displacement [cm]')
+    ax.set_xlabel('time [s]')
+    ax.legend()
+    _save(fig, path)
+
+
+_D5 = 0.5
+
+
+def _energy_in(run, joint=4):
+    """-int tau qdot dt of joint ``joint`` [J]: tau = K (q_v - q) - D qdot of the IFC."""
+    k = _K_LBR
+    s = run.s
+    n = min(len(s.q), len(s.q_v))
+    q_v = np.concatenate([s.q[:1, joint], s.q_v[:n - 1, joint]])
+    q, qd = s.q[:n, joint], s.qd[:n, joint]
+    q_prev = np.concatenate([q[:1], q[:-1]])
+    tau = k * (q_v - 0.5 * (q + q_prev)) - _D5 * qd  # spring at the midpoint of the step
+    return s.t_js[:n], -np.cumsum(tau * (q - q_prev))
+
+
+def _check_4_5(runs, quick):
+    spg = runs['pspm'].scenario.spg
+    c2 = spg.pspm_initial_energy + spg.pspm_shuffle_budget  # E_K(0) = 0 (q_v starts at q)
+    out = {}
+    for v in ('no_pspm', 'pspm'):
+        r = runs[v]
+        t, w = _energy_in(r)
+        err = r.s.q[:, 4] - 0.0
+        half = t[-1] / 2
+        late = t > t[-1] - 1.0
+        out[v] = {'energy_in_min_j': float(w.min()), 'energy_in_end_j': float(w[-1]),
+                  'energy_in_mid_j': float(w[np.searchsorted(t, half)]),
+                  'error_amplitude_last_1s_rad': float(np.max(np.abs(err[late]))),
+                  'error_amplitude_max_rad': float(np.max(np.abs(err)))}
+        if r.metrics.get('tank_energy_min_j') is not None:
+            out[v]['tank_energy_min_j'] = r.metrics['tank_energy_min_j']
+    off, on = out['no_pspm'], out['pspm']
+    falling = off['energy_in_end_j'] < off['energy_in_mid_j'] - 0.5 * c2
+    ok = (off['energy_in_end_j'] < -2 * c2 and falling and on['energy_in_min_j'] >= -c2 - 1e-3
+          and on['error_amplitude_last_1s_rad'] < 0.5 * off['error_amplitude_last_1s_rad'])
+    out['c2_j'] = c2
+    return Check(bool(ok), out,
+                 f'-int tau_5 qdot_5 dt at the end: {off["energy_in_end_j"] * 1e3:.1f} mJ '
+                 f'without PSPM (still falling: {off["energy_in_mid_j"] * 1e3:.1f} mJ at half '
+                 f'time), {on["energy_in_end_j"] * 1e3:.2f} mJ with PSPM (min '
+                 f'{on["energy_in_min_j"] * 1e3:.2f} mJ, '
+                 f'bound -c^2 = {-c2 * 1e3:g} mJ); |q5 error| in the last second '
+                 f'{off["error_amplitude_last_1s_rad"]:.4f} rad without, '
+                 f'{on["error_amplitude_last_1s_rad"]:.5f} rad with PSPM (pass: < -2c^2 and '
+                 'falling by > c^2/2 over the second half without, >= -c^2 - 1 mJ with PSPM, '
+                 'error amplitude halved)')
+
+
+def _fig_4_5(runs, quick, path):
+    plt = _plt()
+    fig, axes = plt.subplots(2, 2, figsize=(8, 4.2), sharex=True)
+    for col, (v, title) in enumerate((('no_pspm', 'without PSPM'), ('pspm', 'with PSPM'))):
+        r = runs[v]
+        tank = [d.get('tank_energy') for d in r.s.status]
+        tt = [t for t, d in zip(r.s.t_status, tank) if d]
+        if tt:
+            e5 = [d[4] for d in tank if d]
+            axes[0, col].plot(tt, e5, color='#2ca02c', label='tank E_r,5')
+        t, w = _energy_in(r)
+        axes[0, col].plot(t, w, color='#d62728', label='-int tau_5 qdot_5 dt')
+        axes[0, col].set_title(title)
+        axes[0, col].legend()
+        axes[1, col].plot(r.s.t_js, np.rad2deg(r.s.q[:, 4]), color='#1f77b4')
+        axes[1, col].set_xlabel('time [s]')
+    axes[0, 0].set_ylabel('energy [J]')
+    axes[1, 0].set_ylabel('q5 - q5d [deg]')
+    _save(fig, path)
+
+
+def _cup_runs(label, scenario, quick=4.0):
+    return (RunSpec(label, scenario, quick=quick),)
+
+
+EXPERIMENTS = (
+    Experiment('table_3_2', 'Table 3.2', 'Surface tracking (LBR): constant 8 N contact force '
+               'while drawing a circle; force and circle errors small (Figs. 3.12a, 3.14/3.15)',
+               (RunSpec('surface', 'thesis_3_2_surface_tracking.yaml', quick=4.0),),
+               _check_3_2, _fig_3_2),
+    Experiment('k_sweep', 'Fig. 3.15', 'Position error falls with the joint stiffness K '
+               '(40...400 Nm/rad)',
+               tuple(RunSpec(f'K{k:g}', 'thesis_3_2_surface_tracking.yaml',
+                             _surface_overrides(stiffness=k), duration=_T_CIRCLE + 6.25,
+                             quick=_T_CIRCLE + 1.6) for k in K_SWEEP),
+               _check_k_sweep, _fig_sweep('K')),
+    Experiment('speed_sweep', 'Fig. 3.14', 'Position and force errors rise with the speed',
+               tuple(RunSpec(f'f{f:g}', 'thesis_3_2_surface_tracking.yaml',
+                             _surface_overrides(frequency=f),
+                             duration=_T_CIRCLE + max(1.0 / f, 6.25),
+                             quick=_T_CIRCLE + 1.6) for f in F_SWEEP),
+               _check_speed_sweep, _fig_sweep('f')),
+    Experiment('table_3_3', 'Table 3.3', 'Table wiping (LBR): 8 N while wiping along a '
+               'Lissajous figure', (RunSpec('wiping', 'thesis_3_3_table_wiping.yaml',
+                                            quick=4.0),), _check_3_3, _fig_3_3),
+    Experiment('table_3_4', 'Table 3.4', 'Circle drawing: relaxing the rotation about the pen '
+               'avoids the joint-limit clamp; lower peak joint-velocity norm (Fig. 3.13)',
+               (RunSpec('full', 'thesis_3_4_circle_drawing_full.yaml', quick=5.0),
+                RunSpec('relaxed', 'thesis_3_4_circle_drawing_relaxed.yaml', quick=5.0)),
+               _check_3_4, _fig_3_4),
+    Experiment('table_3_5', 'Table 3.5', 'Cup holding (LBR): orientation held while the arm '
+               'is pushed around', _cup_runs('cup', 'thesis_3_5_cup_holding.yaml', 2.5),
+               lambda runs, quick: _check_cup(runs, quick, 'tool', 'orientation'),
+               lambda runs, quick, path: _fig_cup(runs, quick, path, 'tool')),
+    Experiment('table_3_6', 'Table 3.6', 'iCub cup holding with the stiff wrists: right-hand '
+               'orientation held while pushed, wrist joints at q_bar',
+               _cup_runs('cup', 'thesis_3_6_icub_cup_holding.yaml', 2.5),
+               lambda runs, quick: _check_cup(
+                   runs, quick, 'r_palm', 'right_hand_orientation',
+                   wrist=('r_wrist_prosup', 'r_wrist_pitch', 'r_wrist_yaw')),
+               lambda runs, quick, path: _fig_cup(runs, quick, path, 'r_palm')),
+    Experiment('table_3_7', 'Table 3.7', 'iCub wiping with the left hand (-7 N) while holding '
+               'a cup with the right', (RunSpec('wipe_cup',
+                                                'thesis_3_7_icub_wiping_cup_holding.yaml',
+                                                quick=3.0),), _check_3_7, _fig_3_7),
+    Experiment('table_4_1', 'Table 4.1', 'Constrained trajectory tracking: with 1b the static '
+               'joint torques stay within +-5 Nm, with 3b the static force components within '
+               '+-10 N (Fig. 4.14)',
+               tuple(RunSpec(v, f'thesis_4_1_{v}.yaml', quick=4.0)
+                     for v in ('1a_3a', '1b_3a', '1a_3b', '1b_3b')), _check_4_1, _fig_4_1),
+    Experiment('table_4_2', 'Table 4.2', 'The virtual tool stays inside the bounding box while '
+               'pushed; the physical one is pushed out by an amount set by K (Fig. 4.16)',
+               (RunSpec('high_k', 'thesis_4_2_orientation_box_high_k.yaml', quick=4.5),
+                RunSpec('low_k', 'thesis_4_2_orientation_box_low_k.yaml', quick=4.5)),
+               _check_4_2, _fig_4_2),
+    Experiment('table_4_3', 'Table 4.3', 'Pose held until the wrench bound is reached, '
+               'returns when the push ends (Fig. 4.17)',
+               (RunSpec('pose', 'thesis_4_3_pose_wrench_limits.yaml', quick=7.6),),
+               _check_4_3, _fig_4_3),
+    Experiment('table_4_4', 'Table 4.4', 'Pushed, the tool moves only along z_ee',
+               (RunSpec('free_z', 'thesis_4_4_free_ee_z.yaml', quick=4.5),), _check_4_4,
+               _fig_4_4),
+    Experiment('table_4_5', 'Table 4.5', 'Joint-5 regulator (K = 200, k_p = 100, k_d = 0.8): '
+               'energy injected without bound without PSPM, bounded (and the oscillation '
+               'decays) with it (Fig. 4.18)',
+               (RunSpec('no_pspm', 'thesis_4_5_stability_no_pspm.yaml', quick=6.0),
+                RunSpec('pspm', 'thesis_4_5_stability_pspm.yaml', quick=6.0)),
+               _check_4_5, _fig_4_5),
+)
+
+
+def _table_5_1(out_dir, quick):
+    """Table 5.1 via :mod:`ifc_spg.constrained.evaluate` (comparison only)."""
+    from ifc_spg.constrained.evaluate import comparison
+
+    kw = dict(travel_fixed=0.01, duration_fixed=5.0, travel_sma=0.1, duration_sma=15.0) \
+        if quick else {}
+    res = comparison(**kw)
+    fx, sma = res['fixed_direction'], res['sma_estimator']
+    ok = fx['reduction_percent'] >= 70.0 and sma['reduction_percent'] >= 80.0
+    nums = {k: {'rms_f_perp_jc_to_ts_n': res[k]['rms_f_perp_jc_to_ts'],
+                'reduction_percent': res[k]['reduction_percent'],
+                'stiffness': res[k]['stiffness']} for k in ('fixed_direction', 'sma_estimator')}
+    return Check(bool(ok), nums,
+                 f'RMS |f_perp| joint compliance -> task specification: fixed direction '
+                 f'{fx["rms_f_perp_jc_to_ts"][0]:.2f} -> {fx["rms_f_perp_jc_to_ts"][1]:.2f} N '
+                 f'(-{fx["reduction_percent"]:.0f} %, K = {fx["stiffness"]:g}), SMA estimator '
+                 f'{sma["rms_f_perp_jc_to_ts"][0]:.2f} -> {sma["rms_f_perp_jc_to_ts"][1]:.2f} N '
+                 f'(-{sma["reduction_percent"]:.0f} %, K = {sma["stiffness"]:g}); thesis 0.58 '
+                 '-> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %) (pass: >= 70 % and >= 80 %; one '
+                 'K each, not the K x kappa grid)')
+
+
+TABLE_5_1 = Experiment('table_5_1', 'Table 5.1', 'Constrained manipulation (vertical drawer '
+                       '1.2 kg): RMS |f_perp| reduced by >= 70 % (fixed direction) and >= 80 % '
+                       '(SMA estimator) vs the joint-compliance strategy', (), None)
+
+
+def experiment_names():
+    """All experiment names (``--only`` choices)."""
+    return tuple(e.name for e in EXPERIMENTS) + (TABLE_5_1.name,)
+
+
+# -- running -------------------------------------------------------------------------------
+
+def run_experiment(exp, out_dir, quick=False, figures=True, cache=None):
+    """Run one experiment's scenarios; return ``(check, figure path or None, wall [s])``.
+
+    Args:
+        exp: An :class:`Experiment` (or the Table 5.1 entry).
+        out_dir: Output directory (``runs/`` and ``figures/`` inside).
+        quick: Short runs.
+        figures: Draw the figure.
+        cache: Dict of finished runs by (scenario, overrides, duration) shared between
+            experiments (the sweeps share the base scenario).
+    """
+    from ifc_spg.runner import load_scenario, run_scenario
+
+    out_dir = Path(out_dir)
+    wall0 = time.perf_counter()
+    if exp.name == TABLE_5_1.name:
+        return _table_5_1(out_dir, quick), None, time.perf_counter() - wall0
+    cache = {} if cache is None else cache
+    runs = {}
+    for spec in exp.runs:
+        key = (spec.scenario, json.dumps(spec.overrides, sort_keys=True), quick)
+        if key in cache:
+            runs[spec.label] = cache[key]
+            continue
+        scenario = load_scenario(_scenario_path(spec.scenario), overrides=spec.overrides)
+        duration = spec.quick if quick else spec.duration
+        run_dir = out_dir / 'runs' / f'{exp.name}_{spec.label}'
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        result = run_scenario(scenario, run_dir, duration=duration, quiet=True)
+        run = Run(spec, result)
+        run.scenario = scenario
+        run.pushes = [{'at': p.at, 'duration': p.duration} for p in scenario.pushes]
+        runs[spec.label] = run
+        cache[key] = run
+    check = exp.check(runs, quick)
+    fig = None
+    if figures and exp.figure is not None:
+        fig_dir = out_dir / 'figures'
+        fig_dir.mkdir(parents=True, exist_ok=True)
+        fig = fig_dir / f'{exp.name}.png'
+        exp.figure(runs, quick, fig)
+    return check, fig, time.perf_counter() - wall0
+
+
+def _scenario_path(name):
+    from ifc_spg.runner import find_config_dir
+
+    return find_config_dir() / 'scenarios' / name
+
+
+def run_experiments(out_dir, quick=False, only=None, figures=True, stream=None):
+    """Run the selected experiments; write ``REPORT.md`` and ``results.json``; return rows."""
+    stream = stream or sys.stdout
+    names = experiment_names()
+    for name in only or ():
+        if name not in names:
+            raise ParameterError(f"unknown experiment '{name}'{did_you_mean(name, names)}; "
+                                 f"experiments: {', '.join(names)}")
+    selected = [e for e in EXPERIMENTS + (TABLE_5_1,) if not only or e.name in only]
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows, cache = [], {}
+    for exp in selected:
+        print(f'[reproduce] {exp.name} ...', file=stream, flush=True)
+        check, fig, wall = run_experiment(exp, out_dir, quick=quick, figures=figures,
+                                          cache=cache)
+        verdict = 'PASS' if check.passed else 'FAIL'
+        print(f'[reproduce] {exp.name}: {verdict} ({wall:.1f} s) {check.summary}', file=stream,
+              flush=True)
+        rows.append({'name': exp.name, 'table': exp.table, 'claim': exp.claim,
+                     'passed': check.passed, 'summary': check.summary,
+                     'numbers': check.numbers, 'figure': None if fig is None else
+                     str(Path(fig).relative_to(out_dir)), 'wall_s': wall,
+                     'scenarios': sorted({s.scenario for s in exp.runs})})
+    (out_dir / 'results.json').write_text(json.dumps(rows, indent=1, default=float) + '\n')
+    write_report(rows, out_dir / 'REPORT.md', quick=quick)
+    return rows
+
+
+def write_report(rows, path, quick=False, figure_prefix='', notes=None, preamble=''):
+    """The reproduction report (Markdown): a table, then one section per experiment.
+
+    Args:
+        rows: Result rows of :func:`run_experiments`.
+        path: Output file.
+        quick: The rows come from ``--quick`` runs.
+        figure_prefix: Prefix of the figure paths.
+        notes: Experiment name -> discussion paragraph (Markdown).
+        preamble: Text after the title.
+    """
+    notes = notes or {}
+    lines = ['# Reproduction of the thesis experiments (simulation)', '',
+             f'Generated by `python -m ifc_spg.reproduce{" --quick" if quick else ""}` '
+             f'({time.strftime("%Y-%m-%d")}).', ''] + ([preamble, ''] if preamble else []) + [
+             '| experiment | thesis claim | our numbers | verdict |', '|---|---|---|---|']
+    for r in rows:
+        summary = r['summary'].replace('|', '/')
+        lines.append(f"| {r['table']} | {r['claim']} | {summary} | "
+                     f"{'reproduced' if r['passed'] else '**not reproduced**'} |")
+    lines.append('')
+    for r in rows:
+        lines += [f"## {r['table']} ({r['name']})", '', f"Claim: {r['claim']}.", '',
+                  f"Result: {'reproduced' if r['passed'] else '**not reproduced**'} - "
+                  f"{r['summary']}.", '']
+        if notes.get(r['name']):
+            lines += [notes[r['name']], '']
+        if r['scenarios']:
+            cmds = ' '.join(f'`ifc-spg run config/scenarios/{s} -o out/{Path(s).stem}`'
+                            for s in r['scenarios'])
+            lines += [f'Scenarios: {cmds}; all runs and the check: '
+                      f"`python -m ifc_spg.reproduce --only {r['name']}`.", '']
+        else:
+            lines += [f"Command: `python -m ifc_spg.reproduce --only {r['name']}` "
+                      '(uses `python -m ifc_spg.constrained.evaluate --only comparison`).', '']
+        if r['figure']:
+            lines += [f"![{r['name']}]({figure_prefix}{r['figure']})", '']
+    Path(path).write_text('\n'.join(lines) + '\n', encoding='utf8')
+
+
+def main(argv=None):
+    """Command line entry (see the module docstring)."""
+    ap = argparse.ArgumentParser(prog='python -m ifc_spg.reproduce',
+                                 description=__doc__.splitlines()[0])
+    ap.add_argument('-o', '--output', default='out/reproduce', help='output directory')
+    ap.add_argument('--quick', action='store_true', help='short runs (what the tests run)')
+    ap.add_argument('--only', nargs='+', default=None, metavar='NAME',
+                    help='experiments to run (see --list)')
+    ap.add_argument('--list', action='store_true', help='list the experiments and exit')
+    ap.add_argument('--no-figures', action='store_true', help='skip the figures')
+    ap.add_argument('--strict', action='store_true', help='exit 1 if a check fails')
+    args = ap.parse_args(argv)
+    if args.list:
+        for e in EXPERIMENTS + (TABLE_5_1,):
+            print(f'{e.name:12s} {e.table:10s} {e.claim}')
+        return 0
+    try:
+        rows = run_experiments(args.output, quick=args.quick, only=args.only,
+                               figures=not args.no_figures)
+    except IfcSpgError as exc:
+        print(f'reproduce: {exc}', file=sys.stderr)
+        return 2
+    failed = [r['name'] for r in rows if not r['passed']]
+    print(f'report: {Path(args.output) / "REPORT.md"}; {len(rows) - len(failed)}/{len(rows)} '
+          f'claims reproduced' + (f' (not: {", ".join(failed)})' if failed else ''))
+    return 1 if failed and args.strict else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""Short versions of the thesis experiments (ifc_spg.reproduce --quick): each claim's
+direction, with a margin, from real lockstep simulation runs (no stored results).
+
+Each experiment runs once per session (about 70 s in all on 2 cores); a test fails when the
+effect it names disappears (e.g. the K sweep with a flat position error, Table 4.2 with the
+virtual tool leaving the box, Table 4.1 without the 1b torque band).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from ifc_spg import reproduce
+from ifc_spg.errors import ParameterError
+from ifc_spg.runner import find_config_dir, load_scenario
+
+_BY_NAME = {e.name: e for e in reproduce.EXPERIMENTS}
+
+
+@pytest.fixture(scope='module')
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp('reproduce')
+    cache, done = {}, {}
+
+    def get(name):
+        if name not in done:
+            check, _, _ = reproduce.run_experiment(_BY_NAME[name], out, quick=True,
+                                                   figures=False, cache=cache)
+            done[name] = check
+        return done[name]
+    return get
+
+
+def test_every_thesis_scenario_loads_and_names_its_table():
+    files = sorted((find_config_dir() / 'scenarios').glob('thesis_*.yaml'))
+    used = {spec.scenario for e in reproduce.EXPERIMENTS for spec in e.runs}
+    assert {f.name for f in files} == used  # every scenario file is part of an experiment
+    for f in files:
+        sc = load_scenario(f)
+        assert sc.name == f.stem
+        assert 'Thesis Table' in f.read_text()
+
+
+def test_stiffness_override_reaches_simulation_and_spg(tmp_path):
+    from ifc_spg.runner import _robot_with_ifc
+
+    over = reproduce._surface_overrides(stiffness=40.0)
+    sc = load_scenario(find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',
+                       overrides=over)
+    robot = _robot_with_ifc(sc)
+    np.testing.assert_allclose(robot.stiffness, 40.0)
+    np.testing.assert_allclose(robot.damping, reproduce._LBR4_DAMPING * np.sqrt(0.2), atol=1e-4)
+    with pytest.raises(ParameterError, match='sim.stiffness'):
+        _robot_with_ifc(load_scenario(
+            find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',
+            overrides={'sim': {'stiffness': [1.0, 2.0]}}))
+
+
+def test_unknown_experiment_is_named():
+    with pytest.raises(ParameterError, match='table_4_5'):
+        reproduce.run_experiments('/nonexistent', only=['table_4_6'])
+
+
+def test_report_table(tmp_path):
+    rows = [{'name': 'x', 'table': 'Table 9.9', 'claim': 'c', 'passed': False,
+             'summary': 'a | b', 'numbers': {}, 'figure': 'figures/x.png', 'wall_s': 1.0,
+             'scenarios': ['thesis_x.yaml']}]
+    reproduce.write_report(rows, tmp_path / 'R.md')
+    text = (tmp_path / 'R.md').read_text()
+    assert '| Table 9.9 | c | a / b | **not reproduced** |' in text
+    assert '![x](figures/x.png)' in text
+    json.dumps(rows)
+
+
+def test_table_3_2_surface_tracking(quick):
+    n = quick('table_3_2').numbers
+    assert n['contact_lost_share'] < 0.05
+    assert n['position_error_rms_m'] < 0.02
+    assert n['virtual_position_error_rms_m'] < 0.002
+
+
+def test_fig_3_15_position_error_falls_with_stiffness(quick):
+    n = quick('k_sweep').numbers
+    assert n['stiffness'] == [40.0, 400.0]
+    low_k, high_k = n['position_error_rms_m']
+    assert high_k < 0.5 * low_k
+
+
+def test_fig_3_14_errors_rise_with_speed(quick):
+    n = quick('speed_sweep').numbers
+    slow, fast = n['position_error_rms_m']
+    assert fast > 1.5 * slow
+    f_slow, f_fast = n['force_error_rms_n']
+    assert f_fast > 2.0 * f_slow
+
+
+def test_table_3_3_wiping(quick):
+    n = quick('table_3_3').numbers
+    assert n['contact_lost_share'] < 0.05
+    assert n['position_error_rms_m'] < 0.03
+
+
+def test_table_3_4_relaxed_rotation_avoids_the_joint_limit(quick):
+    n = quick('table_3_4').numbers
+    assert n['full']['ticks_at_joint_limit'] > 100
+    assert n['relaxed']['ticks_at_joint_limit'] == 0
+    assert n['relaxed']['peak_qdot_norm_rad_s'] < 0.95 * n['full']['peak_qdot_norm_rad_s']
+
+
+@pytest.mark.parametrize('name', ['table_3_5', 'table_3_6'])
+def test_cup_holding_keeps_the_orientation_while_pushed(quick, name):
+    n = quick(name).numbers
+    assert n['max_displacement_m'] > 0.03  # pushed around
+    assert n['max_orientation_error_settled_deg'] < 1.0
+    assert n['max_virtual_orientation_error_deg'] < 0.1
+    if name == 'table_3_6':
+        assert n['max_wrist_deviation_deg'] < 1.0
+
+
+def test_table_4_1_torque_and_force_bands(quick):
+    n = quick('table_4_1').numbers
+    for v in ('1b_3a', '1b_3b'):
+        assert n[v]['max_abs_static_torque_nm'] <= 5.25
+    for v in ('1a_3b', '1b_3b'):
+        assert n[v]['max_abs_static_tangential_force_n'] <= 10.5
+    # without a torque band the static torques leave +-5 Nm (the band is what holds them)
+    assert n['1a_3a']['max_abs_static_torque_nm'] > 6.0
+    assert n['1a_3a']['max_measured_tangential_force_n'] > 10.5
+
+
+def test_table_4_2_virtual_tool_stays_in_the_box(quick):
+    n = quick('table_4_2').numbers
+    for v in ('high_k', 'low_k'):
+        assert n[v]['max_virtual_outside_m'] < 1e-3
+    assert n['high_k']['max_physical_outside_m'] > 2e-3
+    assert n['low_k']['max_physical_outside_m'] > 2.0 * n['high_k']['max_physical_outside_m']
+
+
+def test_table_4_3_pose_held_until_the_wrench_bound(quick):
+    n = quick('table_4_3').numbers
+    assert n['error_small_push_m'] < 0.005
+    assert n['error_large_push_m'] > 0.02
+    assert n['static_force_large_push_n'] < 10.5
+    assert n['error_end_m'] < 0.15 * n['error_large_push_m']  # returning
+
+
+def test_table_4_4_motion_only_along_z_ee(quick):
+    n = quick('table_4_4').numbers
+    assert n['max_along_z_ee_m'] > 0.02
+    along_first, _ = n['after_each_push_along_perp_m'][0]
+    assert abs(along_first) > 0.01
+    assert max(abs(p) for _, p in n['after_each_push_along_perp_m']) < 0.003
+
+
+def test_table_4_5_pspm_bounds_the_injected_energy(quick):
+    n = quick('table_4_5').numbers
+    c2 = n['c2_j']
+    off, on = n['no_pspm'], n['pspm']
+    # without PSPM the SPG keeps injecting energy into joint 5 (a sustained limit cycle)
+    assert off['energy_in_end_j'] < -2 * c2
+    assert off['energy_in_end_j'] < off['energy_in_mid_j'] - 0.5 * c2
+    assert off['error_amplitude_last_1s_rad'] > 1e-3
+    # with PSPM the port stays passive (4.84) and the oscillation dies out
+    assert on['energy_in_min_j'] >= -c2 - 2e-4
+    assert on['tank_energy_min_j'] >= 0.0
+    assert on['error_amplitude_last_1s_rad'] < 0.1 * off['error_amplitude_last_1s_rad']
