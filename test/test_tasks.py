@@ -63,6 +63,12 @@ def fd_jacobian(task, robot, q, qdot, q_v, eps=1e-6):
         else:
             R = kin.frame(robot.frame_id(task.frame), virtual=False)[1]
         S_fixed = subspace_in_base(task.S, task.subspace_frame, R)
+    # and the reference orientation: a free rotation axis turns it with R_v every tick
+    saved_ref = None
+    if isinstance(task, CartesianPoseTask) and task.free_axis is not None:
+        saved_ref = task._R_ref, task.free_axis
+        task._R_ref = task.reference_orientation(kin.frame(task.frame_id, virtual=True)[1])
+        task.free_axis = None
     cols = []
     for i in range(robot.n):
         vals = []
@@ -78,6 +84,8 @@ def fd_jacobian(task, robot, q, qdot, q_v, eps=1e-6):
                 vals.append(task.compute_value(k))
                 task.S, task.subspace_frame = saved
         cols.append((vals[0] - vals[1]) / (2 * eps))
+    if saved_ref is not None:
+        task._R_ref, task.free_axis = saved_ref
     return np.array(cols).T
 
 
@@ -221,3 +229,26 @@ def test_include_damping_adds_the_measured_damping_torque():
     t0 = JointTorqueTask(robot, equal=0.0).compute_value(kin)
     t1 = JointTorqueTask(robot, equal=0.0, include_damping=True).compute_value(kin)
     np.testing.assert_allclose(t1 - t0, -robot.damping * qdot)
+
+
+@pytest.mark.parametrize('frame', ['ee', 'ee_orientation', 'base'])
+def test_free_rotation_axis_never_enters_the_error(frame):
+    """Table 3.4: with the rotation about the pen axis released, a twist of any size about
+    it leaves the constrained components at the pure tilt angle (no wrap at pi)."""
+    robot = ROBOTS['lbr_iiwa14']
+    kin = kin_at(robot, robot.q_home, np.zeros(7), robot.q_home)
+    R0 = kin.frame(robot.frame_id('tool'), virtual=True)[1]
+    task = CartesianPoseTask(robot, frame='tool', axes=['rx', 'ry'], subspace_frame=frame,
+                             orientation=R0, equal=[0, 0])
+    axis = R0[:, 2] if frame != 'base' else np.array([0.0, 0.0, 1.0])
+    for twist in (0.0, 1.0, 3.0, np.pi - 1e-6, -2.5):
+        for tilt in (0.0, 0.05, 0.3):
+            Rt = pin.exp3(twist * axis)
+            tilt_axis = R0[:, 0] if frame != 'base' else np.array([1.0, 0.0, 0.0])
+            Rv = pin.exp3(tilt * tilt_axis) @ Rt @ R0 if frame == 'base' \
+                else Rt @ pin.exp3(tilt * tilt_axis) @ R0
+            R_e = Rv @ task.reference_orientation(Rv).T
+            err = pin.log3(R_e)
+            d_v = Rv @ (R0.T @ axis) if frame != 'base' else axis
+            assert abs(np.dot(err, d_v)) < 1e-9          # nothing about the free axis
+            np.testing.assert_allclose(np.linalg.norm(err), tilt, atol=1e-9)

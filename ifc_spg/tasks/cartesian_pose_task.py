@@ -5,7 +5,16 @@ subspace is rotated into the base frame at the current virtual pose, 3.25 / Tabl
 Positions are absolute (p_ref = 0) unless ``relative=True`` (p_ref = position at
 activation); the orientation is always relative to R_ref (default: orientation at
 activation; or a fixed rotation). The Jacobian is exact:
-A = S^T [J_lin; Jlog3(R_e) R_e^T J_ang], R_e = R_v R_ref^T.
+A = S^T [J_lin; Jlog3(R_e) R_e^T J_ang], R_e = R_v R_ref^T, with S and R_ref held fixed.
+
+One free rotation (the rotational rows of S span two directions, e.g. a pen whose rotation
+about its axis is released, Table 3.4): the rotation about the free axis must not enter
+the error, however large it grows. log3(R_v R_ref^T) would mix it into the constrained
+components (and is singular at pi), so the reference is turned about the free axis to the
+current orientation every tick: R_ref' = M R_v, with M the minimal rotation taking the
+free axis of the current frame, d_v = R_v a, onto the reference's, d_ref = R_ref a
+(end-effector subspaces; for a free base axis, the same in body coordinates). The error
+R_v R_ref'^T = M^T is then the pure tilt between d_ref and d_v, perpendicular to d_v.
 """
 
 import numpy as np
@@ -54,6 +63,7 @@ class CartesianPoseTask(Task):
             self._R_ref = R
         self.relative = bool(relative)
         self._p_ref = np.zeros(3)
+        self.free_axis = _free_rotation_axis(S)
         super().__init__(robot, dim=S.shape[1], **kwargs)
 
     def activate(self, kin):
@@ -67,11 +77,20 @@ class CartesianPoseTask(Task):
     def _S_base(self, R):
         return subspace_in_base(self.S, self.subspace_frame, R)
 
+    def reference_orientation(self, R):
+        """R_ref used at the current orientation R (turned about a free axis, if any)."""
+        a = self.free_axis
+        if a is None:
+            return self._R_ref
+        if self.subspace_frame == 'base':  # free rotation about the base axis a
+            return R @ _minimal_rotation(R.T @ a, self._R_ref.T @ a).T
+        return _minimal_rotation(R @ a, self._R_ref @ a) @ R
+
     def compute(self, kin):
         p, R, J = kin.frame(self.frame_id, virtual=True)
         if self._R_ref is None:
             self._R_ref = R.copy()
-        R_e = R @ self._R_ref.T
+        R_e = R @ self.reference_orientation(R).T
         x = np.empty(6)
         x[:3] = p - self._p_ref
         x[3:] = pin.log3(R_e)
@@ -84,3 +103,25 @@ class CartesianPoseTask(Task):
     def compute_measured_rate(self, kin):
         _, R, J = kin.frame(self.frame_id, virtual=False)
         return self._S_base(kin.frame(self.frame_id, virtual=True)[1]).T @ (J @ kin.qdot)
+
+
+def _free_rotation_axis(S):
+    """The unit free rotation axis if the rotational rows of S span exactly two directions."""
+    rot = S[3:]
+    if np.linalg.matrix_rank(rot, tol=1e-9) != 2:
+        return None
+    u, _, _ = np.linalg.svd(rot)
+    return u[:, 2].copy()
+
+
+def _minimal_rotation(u, v):
+    """The rotation of least angle taking unit vector u onto unit vector v."""
+    axis = np.cross(u, v)
+    s = np.linalg.norm(axis)
+    c = float(np.dot(u, v))
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        perp = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+        return pin.exp3(np.pi * perp / np.linalg.norm(perp))
+    return pin.exp3(np.arctan2(s, c) * axis / s)
