@@ -114,6 +114,7 @@ class EnergyTanks:
         new = dq + self.dt * qdot_v
         dEk = 0.5 * self.K * (new * new - dq * dq)
         e = np.minimum(self.config.max_energy, self._avail - dEk)
+        e[np.isnan(e)] = 0.0  # overflow (inf - inf) on absurd measurements: an empty tank
         # only round-off can make e negative (the step was bounded by E_avail); record it
         self.deficit = float(max(0.0, -np.min(np.where(self.mask, e, 0.0))))
         self.energy = np.where(self.mask, np.maximum(e, 0.0), self.energy)

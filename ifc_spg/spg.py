@@ -10,8 +10,11 @@
 4. the cascade (SPEC 3) or the nullspace baseline (SPEC 5),
 5. q_v <- q_v + dT qdot_v, and the energy tanks are booked.
 
-A failed or non-finite solve never produces NaN or a q_v outside the limits: the last
-q_v is held (zero velocity, clipped into the box) and the status says so in ``info``.
+A failed or non-finite solve, or an exception raised by a task or the solver, never
+produces NaN or a q_v outside the limits: qdot_v becomes the point of the safe box nearest
+zero (braking within a_max, then holding q_v) and the status says so in ``info``
+('hold', with the reason in ``info.message``). A NaN passivity bound (overflow on absurd
+measurements) stops that joint.
 """
 
 import time
@@ -193,28 +196,41 @@ class SetPointGenerator:
         if self.tanks is not None:
             pb = self.tanks.bounds(q, q_v)
             box = VelocityBox(np.maximum(box.lower, pb.lower), np.minimum(box.upper, pb.upper))
+        if np.any(np.isnan(box.lower)) or np.any(np.isnan(box.upper)):
+            # an overflow in the passivity bounds (absurd measurements): stop that joint
+            box = VelocityBox(np.where(np.isnan(box.lower), 0.0, box.lower),
+                              np.where(np.isnan(box.upper), 0.0, box.upper))
         accel = robot.a_max * self.dt
         box = intersect_soft(box, VelocityBox(self.qdot_v - accel, self.qdot_v + accel))
 
         tasks = self.tasks if self._limit_task is None else [self._limit_task, *self.tasks]
-        levels = [task.level(self.kin, task_time) for task in tasks]
+        levels = []
         t_solve = time.perf_counter()
         slacks, status, failed, message = [], 'ok', -1, ''
-        if self._solver.name == 'nullspace':
-            qdot_v, _ = self._solver.solve(levels, q_v, robot.q_min, robot.q_max)
-            if not np.all(np.isfinite(qdot_v)):
-                qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution'
-            qdot_v = np.clip(qdot_v, box.lower, box.upper)
-        elif levels:
-            res = self._solver.solve(levels, box)
-            qdot_v, slacks, status, failed = res[:4]
-            if status != 'ok':
-                message = (f"level {failed} ('{levels[failed].name}') could not be solved; "
-                           + ('holding q_v' if status == 'hold' else
-                              "using the higher levels' solution"))
-        else:
-            qdot_v = np.clip(np.zeros(self.n), box.lower, box.upper)
-            status = 'idle'
+        try:
+            levels = [task.level(self.kin, task_time) for task in tasks]
+            if self._solver.name == 'nullspace':
+                qdot_v, _ = self._solver.solve(levels, q_v, robot.q_min, robot.q_max)
+                if not np.all(np.isfinite(qdot_v)):
+                    qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution'
+            elif levels:
+                res = self._solver.solve(levels, box)
+                qdot_v, slacks, status, failed = res[:4]
+                if status != 'ok':
+                    message = (f"level {failed} ('{levels[failed].name}') could not be solved; "
+                               + ('holding q_v' if status == 'hold' else
+                                  "using the higher levels' solution"))
+            else:
+                qdot_v = np.clip(np.zeros(self.n), box.lower, box.upper)
+                status = 'idle'
+        except Exception as exc:  # a task or solver bug must not take the robot down
+            qdot_v, slacks, status, failed = np.zeros(self.n), [], 'hold', -1
+            message = (f'internal error in the tasks or the solver ({type(exc).__name__}: '
+                       f'{exc}); braking to zero velocity and holding q_v')
+        if not np.all(np.isfinite(qdot_v)):
+            qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution; holding q_v'
+        if status == 'hold' or self._solver.name == 'nullspace':
+            qdot_v = np.clip(qdot_v, box.lower, box.upper)  # brake within a_max, stay safe
         solve_time = time.perf_counter() - t_solve
 
         energy_step = None

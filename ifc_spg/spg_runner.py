@@ -12,9 +12,11 @@ runner and replay reuse the same code::
 
 Input checks (each rejected message is counted by reason in ``rejected`` and recorded as
 an error; nothing raises): a wrong number of joints, unknown or repeated joint names,
-non-finite values, a stamp older than the last one (``stamp_backwards``) and a repeated
-stamp (``duplicate_stamp``: the last command is returned again, so a lockstep bridge that
-re-publishes a state it got no answer for is answered, but the SPG does not tick twice).
+non-finite values (also values that are not numbers, a stamp that is not a finite whole
+number of ns, and positions whose finite-difference velocity overflows), a stamp older
+than the last one (``stamp_backwards``) and a repeated stamp (``duplicate_stamp``: the
+last command is returned again, so a lockstep bridge that re-publishes a state it got no
+answer for is answered, but the SPG does not tick twice).
 
 Watchdog: when no joint state was handled for more than ``watchdog_timeout`` [s] of the
 ``clock`` (checked by :meth:`check_watchdog`, measured from the end of the last tick, so
@@ -113,6 +115,17 @@ def parse_task_stack(text, source=None):
             except TypeError:
                 return parse(text)
     raise IfcSpgError('ifc_spg.task_stack.TaskStack has no from_text/from_yaml parser')
+
+
+def _stamp_ns(stamp):
+    """The stamp as an int [ns], or None if it is not a finite whole number."""
+    if isinstance(stamp, (int, np.integer)) and not isinstance(stamp, bool):
+        return int(stamp)
+    try:
+        value = float(stamp)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return int(value) if math.isfinite(value) and value.is_integer() else None
 
 
 def _finite(x):
@@ -224,8 +237,12 @@ class SpgRunner:
             perm = self._check_names(names)
             if perm is None:
                 return None
-        position = np.asarray(position, dtype=float)
-        velocity = np.asarray(velocity, dtype=float)
+        try:
+            position = np.asarray(position, dtype=float)
+            velocity = np.asarray(velocity, dtype=float)
+        except (TypeError, ValueError) as exc:
+            return self._reject('non_finite', f'joint positions/velocities are not numbers '
+                                f'({exc})')
         if position.shape != (self._n,) or velocity.shape not in ((0,), (self._n,)):
             return self._reject('wrong_count', f'{position.size} positions and {velocity.size}'
                                 f' velocities for {self._n} joints')
@@ -233,7 +250,9 @@ class SpgRunner:
         q[perm] = position
         if not np.all(np.isfinite(q)) or not np.all(np.isfinite(velocity)):
             return self._reject('non_finite', 'non-finite joint position or velocity')
-        stamp_ns = int(stamp_ns)
+        stamp_ns = _stamp_ns(stamp_ns)
+        if stamp_ns is None:
+            return self._reject('non_finite', 'the stamp is not a finite whole number of ns')
         last = self._last_stamp
         timeout_ns = int(self.config.watchdog_timeout * 1e9)
         restart = not self.started
@@ -256,7 +275,11 @@ class SpgRunner:
             qdot = np.empty(self._n)
             qdot[perm] = velocity
         elif not restart:
-            qdot = (q - self._last_q) / ((stamp_ns - last) * 1e-9)
+            with np.errstate(over='ignore', invalid='ignore'):
+                qdot = (q - self._last_q) / ((stamp_ns - last) * 1e-9)
+            if not np.all(np.isfinite(qdot)):
+                return self._reject('non_finite', 'the finite-difference joint velocity '
+                                    'overflows (absurd positions)')
         else:
             qdot = np.zeros(self._n)
         resumed = restart
