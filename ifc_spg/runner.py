@@ -453,8 +453,13 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
     progress_every = max(1, int(n_ticks * scenario.progress / 100)) if scenario.progress \
         and not quiet else 0
     wall0 = time.perf_counter()
+    done = 0
     try:
         for k in range(n_ticks):
+            if _stop.requested:
+                print(f'[{scenario.name}] stopped by {_stop.requested} after {k} ticks; '
+                      'closing the bag and writing the metrics', file=stream, flush=True)
+                break
             s = sim.read_state()
             sec, nsec = _stamp(s.t)
             t_ns = sec * 1_000_000_000 + nsec
@@ -532,6 +537,7 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
                                 float(np.linalg.norm(ep)))
             sim.write_command(cmd.position)
             sim.step(steps)
+            done = k + 1
             if progress_every and ((k + 1) % progress_every == 0 or k + 1 == n_ticks):
                 wall = time.perf_counter() - wall0
                 t_sim = (k + 1) * scenario.dt
@@ -544,8 +550,12 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
         warnings = sim.warnings()
         sim.close()
     wall = time.perf_counter() - wall0
-    metrics = _report(scenario, duration, wall, n_ticks, missed, warnings, last_tasks, m_force,
+    metrics = _report(scenario, done * scenario.dt, wall, done, missed, warnings, last_tasks,
+                      m_force,
                       m_tank, m_viol, m_tick, m_forcerr, m_taskerr, runner)
+    if done < n_ticks:
+        metrics['interrupted'] = {'by': _stop.requested, 'ticks_done': done,
+                                  'ticks_planned': n_ticks}
     metrics_path = out_dir / 'metrics.json'
     metrics_path.write_text(json.dumps(metrics, indent=2, allow_nan=False) + '\n')
     return RunResult(out_dir, bag_path, metrics_path, metrics)
@@ -635,6 +645,33 @@ def _report(sc, duration, wall, n_ticks, missed, warnings, last_tasks, m_force, 
     return out
 
 
+class _StopRequest:
+    """SIGINT/SIGTERM set :attr:`requested` (the signal's name) instead of killing the run,
+    so that an interrupted run still closes its bag and writes its metrics."""
+
+    def __init__(self):
+        self.requested = None
+
+    def install(self):
+        import signal
+        import threading
+        if threading.current_thread() is not threading.main_thread():
+            return {}
+
+        def handler(signum, frame):
+            self.requested = signal.Signals(signum).name
+        return {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    @staticmethod
+    def restore(old):
+        import signal
+        for sig, h in old.items():
+            signal.signal(sig, h)
+
+
+_stop = _StopRequest()
+
+
 def main(argv=None):
     """``ifc-spg run SCENARIO.yaml -o DIR``."""
     parser = argparse.ArgumentParser(prog='ifc-spg run', description=__doc__.split('\n')[0])
@@ -643,14 +680,17 @@ def main(argv=None):
     parser.add_argument('--duration', type=float, default=None, help='override [s]')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress output')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    old = _stop.install()
     try:
         result = run_scenario(opts.scenario, opts.output, opts.duration, opts.quiet)
     except IfcSpgError as exc:
         print(f'ifc-spg run: {exc}', file=sys.stderr)
         return 2
+    finally:
+        _StopRequest.restore(old)
     print(f'bag: {result.bag}\nmetrics: {result.metrics_path}')
     print(json.dumps({k: v for k, v in result.metrics.items() if k not in ('spg',)}, indent=1))
-    return 0
+    return 130 if _stop.requested else 0
 
 
 if __name__ == '__main__':

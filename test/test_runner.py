@@ -96,3 +96,36 @@ def test_stack_file_relative_to_scenario_and_cli(tmp_path, capsys):
         (_, _, push), = bag.messages({'/sim/apply_wrench'})
         assert push.header.frame_id == 'tool;duration=0.05' and push.wrench.force.y == 5.0
     assert main([str(sc), '-o', str(tmp_path / 'out')]) == 2  # bag exists: refuses
+
+
+def test_sigterm_stops_the_run_with_a_closed_bag_and_metrics(tmp_path):
+    """A terminated offline run still closes its bag (readable) and writes metrics.json."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    scenario = find_config_dir() / 'scenarios' / 'surface_short.yaml'
+    out = tmp_path / 'run'
+    exe = os.path.join(os.path.dirname(sys.executable), 'ifc-spg')
+    proc = subprocess.Popen([exe, 'run', str(scenario), '-o', str(out), '--duration', '600'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (out / 'bag').exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(1.0)  # some ticks
+        proc.send_signal(signal.SIGTERM)
+        output, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, output
+    assert 'stopped by SIGTERM' in output
+    metrics = json.loads((out / 'metrics.json').read_text())
+    done = metrics['interrupted']['ticks_done']
+    assert 0 < done < metrics['interrupted']['ticks_planned']
+    with BagReader(out / 'bag') as bag:
+        assert bag.topics['/command/joint_position'][1] == done

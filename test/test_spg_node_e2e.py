@@ -105,4 +105,6 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
     np.testing.assert_allclose(q_final, TARGET, atol=0.01)
     last = [s for s in status if 'event' not in s][-1]
     assert last['stack']['name'] == 'reach' and last['state'] == 'running'
-    assert sum(last['rejected'].values()) == 0
+    # nothing rejected, except that a lockstep bridge which re-sends its state while waiting
+    # (after 1 s without a command, e.g. on a loaded machine) is answered, not rejected
+    assert sum(v for k, v in last['rejected'].items() if k != 'duplicate_stamp') == 0
