@@ -8,7 +8,7 @@ in one process, one SPG tick per 2 ms of simulated time, no DDS. Every ``--perio
 seconds (default 10) of simulated time the next task stack of a fixed cycle is sent
 (joint targets, a Cartesian circle, a sine, a Cartesian hold with joint torque and posture
 levels, a contradictory pair), and every 7 s a short push disturbs the robot. Every
-command goes through :class:`CommandChecker` (the guarantees of docs/GUARANTEES.md).
+command goes through :class:`CommandChecker` (the guarantees of README.md "What is always true").
 
 Reported (JSON on stdout, also to ``--json``): ticks, simulated and wall time, exceptions,
 limit violations (with the first few described), resident memory (RSS) at 10 % of the run
@@ -41,7 +41,7 @@ TANK_EMPTY = 1e-9   # [J] a tank at most this full is "empty"
 
 
 class CommandChecker:
-    """Checks each command against the limit guarantees (docs/GUARANTEES.md, G1).
+    """Checks each command against the limit guarantees (README.md "What is always true", G1).
 
     Per command: finite; q_min <= q_v <= q_max; |qdot_v| <= v_max; within a session
     (no restart between two commands) q_v - q_v_prev = dT qdot_v and

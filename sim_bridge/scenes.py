@@ -9,9 +9,12 @@ direction from the robot base to the tool ("forward"), ``v = z × u`` ("left"), 
 scene                     what
 ========================  ==============================================================
 ``free``                  free space
-``table``                 a table whose top is ``gap`` below the tool frame; contact
-                          stiffness via ``solref = (timeconst [s], dampratio)``, tool
-                          friction ``friction`` (0.3) and ``solref_friction``
+``table``                 a table whose top is ``gap`` below the tool frame (centre
+                          ``offset`` (x, y) from the tool); contact stiffness via
+                          ``solref = (timeconst [s], dampratio)``, tool friction
+                          ``friction`` (0.3) and ``solref_friction``; optionally an
+                          obstacle box on it, ``obstacle_offset`` (x, y) [m] from the
+                          tool start, half sizes ``obstacle_size`` [m]
 ``obstacle``              a box ``offset`` [m] (world frame) from the tool
 ``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel
 ``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel
@@ -239,14 +242,43 @@ def _tool_contact_pairs(spec, anchor, scene_body, scene_geom, friction, solref,
                           solimp=list(TOOL_SOLIMP), solreffriction=list(solref_friction))
 
 
+def _xy(value, name):
+    v = np.asarray(value, dtype=float).reshape(-1)
+    if v.shape != (2,) or not np.all(np.isfinite(v)):
+        raise ParameterError(f'{name} must be (x, y) [m], got {value!r}')
+    return v
+
+
 def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4), friction=0.3,
-           solref_friction=TOOL_SOLREF_FRICTION):
+           solref_friction=TOOL_SOLREF_FRICTION, offset=(0.0, 0.0), obstacle_offset=None,
+           obstacle_size=(0.05, 0.02, 0.02)):
+    """Table top ``gap`` [m] below the tool frame, centred ``offset`` (x, y) [m] (world)
+    from the tool; with ``obstacle_offset`` (x, y) [m] (world, from the tool) a box of
+    half sizes ``obstacle_size`` [m] stands on it (same contact parameters as the top)."""
+    off = _xy(offset, 'table offset')
     top = anchor.tool_pos[2] - gap
-    table = spec.worldbody.add_body(name='table', pos=[anchor.tool_pos[0], anchor.tool_pos[1],
-                                                      top - 0.02])
+    table = spec.worldbody.add_body(name='table', pos=[anchor.tool_pos[0] + off[0],
+                                                      anchor.tool_pos[1] + off[1], top - 0.02])
     g = _box(table, [0, 0, 0], [size[0], size[1], 0.02], name='table_top')
     g.solref = list(solref)
     _tool_contact_pairs(spec, anchor, 'table', 'table_top', friction, solref, solref_friction)
+    if obstacle_offset is None:
+        return {}
+    ob = _xy(obstacle_offset, 'obstacle_offset')
+    half = np.asarray(obstacle_size, dtype=float).reshape(-1)
+    if half.shape != (3,) or not np.all(half > 0):
+        raise ParameterError(f'obstacle_size must be 3 half sizes [m] > 0, got '
+                             f'{obstacle_size!r}')
+    if np.all(np.abs(ob) < half[:2]) and 2 * half[2] > gap:
+        raise ParameterError(f'obstacle_offset {ob.tolist()} m puts the tool start inside the '
+                             f'box (half sizes {half.tolist()} m); move it by more than the '
+                             'half size along x or y')
+    body = spec.worldbody.add_body(name='table_obstacle', pos=[
+        anchor.tool_pos[0] + ob[0], anchor.tool_pos[1] + ob[1], top + half[2]])
+    g = _box(body, [0, 0, 0], half, name='table_obstacle', rgba=(0.8, 0.2, 0.2, 1))
+    g.solref = list(solref)
+    _tool_contact_pairs(spec, anchor, 'table_obstacle', 'table_obstacle', friction, solref,
+                        solref_friction)
     return {}
 
 

@@ -1,7 +1,7 @@
 """Fault injection in-process: the SPG node's logic (SpgRunner) and the MuJoCo bridge
 (Simulation) in lockstep, with adversarial stacks, solver failures, lost/late/duplicated
 joint states, a silent source (watchdog), a restarted bridge and a restarted SPG. Each test
-asserts the guarantee of docs/GUARANTEES.md, every command through CommandChecker."""
+asserts the guarantee of README.md "What is always true", every command through CommandChecker."""
 
 import numpy as np
 import pytest

@@ -1,6 +1,6 @@
 """Fuzzing the SPG node's input path (SpgRunner): random and mutated joint-state messages and
 task stacks. No exception escapes, every message either ticks or is counted as rejected, and
-every command satisfies the limit guarantees (CommandChecker, docs/GUARANTEES.md)."""
+every command satisfies the limit guarantees (CommandChecker, README.md "What is always true")."""
 
 import math
 from pathlib import Path

@@ -32,6 +32,7 @@ __all__ = [
     'RunLog',
     'Scenario',
     'TaskSpecificationStrategy',
+    'initial_pose_deg',
     'make_strategy',
     'robot_with_stiffness',
     'run',
@@ -164,11 +165,32 @@ class Scenario:
     q0_deg: tuple = None
 
 
-#: Initial configurations per robot [deg]: the LBR-IV's home pose (tool down, A6 at 90 deg of
-#: +-105) leaves no room to lift a handle 0.3 m with a fixed orientation; with the tool
-#: pointing forward at (0.80, 0, 0.48) m every joint keeps >= 44 deg to its limits while the
-#: tool moves 0.3 m up, down or sideways.
-DEFAULT_Q0_DEG = {'lbr4': (0.0, 40.0, 0.0, -70.0, 0.0, -20.0, 0.0)}
+#: Right arm of the ACCREA in its home pose [deg] (it only holds still).
+_ACCREA_RIGHT_HOME = (15.0, 90.0, 90.0, 45.0, 0.0, -60.0, 0.0)
+
+#: Initial configurations [deg] per robot or per (robot, scene) (the pair wins). The
+#: LBR-IV's home pose (tool down, A6 at 90 deg of +-105) leaves no room to lift a handle
+#: 0.3 m with a fixed orientation; with the tool pointing forward at (0.80, 0, 0.48) m every
+#: joint keeps >= 44 deg to its limits while the tool moves 0.3 m up, down or sideways.
+#: The ACCREA's home pose puts the left tool (pointing down) at (0.45, 0.34, 0.95) m, where
+#: a 0.3 m lift runs out of reach (the elbow stretches, the IK residual grows, A6 reaches
+#: its limit after 0.22 m). The ACCREA poses below were found by a search over tool poses
+#: (grid of positions, tool down/forward) scored by the smallest joint-limit margin and
+#: Jacobian singular value along the scene's handle path, tracked with the strategy's own
+#: IK (:func:`~ifc_spg.constrained.admittance_strategy.solve_ik`); margins along the path
+#: are given per entry.
+DEFAULT_Q0_DEG = {
+    'lbr4': (0.0, 40.0, 0.0, -70.0, 0.0, -20.0, 0.0),
+    # Tool down at (0.35, 0.40, 0.80) m; >= 32 deg margin, sigma_min >= 0.1 over a 0.31 m
+    # lift.
+    ('accrea_dual_arm', 'drawer_vertical'): (-2.7, 78.9, -90.7, 67.0, 2.7, -25.7, 8.6)
+    + _ACCREA_RIGHT_HOME,
+}
+
+
+def initial_pose_deg(robot, scene):
+    """The default initial configuration [deg] of ``robot`` in ``scene`` (or None)."""
+    return DEFAULT_Q0_DEG.get((robot, scene), DEFAULT_Q0_DEG.get(robot))
 
 
 #: Seconds left out of the force metrics at the start: the simulator's first samples carry
@@ -248,7 +270,8 @@ def run(scenario):
     if robot.ifc == 'joint_impedance':
         robot = robot_with_stiffness(robot, p.stiffness)
     period = p.dt
-    q0 = scenario.q0_deg if scenario.q0_deg is not None else DEFAULT_Q0_DEG.get(scenario.robot)
+    q0 = scenario.q0_deg if scenario.q0_deg is not None else initial_pose_deg(
+        scenario.robot, scenario.scene)
     if q0 is not None:
         q0 = tuple(np.radians(np.asarray(q0, dtype=float)))
     sim = Simulation(robot=robot, scene=scenario.scene, scene_options=dict(
