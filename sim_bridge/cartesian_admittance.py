@@ -24,8 +24,16 @@ chains stacked, the null space pulled towards q_v)
 
     q_ref += g J⁺(q_ref) (x_c ⊖ FK(q_ref)) + (I − J⁺J) k_null Δt (q_v − q_ref)
 
-and stiff joint PD servos (MuJoCo actuators, gains ``joint_gains``, damping integrated
-implicitly) tracking q_ref with gravity and dynamics compensation and a small, clamped
+with J⁺ = Jᵀ(JJᵀ + λ²I)⁻¹, λ² = ``ik_damping``² plus, when the smallest singular value σ
+of J falls below ``ik_singular_value``, ``ik_max_damping``² (1 − (σ/ε)²) (bounded steps
+at singularities, e.g. a stretched arm at the edge of its reach), and q_ref clamped into
+the joint position limits shrunk by ``limit_margin``, as a robot controller does: a
+reference beyond a limit drove the servo (with its integral action) into MuJoCo's hard
+limit constraint, which produced contact-like force spikes of several hundred N at the
+tool when the left ACCREA arm reached A6 = 120° while lifting a drawer out of reach.
+
+q_ref is tracked by stiff joint PD servos (MuJoCo actuators, gains ``joint_gains``,
+damping integrated implicitly) with gravity and dynamics compensation and a small, clamped
 integral action (``joint_ki``, ``joint_ki_limit``: removes the servo's static deflection
 under load, so the admittance static check holds, without windup). The IK is kinematic
 (it does not use the measured q): feeding the measured pose back through an integrator
@@ -109,13 +117,19 @@ class CartesianAdmittanceLaw:
         ik_gain: Fraction of the Gauss-Newton IK step taken per physics step (0, 1].
         k_null: Null-space gain towards q_v in [1/s].
         ik_damping: Damping λ of the least-squares pseudo-inverse.
+        ik_singular_value: Smallest singular value ε of the stacked Jacobian below which
+            the damping grows.
+        ik_max_damping: Damping added at a singularity.
+        limit_margin: Distance [rad] q_ref keeps from the joint position limits (at most a
+            tenth of each joint's range).
     """
 
     name = 'accrea'
 
     def __init__(self, admittance, joint_gains=(3000.0, 30.0), joint_ki=3000.0,
                  joint_ki_limit=0.3, ft_cutoff=100.0, ik_gain=1.0, k_null=5.0,
-                 ik_damping=1e-3):
+                 ik_damping=1e-3, ik_singular_value=0.02, ik_max_damping=0.02,
+                 limit_margin=0.01):
         self.admittance = dict(admittance)
         self.joint_gains = tuple(float(g) for g in joint_gains)
         self.ik_gain = float(ik_gain)
@@ -127,6 +141,11 @@ class CartesianAdmittanceLaw:
         self.ft_cutoff = None if ft_cutoff is None else float(ft_cutoff)
         self.k_null = float(k_null)
         self.ik_damping = float(ik_damping)
+        self.ik_singular_value = float(ik_singular_value)
+        self.ik_max_damping = float(ik_max_damping)
+        if not float(limit_margin) >= 0:
+            raise ParameterError(f'limit_margin must be >= 0 rad, got {limit_margin!r}')
+        self.limit_margin = float(limit_margin)
         self.chains = []
 
     def setup(self, sim):
@@ -151,6 +170,11 @@ class CartesianAdmittanceLaw:
         self._alpha = 1.0 if self.ft_cutoff is None else \
             1.0 - np.exp(-2.0 * np.pi * self.ft_cutoff * dt)
         self._ki_limit = self.joint_ki_limit * np.asarray(sim.robot.tau_max, dtype=float)
+        q_min = np.asarray(sim.robot.q_min, dtype=float)
+        q_max = np.asarray(sim.robot.q_max, dtype=float)
+        span = q_max - q_min
+        margin = np.minimum(self.limit_margin, 0.1 * np.where(np.isfinite(span), span, np.inf))
+        self._q_lo, self._q_hi = q_min + margin, q_max - margin
         n = len(sim.joint_names)
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
@@ -159,12 +183,14 @@ class CartesianAdmittanceLaw:
         self._eye_n = np.eye(n)
         self._eye_m = np.eye(6 * len(self.chains))
         self.q_ref = np.zeros(n)
+        self._q_prev = np.zeros(n)
         self.q_v = np.zeros(n)
         self.tau_i = np.zeros(n)
 
     def reset(self, sim, q0):
         """Start at rest at ``q0``: x_d = FK(q0), Δx = 0."""
         self.q_ref = np.array(q0, dtype=float)
+        self._q_prev = self.q_ref.copy()
         self.q_v = self.q_ref.copy()
         self.tau_i = np.zeros(len(self.q_ref))
         sim.data.ctrl[sim.actuator_index] = self.q_ref
@@ -212,11 +238,20 @@ class CartesianAdmittanceLaw:
             self._jac[6 * k:6 * k + 3] = self._jacp[:, sim.dof_index]
             self._jac[6 * k + 3:6 * k + 6] = self._jacr[:, sim.dof_index]
         jac = self._jac
-        jjt = jac @ jac.T + self.ik_damping ** 2 * self._eye_m
-        pinv = jac.T @ np.linalg.inv(jjt)
+        jjt = jac @ jac.T
+        lam2 = self.ik_damping ** 2
+        sigma2 = np.linalg.eigvalsh(jjt)[0]  # smallest singular value squared
+        if sigma2 < self.ik_singular_value ** 2:
+            lam2 += self.ik_max_damping ** 2 * (1.0 - max(sigma2, 0.0)
+                                                / self.ik_singular_value ** 2)
+        pinv = jac.T @ np.linalg.inv(jjt + lam2 * self._eye_m)
         null = self._eye_n - pinv @ jac
         self.q_ref += self.ik_gain * (pinv @ self._err) + null @ (
             (self.k_null * dt) * (self.q_v - self.q_ref))
+        # Into the limits, but never jump: a reference already beyond one is held there.
+        np.clip(self.q_ref, np.minimum(self._q_lo, self._q_prev),
+                np.maximum(self._q_hi, self._q_prev), out=self.q_ref)
+        self._q_prev[:] = self.q_ref
         d.ctrl[sim.actuator_index] = self.q_ref
         if self.joint_ki:
             self.tau_i += (self.joint_ki * dt) * (self.q_ref - d.qpos[sim.qpos_index])

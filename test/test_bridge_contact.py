@@ -11,6 +11,7 @@
 
 import mujoco
 import numpy as np
+import pytest
 
 from ifc_spg.model.robot_model import CartesianAdmittance
 from sim_bridge.simulation import Simulation
@@ -98,3 +99,34 @@ def test_accrea_grasping_the_drawer_holds_still_and_follows_a_ramp():
     f_old, _, _ = _accrea(CartesianAdmittance(stiffness=k, damping=2 * np.sqrt(k * m), mass=m),
                           hold=1.0, ramp=0.0)
     assert np.ptp(f_old[len(f_old) // 2:], axis=0).max() > 20.0
+
+
+def test_accrea_reference_is_clamped_into_the_joint_limits():
+    """q_v ramps the left elbow A4 (|A4| alone sets the shoulder-wrist distance, so no other
+    joint can realize x_d = FK(q_v)) from 110 deg to 11 deg beyond its 120 deg limit: the
+    inner reference q_ref stops ``limit_margin`` short of the limit, so the servo never
+    drives the joint into MuJoCo's hard limit constraint (unclamped, q_ref follows q_v
+    beyond the limit)."""
+    from ifc_spg.model.robots import accrea_home_deg
+    q0 = np.radians(accrea_home_deg())
+    q0[3] = np.radians(110.0)
+    sim = Simulation(robot='accrea_dual_arm', scene='free', q0=tuple(q0))
+    law = sim.law
+    q_min, q_max = np.asarray(sim.robot.q_min), np.asarray(sim.robot.q_max)
+    q_v = sim.q0.copy()
+    limit_rows = 0
+    for k in range(round(2.0 / 0.004)):
+        q_v[3] = min(q0[3] + 0.3 * 0.004 * k, q_max[3] + 0.2)  # 0.3 rad/s
+        sim.write_command(q_v)
+        sim.step(4)
+        assert np.all(law.q_ref <= q_max - law.limit_margin + 1e-12)
+        assert np.all(law.q_ref >= q_min + law.limit_margin - 1e-12)
+        limit_rows += np.count_nonzero(sim.data.efc_type
+                                       == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
+    s = sim.read_state()
+    assert q_v[3] == pytest.approx(q_max[3] + 0.2)
+    assert law.q_ref[3] == pytest.approx(q_max[3] - law.limit_margin, abs=1e-9)
+    assert s.q[3] < q_max[3]
+    assert limit_rows == 0
+    assert np.abs(s.qd).max() < 0.01  # at rest, no fight with the limit
+    assert sim.warnings() == {}

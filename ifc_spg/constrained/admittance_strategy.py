@@ -50,9 +50,11 @@ from ifc_spg.constrained.params import StrategyParams
 from ifc_spg.errors import ParameterError
 from ifc_spg.kinematics import Kinematics
 
-__all__ = ['CartesianAdmittanceStrategy', 'chain_joints', 'solve_ik']
+__all__ = ['LIMIT_MARGIN', 'CartesianAdmittanceStrategy', 'chain_joints', 'solve_ik']
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+#: Default distance [rad] the strategy's IK keeps from the joint position limits (3 deg).
+LIMIT_MARGIN = math.radians(3.0)
 
 
 def chain_joints(robot, frame_id):
@@ -185,7 +187,7 @@ class CartesianAdmittanceStrategy:
     name = 'admittance'
 
     def __init__(self, robot, params=None, *, frame=None, estimator=None, ik_iterations=3,
-                 relax_time=None, limit_margin=math.radians(3.0)):
+                 relax_time=None, limit_margin=LIMIT_MARGIN):
         self.robot = robot
         self.params = params or StrategyParams()
         if frame is None:

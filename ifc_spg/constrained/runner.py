@@ -10,8 +10,8 @@ unit mechanism motion (the handle site's Jacobian column of the mechanism joint)
 with the direction the mechanism actually moved.
 """
 
-import math
 from dataclasses import dataclass, field, replace
+import math
 
 import mujoco
 import numpy as np
@@ -99,7 +99,7 @@ class TaskSpecificationStrategy:
         return self.spg.step(q, qdot, t)
 
 
-def make_strategy(name, robot, params=None, *, frame=None, direction=None):
+def make_strategy(name, robot, params=None, *, frame=None, direction=None, options=None):
     """Build a strategy controller (``step(q, qdot, t) -> q_v``, ``.estimator``).
 
     Args:
@@ -108,8 +108,14 @@ def make_strategy(name, robot, params=None, *, frame=None, direction=None):
         params: :class:`~ifc_spg.constrained.params.StrategyParams`.
         frame: Chain id (default: ``tool``, or the first admittance chain).
         direction: A fixed d_hat instead of the estimator, or None.
+        options: Extra keyword options of the strategy class (e.g. ``relax_time`` of
+            :class:`~ifc_spg.constrained.admittance_strategy.CartesianAdmittanceStrategy`).
     """
     params = params or StrategyParams()
+    options = dict(options or {})
+    if options and name != 'admittance':
+        raise ParameterError(f"strategy options {sorted(options)} are options of the "
+                             f"'admittance' strategy only, not '{name}'")
     if frame is None:
         frame = 'tool' if 'tool' in robot.chains else next(iter(robot.admittance), None)
     if name == 'task_specification':
@@ -118,7 +124,14 @@ def make_strategy(name, robot, params=None, *, frame=None, direction=None):
     if name == 'joint_compliance':
         return JointComplianceStrategy(robot, params, frame=frame, estimator=estimator)
     if name == 'admittance':
-        return CartesianAdmittanceStrategy(robot, params, frame=frame, estimator=estimator)
+        allowed = ('ik_iterations', 'relax_time', 'limit_margin')
+        for key in options:
+            if key not in allowed:
+                raise ParameterError(f"admittance strategy has no option '{key}'"
+                                     f"{did_you_mean(key, allowed)}; options: "
+                                     f"{', '.join(allowed)}")
+        return CartesianAdmittanceStrategy(robot, params, frame=frame, estimator=estimator,
+                                           **options)
     raise ParameterError(f"unknown strategy '{name}'{did_you_mean(name, STRATEGIES)}; choose "
                          f"one of {', '.join(STRATEGIES)}")
 
@@ -145,8 +158,10 @@ class Scenario:
         force_limit: Success requires |f| <= force_limit [N].
         scene_options: Scene builder options (e.g. ``{'grasp': 'connect'}``).
         sim: Extra :class:`~sim_bridge.simulation.SimConfig` fields (e.g. admittance).
-        q0_deg: Initial joint positions in [deg]; None: :data:`DEFAULT_Q0_DEG` of the robot
-            or its home pose. The scene is built at the tool pose of q0.
+        q0_deg: Initial joint positions in [deg]; None: :func:`initial_pose_deg` of the
+            robot and scene, or the robot's home pose. The scene is built at the tool pose
+            of q0.
+        strategy_options: Extra options of the strategy (see :func:`make_strategy`).
     """
 
     strategy: str = 'task_specification'
@@ -163,6 +178,7 @@ class Scenario:
     scene_options: dict = field(default_factory=dict)
     sim: dict = field(default_factory=dict)
     q0_deg: tuple = None
+    strategy_options: dict = field(default_factory=dict)
 
 
 #: Right arm of the ACCREA in its home pose [deg] (it only holds still).
@@ -185,6 +201,13 @@ DEFAULT_Q0_DEG = {
     # lift.
     ('accrea_dual_arm', 'drawer_vertical'): (-2.7, 78.9, -90.7, 67.0, 2.7, -25.7, 8.6)
     + _ACCREA_RIGHT_HOME,
+    # Tool pointing along +x at (0.50, 0.50, 1.25) m; >= 24 deg margin, sigma_min >= 0.07
+    # over 1.15 quarter turns either way.
+    ('accrea_dual_arm', 'crank'): (-53.2, 76.9, -62.9, 89.5, 40.0, 49.0, 53.9)
+    + _ACCREA_RIGHT_HOME,
+    # Tool down at (0.45, 0.30, 1.05) m; >= 24 deg margin while the door swings 0.4 rad.
+    ('accrea_dual_arm', 'microwave_door'): (-26.4, 86.4, -111.4, 45.5, 21.6, -74.0, -13.0)
+    + _ACCREA_RIGHT_HOME,
 }
 
 
@@ -206,6 +229,8 @@ class RunLog:
         t: Time [s] (T,). env_q: mechanism position (T,). force: force the robot applies
         at the tool, ground truth (T, 3) [N]. static_force: f_s (T, 3) [N]. estimate:
         d_hat (T, 3). true_direction: (T, 3). metrics: :func:`summarize` output.
+        q: measured joint positions (T, n) [rad]. ik_residual: the admittance strategy's
+        IK residual |x_v - FK(q_v)| per tick (T,) (NaN for the other strategies).
     """
 
     t: np.ndarray
@@ -216,6 +241,8 @@ class RunLog:
     true_direction: np.ndarray
     metrics: dict
     warnings: dict
+    q: np.ndarray = None
+    ik_residual: np.ndarray = None
 
 
 class _HandleDirection:
@@ -249,6 +276,11 @@ def _initial_direction(sim, true_dir, scenario):
     a = math.radians(scenario.initial_error_deg)
     # Rodrigues rotation of true_dir about axis (axis made orthogonal to it).
     axis = axis - (axis @ true_dir) * true_dir
+    if np.linalg.norm(axis) < 1e-6:
+        raise ParameterError(f'error_axis {scenario.error_axis!r} is parallel to the true '
+                             f'direction {np.round(true_dir, 3).tolist()} of '
+                             f"'{scenario.scene}': a rotation about it changes nothing; use "
+                             'another scene axis or None')
     axis = axis / np.linalg.norm(axis)
     return math.cos(a) * true_dir + math.sin(a) * np.cross(axis, true_dir)
 
@@ -284,11 +316,12 @@ def run(scenario):
             p = replace(p, estimator=replace(p.estimator, initial_direction=tuple(d0)))
         frame = sim.contact_chain
         ctrl = make_strategy(scenario.strategy, robot, p, frame=frame,
-                             direction=d_true0 if scenario.fixed_direction else None)
+                             direction=d_true0 if scenario.fixed_direction else None,
+                             options=scenario.strategy_options)
         kin = Kinematics(robot)
         ticks = round(scenario.duration / period)
         steps = round(period / sim.dt)
-        rows = {k: [] for k in ('t', 'env_q', 'force', 'fs', 'est', 'true')}
+        rows = {k: [] for k in ('t', 'env_q', 'force', 'fs', 'est', 'true', 'q', 'ik')}
         t_open = None
         for _ in range(ticks):
             s = sim.read_state()
@@ -301,6 +334,8 @@ def run(scenario):
             rows['fs'].append(h[:3].copy())
             rows['est'].append(np.array(ctrl.estimator.direction))
             rows['true'].append(handle(sim))
+            rows['q'].append(s.q)
+            rows['ik'].append(getattr(ctrl, 'ik_residual', math.nan))
             sim.write_command(q_v)
             sim.step(steps)
             if t_open is None and abs(s.env_q[0] - rows['env_q'][0]) >= scenario.target:
@@ -320,4 +355,4 @@ def run(scenario):
     metrics['scene'] = scenario.scene
     return RunLog(t=arr['t'], env_q=arr['env_q'], force=arr['force'], static_force=arr['fs'],
                   estimate=arr['est'], true_direction=true_dir, metrics=metrics,
-                  warnings=warnings)
+                  warnings=warnings, q=arr['q'], ik_residual=arr['ik'])
