@@ -16,6 +16,7 @@ default) and ``proxsuite`` (dense proximal ALM, warm started). Building the leve
 (:func:`build_levels`) is separate from solving them (STYLE #3).
 """
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -199,24 +200,29 @@ class DaqpCascade(CascadeSolver):
             bu[n + R + row:n + R + row + m] = lev.upper
             row += m
         np.abs(A_all, out=ws.abs_A)
-        ws.abs_A.sum(axis=1, out=ws.row_norm)
+        # lock band of every row: lock_tolerance per unit of the row's 1-norm (see below)
+        band = ws.abs_A.sum(axis=1)
+        band += 1.0
+        band *= self.lock_tolerance
         lo_rows = bl[n + R:]
         hi_rows = bu[n + R:]
         np.maximum(lo_rows, -_BIG, out=lo_rows)
         np.minimum(hi_rows, _BIG, out=hi_rows)
         eq_all = lo_rows == hi_rows
+        eq_sense = np.where(eq_all, _EQ, 0)
         orig_lo = lo_rows.copy()
         orig_hi = hi_rows.copy()
         # lower levels start unbounded; slacks start fixed at zero
         lo_rows[:] = -_BIG
         hi_rows[:] = _BIG
-        bl[:n] = np.maximum(box.lower, -_BIG)
-        bu[:n] = np.minimum(box.upper, _BIG)
+        np.maximum(box.lower, -_BIG, out=bl[:n])
+        np.minimum(box.upper, _BIG, out=bu[:n])
         bl[n:n + R] = 0.0
         bu[n:n + R] = 0.0
         sense[:] = 0
         sense[n:n + R] = _EQ
         row_sense = sense[n + R:]
+        zeros = ws.f
         qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
         slacks = []
         start = 0
@@ -225,10 +231,11 @@ class DaqpCascade(CascadeSolver):
             sl = slice(start, end)
             lo_rows[sl] = orig_lo[sl]
             hi_rows[sl] = orig_hi[sl]
-            row_sense[sl] = np.where(eq_all[sl], _EQ, 0)
-            bl[n + start:n + end] = -_BIG
-            bu[n + start:n + end] = _BIG
-            sense[n + start:n + end] = 0
+            row_sense[sl] = eq_sense[sl]
+            slack = slice(n + start, n + end)
+            bl[slack] = -_BIG
+            bu[slack] = _BIG
+            sense[slack] = 0
             if i == 0:
                 ws.model.update(A=C, bupper=bu, blower=bl, sense=sense)
             else:
@@ -242,27 +249,38 @@ class DaqpCascade(CascadeSolver):
                 # (DAQP writes its working set into `sense`: keep only the equality flags)
                 cold = np.where(sense & _IMMUTABLE, _EQ, 0).astype(np.int32)
                 x, _, flag, _ = self._solve(ws.H, ws.f, C, bu, bl, cold, **self._settings)
-            if flag != 1 or not np.isfinite(x).all():
+            # x @ 0 is 0 for any finite x and NaN otherwise (cheaper than isfinite().all())
+            if flag != 1 or not math.isfinite(x @ zeros):
                 slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
                 return _result(qdot, bl[:n], bu[:n], slacks, 'hold' if i == 0 else 'fallback',
                                i)
             qdot = x[:n]
-            s = x[n + start:n + end]
+            s = x[slack]
             slacks.append(s)
             a = A_all[sl] @ qdot
-            eq = eq_all[sl]
             # lock: [lower + s*, upper + s*] (A qdot* for equality rows), widened by a band
             # of lock_tolerance relative to the row norm. Locked equality rows of several
             # levels are often redundant (higher levels may fix qdot_v completely); exact
             # equalities would then be inconsistent by round-off and the level infeasible.
-            band = self.lock_tolerance * (1.0 + ws.row_norm[sl])
-            lo_rows[sl] = np.where(eq, a, np.minimum(orig_lo[sl] + s, a)) - band
-            hi_rows[sl] = np.where(eq, a, np.maximum(orig_hi[sl] + s, a)) + band
+            if levels[i].equality:
+                lo = a.copy()
+                hi = a
+            else:
+                lo = np.minimum(orig_lo[sl] + s, a)
+                hi = np.maximum(orig_hi[sl] + s, a)
+                eq = eq_all[sl]
+                if eq.any():
+                    lo[eq] = a[eq]
+                    hi[eq] = a[eq]
+            lo -= band[sl]
+            hi += band[sl]
+            lo_rows[sl] = lo
+            hi_rows[sl] = hi
             row_sense[sl] = 0
             # lock: the slacks of this level are fixed to zero from now on
-            bl[n + start:n + end] = 0.0
-            bu[n + start:n + end] = 0.0
-            sense[n + start:n + end] = _EQ
+            bl[slack] = 0.0
+            bu[slack] = 0.0
+            sense[slack] = _EQ
             start = end
         return _result(qdot, bl[:n], bu[:n], slacks, 'ok', -1)
 
@@ -280,7 +298,6 @@ class _Workspace:
         self.bl = np.zeros(n + R + R)
         self.sense = np.zeros(n + R + R, dtype=np.int32)
         self.abs_A = np.zeros((R, n))
-        self.row_norm = np.zeros(R)
         import daqp
         self.model = daqp.Model()
         self.model.setup(self.H, self.f, self.C, self.bu, self.bl, self.sense)
@@ -291,7 +308,10 @@ class _Workspace:
 
 def _result(qdot, lo, hi, slacks, status, failed):
     clipped = np.minimum(np.maximum(qdot, lo), hi)
-    return CascadeResult(clipped, slacks, status, failed, float(np.abs(clipped - qdot).max()))
+    clipped -= qdot
+    outside = float(np.abs(clipped).max())
+    clipped += qdot
+    return CascadeResult(clipped, slacks, status, failed, outside)
 
 
 _EYES = {}

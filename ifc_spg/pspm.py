@@ -74,11 +74,19 @@ class EnergyTanks:
         self._shuffle_now = np.zeros(n)
         self._q_prev = None
         self.deficit = 0.0
+        # constants of the 2 ms path
+        self._all = bool(self.mask.all())
+        self._shuffling = config.shuffle > 0.0 and config.shuffle_budget > 0.0
+        self._D_over_dt = self.D / self.dt
+        self._inv_dt = 1.0 / self.dt
+        self._half_K = 0.5 * self.K
+        with np.errstate(divide='ignore'):
+            self._two_over_K = np.where(self.K > 0, 2.0 / self.K, 0.0)
 
     def reset(self, q):
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
-        self.energy[:] = self.config.initial_energy
-        self.shuffled[:] = 0.0
+        self.energy = np.full(self.K.size, self.config.initial_energy)
+        self.shuffled = np.zeros(self.K.size)
         self._q_prev = np.array(q, dtype=float)
 
     def bounds(self, q, q_v):
@@ -91,15 +99,21 @@ class EnergyTanks:
         if self._q_prev is None:
             self._q_prev = np.array(q, dtype=float)
         step = q - self._q_prev
-        self.dissipated_min = self.D / self.dt * step * step
-        self._q_prev = np.array(q, dtype=float)
-        room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
-        self._shuffle_now = np.minimum(self.config.shuffle, room)
-        self._avail = self.energy + self.dissipated_min + self._shuffle_now
+        self.dissipated_min = self._D_over_dt * step * step
+        self._q_prev[:] = q
+        if self._shuffling:
+            room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
+            self._shuffle_now = np.minimum(self.config.shuffle, room)
+            self._avail = self.energy + self.dissipated_min + self._shuffle_now
+        else:
+            self._avail = self.energy + self.dissipated_min
         dq = q_v - q
-        r = np.sqrt(2.0 * self._avail / self.K + dq * dq)
-        lower = np.where(self.mask, (-r - dq) / self.dt, -np.inf)
-        upper = np.where(self.mask, (r - dq) / self.dt, np.inf)
+        r = np.sqrt(self._avail * self._two_over_K + dq * dq)
+        lower = (-r - dq) * self._inv_dt
+        upper = (r - dq) * self._inv_dt
+        if not self._all:
+            lower[~self.mask] = -np.inf
+            upper[~self.mask] = np.inf
         return VelocityBox(lower, upper)
 
     def update(self, q, q_v, qdot_v):
@@ -112,11 +126,19 @@ class EnergyTanks:
         """
         dq = q_v - q
         new = dq + self.dt * qdot_v
-        dEk = 0.5 * self.K * (new * new - dq * dq)
-        e = np.minimum(self.config.max_energy, self._avail - dEk)
-        e[np.isnan(e)] = 0.0  # overflow (inf - inf) on absurd measurements: an empty tank
-        # only round-off can make e negative (the step was bounded by E_avail); record it
-        self.deficit = float(max(0.0, -np.min(np.where(self.mask, e, 0.0))))
-        self.energy = np.where(self.mask, np.maximum(e, 0.0), self.energy)
-        self.shuffled += np.where(self.mask, self._shuffle_now, 0.0)
+        dEk = self._half_K * (new * new - dq * dq)
+        e = np.minimum(self._avail - dEk, self.config.max_energy)
+        if not self._all:
+            e[~self.mask] = self.energy[~self.mask]
+        e_min = e.min()
+        if not e_min >= 0.0:  # NaN (inf - inf on absurd measurements) or round-off below 0
+            e[np.isnan(e)] = 0.0  # an overflow empties the tank
+            # only round-off can make e negative (the step was bounded by E_avail); record it
+            self.deficit = float(max(0.0, -e.min()))
+            np.maximum(e, 0.0, out=e)
+        else:
+            self.deficit = 0.0
+        self.energy = e
+        if self._shuffling:
+            self.shuffled += np.where(self.mask, self._shuffle_now, 0.0)
         return dEk

@@ -17,6 +17,7 @@ zero (braking within a_max, then holding q_v) and the status says so in ``info``
 measurements) stops that joint.
 """
 
+import math
 import time
 
 import numpy as np
@@ -24,7 +25,7 @@ import numpy as np
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.hqp import level_violation, make_solver
 from ifc_spg.kinematics import Kinematics
-from ifc_spg.limits import VelocityBox, intersect_soft, joint_velocity_bounds
+from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.nullspace import NullspaceCascade
 from ifc_spg.pspm import EnergyTanks, PspmConfig
@@ -50,19 +51,33 @@ class SpgInfo:
         message: Human-readable reason for a non-'ok' status.
     """
 
-    __slots__ = ('status', 'solver', 'level_names', 'slacks', 'at_limit',
-                 'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
-                 'qdot_v', 'message', 'failed_level', 'levels')
-    _FIELDS = __slots__[:-1] + ('residuals',)
+    __slots__ = ('status', 'solver', 'slacks', 'tank_energy', 'spring_energy_step',
+                 'solve_time', 'tick_time', 'task_time', 'qdot_v', 'message', 'failed_level',
+                 'levels', 'box')
+    _FIELDS = ('status', 'solver', 'level_names', 'slacks', 'residuals', 'at_limit',
+               'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
+               'qdot_v', 'message', 'failed_level')
 
     def __init__(self, **kw):
         for k in self.__slots__:
             setattr(self, k, kw.get(k))
 
     @property
+    def level_names(self):
+        """Names of the levels (the torque limit first, if enabled)."""
+        return [lv.name for lv in (self.levels or [])]
+
+    @property
     def residuals(self):
         """Violation of each level's velocity bounds by the final qdot_v (computed on demand)."""
         return [level_violation(lv, self.qdot_v) for lv in (self.levels or [])]
+
+    @property
+    def at_limit(self):
+        """Indices of joints whose qdot_v sits on the velocity box."""
+        if self.box is None or self.qdot_v is None:
+            return np.zeros(0, dtype=int)
+        return np.flatnonzero((self.qdot_v <= self.box.lower) | (self.qdot_v >= self.box.upper))
 
     def as_dict(self):
         """JSON-friendly dict (for ``spg/status``)."""
@@ -119,6 +134,9 @@ class SetPointGenerator:
                 robot, name='torque_limits', lower=-robot.tau_max[~robot.stiff_mask],
                 upper=robot.tau_max[~robot.stiff_mask], gain=1.0 / dt)
         self.kin = Kinematics(robot)
+        self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max, dt)
+        self._accel = robot.a_max * self.dt
+        self._zeros = np.zeros(n)
         self.q_v = None
         self.qdot_v = np.zeros(n)
         self.tasks = []
@@ -178,7 +196,8 @@ class SetPointGenerator:
             if not np.all(np.isfinite(q)):
                 raise ParameterError('the first measurement must be finite to start from it')
             self.reset(q)
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot)) and np.isfinite(t)):
+        # x @ 0 is 0 for every finite x (no overflow, unlike a sum) and NaN for inf / NaN
+        if not (math.isfinite(t) and math.isfinite(q @ self._zeros + qdot @ self._zeros)):
             return self._hold('bad_input', 'non-finite joint state or time stamp', t_start)
         if self._pending is not None:
             self.stack, self.tasks = self._pending
@@ -191,17 +210,18 @@ class SetPointGenerator:
         q_v = self.q_v
         self.kin.update(q, qdot, q_v)
 
-        box = joint_velocity_bounds(q_v, robot.q_min, robot.q_max, robot.v_max, robot.a_max,
-                                    self.dt)
+        box = self._limits.box(q_v)
         if self.tanks is not None:
             pb = self.tanks.bounds(q, q_v)
-            box = VelocityBox(np.maximum(box.lower, pb.lower), np.minimum(box.upper, pb.upper))
-        if np.any(np.isnan(box.lower)) or np.any(np.isnan(box.upper)):
-            # an overflow in the passivity bounds (absurd measurements): stop that joint
-            box = VelocityBox(np.where(np.isnan(box.lower), 0.0, box.lower),
-                              np.where(np.isnan(box.upper), 0.0, box.upper))
-        accel = robot.a_max * self.dt
-        box = intersect_soft(box, VelocityBox(self.qdot_v - accel, self.qdot_v + accel))
+            lower = np.maximum(box.lower, pb.lower)
+            upper = np.minimum(box.upper, pb.upper)
+            if np.isnan(lower.sum() + upper.sum()):
+                # an overflow in the passivity bounds (absurd measurements): stop that joint
+                lower[np.isnan(lower)] = 0.0
+                upper[np.isnan(upper)] = 0.0
+            box = VelocityBox(lower, upper)
+        qd_prev = self.qdot_v
+        box = intersect_soft(box, VelocityBox(qd_prev - self._accel, qd_prev + self._accel))
 
         tasks = self.tasks if self._limit_task is None else [self._limit_task, *self.tasks]
         levels = []
@@ -211,7 +231,7 @@ class SetPointGenerator:
             levels = [task.level(self.kin, task_time) for task in tasks]
             if self._solver.name == 'nullspace':
                 qdot_v, _ = self._solver.solve(levels, q_v, robot.q_min, robot.q_max)
-                if not np.all(np.isfinite(qdot_v)):
+                if not math.isfinite(qdot_v @ self._zeros):
                     qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution'
             elif levels:
                 res = self._solver.solve(levels, box)
@@ -227,7 +247,7 @@ class SetPointGenerator:
             qdot_v, slacks, status, failed = np.zeros(self.n), [], 'hold', -1
             message = (f'internal error in the tasks or the solver ({type(exc).__name__}: '
                        f'{exc}); braking to zero velocity and holding q_v')
-        if not np.all(np.isfinite(qdot_v)):
+        if not math.isfinite(qdot_v @ self._zeros):
             qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution; holding q_v'
         if status == 'hold' or self._solver.name == 'nullspace':
             qdot_v = np.clip(qdot_v, box.lower, box.upper)  # brake within a_max, stay safe
@@ -236,13 +256,11 @@ class SetPointGenerator:
         energy_step = None
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, qdot_v)
-        self.q_v = np.clip(q_v + self.dt * qdot_v, robot.q_min, robot.q_max)
+        self.q_v = np.minimum(np.maximum(q_v + self.dt * qdot_v, robot.q_min), robot.q_max)
         self.qdot_v = qdot_v
-        at_limit = np.flatnonzero((qdot_v <= box.lower) | (qdot_v >= box.upper))
         self.info = SpgInfo(
-            status=status, solver=self._solver.name, level_names=[lv.name for lv in levels],
-            slacks=slacks, levels=levels, at_limit=at_limit,
-            tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
+            status=status, solver=self._solver.name, slacks=slacks, levels=levels, box=box,
+            tank_energy=None if self.tanks is None else self.tanks.energy,
             spring_energy_step=energy_step, solve_time=solve_time,
             tick_time=time.perf_counter() - t_start, task_time=task_time, qdot_v=qdot_v,
             message=message, failed_level=failed)
@@ -250,8 +268,7 @@ class SetPointGenerator:
 
     def _hold(self, status, message, t_start):
         self.qdot_v = np.zeros(self.n)
-        self.info = SpgInfo(status=status, solver=self._solver.name, level_names=[], slacks=[],
-                            levels=[], at_limit=np.zeros(0, dtype=int),
+        self.info = SpgInfo(status=status, solver=self._solver.name, slacks=[], levels=[],
                             tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
                             solve_time=0.0, tick_time=time.perf_counter() - t_start,
                             qdot_v=self.qdot_v, message=message, failed_level=-1)

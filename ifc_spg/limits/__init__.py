@@ -1,5 +1,12 @@
 """Limits expressed as bounds on the virtual joint velocity."""
 
-from ifc_spg.limits.joint_limits import VelocityBox, joint_velocity_bounds, intersect_soft
+from ifc_spg.limits.joint_limits import (
+    JointVelocityLimits,
+    VelocityBox,
+    intersect_soft,
+    joint_velocity_bounds,
+    stopping_velocity,
+)
 
-__all__ = ['VelocityBox', 'intersect_soft', 'joint_velocity_bounds']
+__all__ = ['JointVelocityLimits', 'VelocityBox', 'intersect_soft', 'joint_velocity_bounds',
+           'stopping_velocity']

@@ -42,6 +42,7 @@ class CartesianPoseTask(Task):
     """
 
     kind = 'cartesian_pose'
+    has_gamma = False
 
     def __init__(self, robot, *, frame, axes=None, subspace=None, subspace_frame='base',
                  orientation='init', relative=False, **kwargs):

@@ -27,6 +27,7 @@ class JointPositionTask(Task):
     """
 
     kind = 'joint_position'
+    has_gamma = False
 
     def __init__(self, robot, *, joints=None, **kwargs):
         self.indices = joint_indices(robot, joints)

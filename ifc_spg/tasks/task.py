@@ -59,6 +59,7 @@ class Task:
     """
 
     kind = 'task'
+    has_gamma = True  # False where gamma is identically zero (position tasks)
 
     def __init__(self, robot, *, dim, name=None, equal=None, lower=None, upper=None, gain=1.0,
                  feedforward='trajectory', velocity_gain=0.0, compensate_velocity=True):
@@ -159,18 +160,22 @@ class Task:
             ff_lo, ff_hi = lo_rate, hi_rate
         else:
             ff_lo = ff_hi = self._ff
-        common = gamma if self.compensate_velocity else 0.0
+        if self.compensate_velocity and self.has_gamma:
+            ff_lo = ff_lo + gamma
+            ff_hi = ff_lo if self.equality else ff_hi + gamma
         if self.velocity_gain:
-            common = common + self.velocity_gain * self.compute_measured_rate(kin)
+            kd = self.velocity_gain * self.compute_measured_rate(kin)
+            ff_lo = ff_lo + kd
+            ff_hi = ff_lo if self.equality else ff_hi + kd
         if self._zero_gain:  # 0 * inf: keep unbounded sides unbounded
             with np.errstate(invalid='ignore'):
-                beta_lo = self.gain * (lo - alpha) + ff_lo + common
-                beta_hi = self.gain * (hi - alpha) + ff_hi + common
+                beta_lo = self.gain * (lo - alpha) + ff_lo
+                beta_hi = self.gain * (hi - alpha) + ff_hi
             beta_lo[np.isneginf(lo)] = -np.inf
             beta_hi[np.isposinf(hi)] = np.inf
         else:
-            beta_lo = self.gain * (lo - alpha) + ff_lo + common
-            beta_hi = beta_lo if self.equality else self.gain * (hi - alpha) + ff_hi + common
+            beta_lo = self.gain * (lo - alpha) + ff_lo
+            beta_hi = beta_lo if self.equality else self.gain * (hi - alpha) + ff_hi
         return Level(self.name, A, beta_lo, beta_hi, self.equality)
 
     def bounds_at(self, t):
