@@ -108,3 +108,65 @@ def test_table_stiffness_option_changes_penetration():
 
     soft, stiff = depth((0.1, 1.0)), depth((0.005, 1.0))
     assert soft < stiff - 3e-4
+
+
+def test_table_obstacle_stands_on_the_table_ahead_of_the_tool():
+    opts = {'gap': 0.005, 'obstacle_offset': (0.0, 0.08), 'obstacle_size': (0.05, 0.02, 0.02)}
+    sim = Simulation(robot='lbr4', scene='table', scene_options=opts)
+    m, d = sim.model, sim.data
+    tool = sim.chain_pose('tool')[0]
+    top = d.geom('table_top').xpos[2] + m.geom('table_top').size[2]
+    box = d.geom('table_obstacle').xpos
+    np.testing.assert_allclose(top, tool[2] - 0.005, atol=1e-9)
+    np.testing.assert_allclose(box, [tool[0], tool[1] + 0.08, top + 0.02], atol=1e-9)
+    np.testing.assert_allclose(m.geom('table_obstacle').size, [0.05, 0.02, 0.02])
+    # pushed along +y the tool is stopped by the obstacle's face (y + 0.06, tip radius 1 cm);
+    # without the obstacle the same push carries it further
+    def pushed(options):
+        s = Simulation(robot='lbr4', scene='table', scene_options=options)
+        s.apply_wrench('tool', [0, 30.0, 0, 0, 0, 0], duration=2.0)
+        st = _hold(s, 2.0)
+        return s.chain_pose('tool')[0][1] - tool[1], st.contact_wrench
+    y_blocked, w = pushed(opts)
+    y_free, _ = pushed({'gap': 0.005})
+    assert 0.045 < y_blocked < 0.052
+    assert w[1] < -5.0  # the obstacle pushes back along -y (the joint springs carry the rest)
+    assert y_free > y_blocked + 0.02
+
+
+def test_table_offset_and_obstacle_options_are_checked():
+    sim = Simulation(robot='lbr4', scene='table', scene_options={'offset': (0.1, -0.05)})
+    tool = sim.chain_pose('tool')[0]
+    np.testing.assert_allclose(sim.data.geom('table_top').xpos[:2], tool[:2] + [0.1, -0.05],
+                               atol=1e-9)
+    with pytest.raises(ParameterError, match='inside the box'):
+        Simulation(robot='lbr4', scene='table', scene_options={'obstacle_offset': (0.0, 0.01)})
+    with pytest.raises(ParameterError, match='obstacle_size'):
+        Simulation(robot='lbr4', scene='table',
+                   scene_options={'obstacle_offset': (0.0, 0.1), 'obstacle_size': (0.1, 0.1)})
+    with pytest.raises(ParameterError, match='obstacle_offset must be'):
+        Simulation(robot='lbr4', scene='table', scene_options={'obstacle_offset': 0.1})
+
+
+def test_icub_table_placement_of_table_3_7_touches_only_the_left_hand():
+    """The Table 3.7 table: its top at the lowest point of the left hand, clear of the torso."""
+    import mujoco
+
+    from ifc_spg.runner import find_config_dir, load_scenario
+
+    sc = load_scenario(find_config_dir() / 'scenarios' /
+                       'thesis_3_7_icub_wiping_cup_holding.yaml')
+    sim = Simulation(robot='icub_upper_body', scene='table', scene_options=sc.scene_options,
+                     contact_chain='l_contact')
+    m, d = sim.model, sim.data
+    table = m.geom('table_top').id
+    # distance of every robot geom to the table top at q0: only the hand is within 1 mm
+    near = {}
+    for g in range(m.ngeom):
+        if m.geom_bodyid[g] in (m.body('table').id, 0):
+            continue
+        dist = mujoco.mj_geomDistance(m, d, g, table, 0.05, None)
+        if dist < 0.05:
+            near[m.body(m.geom_bodyid[g]).name] = dist
+    assert near['l_hand'] < 1e-3
+    assert all(dist > 5e-3 for body, dist in near.items() if body != 'l_hand'), near
