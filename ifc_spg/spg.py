@@ -26,10 +26,10 @@ from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.hqp import level_violation, make_solver
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
+from ifc_spg.limits.torque_limits import TorqueLimitLevel
 from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.nullspace import NullspaceCascade
 from ifc_spg.pspm import EnergyTanks, PspmConfig
-from ifc_spg.tasks import JointTorqueTask
 
 __all__ = ['SetPointGenerator', 'SpgInfo']
 
@@ -128,11 +128,11 @@ class SetPointGenerator:
             modulated = ~robot.stiff_mask if robot.ifc == JOINT_IMPEDANCE \
                 else np.zeros(n, dtype=bool)
             self.tanks = EnergyTanks(robot.stiffness, robot.damping, modulated, dt, pspm)
-        self._limit_task = None
+        self._torque_limit = None
         if torque_limits and robot.ifc == JOINT_IMPEDANCE and solver != 'nullspace':
-            self._limit_task = JointTorqueTask(
-                robot, name='torque_limits', lower=-robot.tau_max[~robot.stiff_mask],
-                upper=robot.tau_max[~robot.stiff_mask], gain=1.0 / dt)
+            self._torque_limit = TorqueLimitLevel(
+                np.where(robot.stiff_mask, 0.0, robot.stiffness), robot.tau_max, dt, rho,
+                self._solver.lock_tolerance)
         self.kin = Kinematics(robot)
         self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max, dt)
         self._accel = robot.a_max * self.dt
@@ -223,28 +223,33 @@ class SetPointGenerator:
         qd_prev = self.qdot_v
         box = intersect_soft(box, VelocityBox(qd_prev - self._accel, qd_prev + self._accel))
 
-        tasks = self.tasks if self._limit_task is None else [self._limit_task, *self.tasks]
-        levels = []
+        top = []
         t_solve = time.perf_counter()
         slacks, status, failed, message = [], 'ok', -1, ''
+        if self._torque_limit is not None:  # the top level, solved in closed form (4.3)
+            level, slack, box = self._torque_limit.apply(q, qdot, q_v, box)
+            top, slacks = [level], [slack]
+        levels = top
         try:
-            levels = [task.level(self.kin, task_time) for task in tasks]
+            levels = top + [task.level(self.kin, task_time) for task in self.tasks]
             if self._solver.name == 'nullspace':
                 qdot_v, _ = self._solver.solve(levels, q_v, robot.q_min, robot.q_max)
                 if not math.isfinite(qdot_v @ self._zeros):
                     qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution'
-            elif levels:
-                res = self._solver.solve(levels, box)
-                qdot_v, slacks, status, failed = res[:4]
+            elif len(levels) > len(top):
+                res = self._solver.solve(levels[len(top):], box)
+                qdot_v, status = res.qdot_v, res.status
+                slacks = slacks + res.slacks
+                failed = res.failed_level + len(top) if res.failed_level >= 0 else -1
                 if status != 'ok':
                     message = (f"level {failed} ('{levels[failed].name}') could not be solved; "
                                + ('holding q_v' if status == 'hold' else
                                   "using the higher levels' solution"))
             else:
-                qdot_v = np.clip(np.zeros(self.n), box.lower, box.upper)
-                status = 'idle'
+                qdot_v = np.minimum(np.maximum(0.0, box.lower), box.upper)
+                status = 'idle' if not self.tasks else status
         except Exception as exc:  # a task or solver bug must not take the robot down
-            qdot_v, slacks, status, failed = np.zeros(self.n), [], 'hold', -1
+            qdot_v, slacks, status, failed = np.zeros(self.n), slacks[:len(top)], 'hold', -1
             message = (f'internal error in the tasks or the solver ({type(exc).__name__}: '
                        f'{exc}); braking to zero velocity and holding q_v')
         if not math.isfinite(qdot_v @ self._zeros):

@@ -54,6 +54,7 @@ def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
 
 def stopping_velocity(distance, a_max, dt):
     """Largest velocity [rad/s] from which braking by a_max dt per tick stops within distance."""
+    distance = np.maximum(distance, 0.0)
     c = a_max * dt
     k = np.floor(0.5 * (np.sqrt(1.0 + 8.0 * distance / (c * dt)) - 1.0))
     return (distance / dt + 0.5 * c * k * (k + 1.0)) / (k + 1.0)

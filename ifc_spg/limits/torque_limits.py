@@ -1,0 +1,75 @@
+"""The implicit top-level joint-torque-limit task |tau_s| <= tau_max, solved in closed form.
+
+The thesis puts |K (q_v - q)| <= tau_max as an inequality task at the top of every stack
+(4.3). Its Jacobian is diagonal (A = K), so its level QP separates per joint::
+
+    min  rho qdot^2 + s^2   s.t.  beta_m <= K qdot - s <= beta_M,  lower <= qdot <= upper
+
+whose solution is the minimizer of rho qdot^2 + dist(K qdot, [beta_m, beta_M])^2 without
+the box, projected onto the box. Locking the level (SPEC 3) then confines qdot_v to
+[(beta_m + s*)/K, (beta_M + s*)/K] (widened by the cascade's lock band): a box again. So
+the level is solved here and folded into the velocity box, exactly as the cascade would
+(tested against it), and the remaining levels carry n fewer rows and slacks.
+"""
+
+import numpy as np
+
+from ifc_spg.limits.joint_limits import VelocityBox
+from ifc_spg.tasks.task import Level
+
+__all__ = ['TorqueLimitLevel']
+
+
+class TorqueLimitLevel:
+    """|K (q_v - q)| <= tau_max on the compliant joints, with gain 1/dT (reach the bound in
+    one tick at most).
+
+    Args:
+        stiffness: Joint stiffness K in [Nm/rad] (n,); 0 for stiff joints (no limit).
+        tau_max: Joint torque limits in [Nm] (n,).
+        dt: SPG period in [s].
+        rho: The cascade's regularization weight.
+        lock_tolerance: The cascade's lock band per unit of row norm.
+    """
+
+    name = 'torque_limits'
+
+    def __init__(self, stiffness, tau_max, dt, rho, lock_tolerance):
+        K = np.asarray(stiffness, dtype=float)
+        self.idx = np.flatnonzero(K > 0)
+        self.K = K[self.idx]
+        self.tau_max = np.asarray(tau_max, dtype=float)[self.idx]
+        self.gain = 1.0 / float(dt)
+        self.rho = float(rho)
+        self.band = lock_tolerance * (1.0 + self.K) / self.K
+        A = np.zeros((self.idx.size, K.size))
+        A[np.arange(self.idx.size), self.idx] = self.K
+        A.setflags(write=False)
+        self.A = A
+
+    def apply(self, q, qdot, q_v, box):
+        """Solve the level; return ``(level, slack, box)`` with the box narrowed by the lock."""
+        i, K = self.idx, self.K
+        tau = K * (q_v[i] - q[i])
+        comp = K * qdot[i]
+        lo_b = self.gain * (-self.tau_max - tau) + comp   # beta_m
+        hi_b = self.gain * (self.tau_max - tau) + comp    # beta_M
+        bad = ~(np.isfinite(lo_b) & np.isfinite(hi_b))
+        if bad.any():  # overflow on absurd measurements: leave those joints to the box
+            lo_b[bad], hi_b[bad] = -np.inf, np.inf
+        # unconstrained minimizer of rho x^2 + dist(K x, [lo_b, hi_b])^2
+        x = np.where(lo_b > 0.0, K * lo_b, np.where(hi_b < 0.0, K * hi_b, 0.0)) / (
+            self.rho + K * K)
+        x[np.isnan(x)] = 0.0
+        lower = box.lower.copy()
+        upper = box.upper.copy()
+        x = np.minimum(np.maximum(x, lower[i]), upper[i])
+        Kx = K * x
+        s = Kx - np.minimum(np.maximum(Kx, lo_b), hi_b)
+        s[np.isnan(s)] = 0.0
+        lower[i] = np.maximum(lower[i], np.minimum((lo_b + s) / K, x) - self.band)
+        upper[i] = np.minimum(upper[i], np.maximum((hi_b + s) / K, x) + self.band)
+        # (the band may poke outside the original box: the box itself stays hard)
+        lower[i] = np.minimum(lower[i], x)
+        upper[i] = np.maximum(upper[i], x)
+        return Level(self.name, self.A, lo_b, hi_b, False), s, VelocityBox(lower, upper)
