@@ -12,6 +12,8 @@ the level is solved here and folded into the velocity box, exactly as the cascad
 (tested against it), and the remaining levels carry n fewer rows and slacks.
 """
 
+import math
+
 import numpy as np
 
 from ifc_spg.limits.joint_limits import VelocityBox
@@ -46,30 +48,27 @@ class TorqueLimitLevel:
         A[np.arange(self.idx.size), self.idx] = self.K
         A.setflags(write=False)
         self.A = A
+        self._gain_tau = self.gain * self.tau_max
+        self._K_over = self.K / (self.rho + self.K * self.K)
+        self._zeros = np.zeros(self.idx.size)
 
     def apply(self, q, qdot, q_v, box):
         """Solve the level; return ``(level, slack, box)`` with the box narrowed by the lock."""
         i, K = self.idx, self.K
-        tau = K * (q_v[i] - q[i])
-        comp = K * qdot[i]
-        lo_b = self.gain * (-self.tau_max - tau) + comp   # beta_m
-        hi_b = self.gain * (self.tau_max - tau) + comp    # beta_M
-        bad = ~(np.isfinite(lo_b) & np.isfinite(hi_b))
-        if bad.any():  # overflow on absurd measurements: leave those joints to the box
+        comp = K * (qdot[i] - self.gain * (q_v[i] - q[i]))  # K qdot - Lambda tau_s
+        lo_b = comp - self._gain_tau                        # beta_m
+        hi_b = comp + self._gain_tau                        # beta_M
+        if not math.isfinite(comp @ self._zeros):  # overflow on absurd measurements:
+            bad = ~np.isfinite(comp)                 # leave those joints to the box
             lo_b[bad], hi_b[bad] = -np.inf, np.inf
-        # unconstrained minimizer of rho x^2 + dist(K x, [lo_b, hi_b])^2
-        x = np.where(lo_b > 0.0, K * lo_b, np.where(hi_b < 0.0, K * hi_b, 0.0)) / (
-            self.rho + K * K)
-        x[np.isnan(x)] = 0.0
         lower = box.lower.copy()
         upper = box.upper.copy()
+        # minimizer of rho x^2 + dist(K x, [lo_b, hi_b])^2, projected onto the box
+        x = np.minimum(np.maximum(0.0, lo_b), hi_b) * self._K_over
         x = np.minimum(np.maximum(x, lower[i]), upper[i])
         Kx = K * x
         s = Kx - np.minimum(np.maximum(Kx, lo_b), hi_b)
         s[np.isnan(s)] = 0.0
         lower[i] = np.maximum(lower[i], np.minimum((lo_b + s) / K, x) - self.band)
         upper[i] = np.minimum(upper[i], np.maximum((hi_b + s) / K, x) + self.band)
-        # (the band may poke outside the original box: the box itself stays hard)
-        lower[i] = np.minimum(lower[i], x)
-        upper[i] = np.maximum(upper[i], x)
         return Level(self.name, self.A, lo_b, hi_b, False), s, VelocityBox(lower, upper)
