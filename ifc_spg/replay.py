@@ -8,7 +8,11 @@ with default parameters). Every ``joint_states`` message is one tick, in stamp o
 to a fresh :class:`~ifc_spg.spg_runner.SpgRunner` exactly as the live node or the offline
 runner did; each task stack on ``spg/task_stack`` is handed to it before the tick at which
 the recorded run activated it (``stack.since`` in ``spg/status``; without it, the first
-status showing the stack's id; without statuses, the message's log time). The result is
+status showing the stack's id; without statuses, the message's log time). The recorded
+watchdog timeout is kept (a stamp gap over it restarts from the measured q, as live), the
+runner's clock is fixed, and each recorded ``watchdog`` status event (the live node's
+wall-clock timer) marks the runner stale after the tick it reports, so a restarted bridge
+(stamps from 0 again) is replayed as the restart it was. The result is
 max |Δq_v| over all ticks and joints between recomputed and recorded
 ``command/joint_position`` (matched by header stamp). Exit status 0 when it is within the
 tolerance, 1 when it is not (or commands are missing), 2 on an unreadable bag.
@@ -67,12 +71,13 @@ def read_spg_config(bag, statuses, robot=None):
             raise ParameterError(f"bag '{bag.path}' holds no SPG configuration (no custom_data "
                                  f"'{CONFIG_KEY}', no spg/status with 'config'); pass --robot "
                                  'NAME to replay with default parameters')
-        return SpgConfig(robot=robot, watchdog_timeout=0.0)
+        return SpgConfig(robot=robot)
     known = {f.name for f in dataclasses.fields(SpgConfig)}
     doc = {k: v for k, v in doc.items() if k in known}
     if robot is not None:
         doc['robot'] = robot
-    doc['watchdog_timeout'] = 0.0  # replay has no wall clock; stamps still trip a gap
+    # the recorded watchdog timeout is kept: the stamp-gap restart rule depends on it (the
+    # wall-clock trips are replayed from the recorded 'watchdog' events, see replay())
     return SpgConfig(**doc)
 
 
@@ -140,7 +145,13 @@ def replay(path, robot=None):
                 except json.JSONDecodeError:
                     pass
         config = read_spg_config(bag, statuses, robot)
-    spg = SpgRunner(config)
+    # a fixed clock: the runner never trips by itself; the live node's timer trips are
+    # replayed at the tick count their 'watchdog' status event recorded
+    spg = SpgRunner(config, clock=lambda: 0.0)
+    trips = sorted({int(doc['tick']) for _, doc in statuses
+                    if isinstance(doc, dict) and isinstance(doc.get('event'), dict)
+                    and doc['event'].get('type') == 'watchdog'
+                    and isinstance(doc.get('tick'), int)})
     accepted = []
     for _, text in stack_msgs:
         try:
@@ -163,6 +174,9 @@ def replay(path, robot=None):
             spg.handle_task_stack(stack_msgs[i][1])
             handed += 1
         cmd = spg.handle_joint_state(msg.name, msg.position, msg.velocity, stamp)
+        while trips and trips[0] <= spg.ticks:
+            if trips.pop(0) == spg.ticks:
+                spg.mark_stale('watchdog event recorded in the bag')
         rec = commands.get(stamp)
         if cmd is None or rec is None:
             missing += 1

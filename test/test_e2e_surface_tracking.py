@@ -1,0 +1,455 @@
+"""Issue 7 acceptance over loopback DDS, with real processes: ``sim_bridge`` (iiwa, FRI
+emulation, table scene, lockstep), ``spg_node`` (config/lbr_iiwa14.yaml + the demo's PSPM
+shuffle), ``task_publisher`` and ``ifc-spg bag record``, running the Table 3.2-like stack
+of the README demo (config/scenarios/demo_lbr.yaml: press 8 N with include_damping, then a
+5 cm circle at 0.2 Hz) for 10 s of simulated time.
+
+Checked from the recorded bag (read with ``rosbags``): the contact force while pressing
+and while drawing the circle, the circle tracking error (forward kinematics with
+pinocchio of the measured and of the commanded joints), one command per joint-state
+stamp, every recorded topic with its ROS type, and that ``ifc-spg replay`` recomputes
+every recorded q_v within 1e-9 rad. A second test kills (SIGKILL) and restarts the bridge
+mid-run and then kills and restarts the SPG, and checks the command never jumps.
+"""
+
+import ast
+import json
+import os
+from pathlib import Path
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from ifc_spg.model import RobotModel
+from ifc_spg.ros import dds, messages
+from ifc_spg.ros.testing import loopback_env, stop_process
+
+pytestmark = pytest.mark.dds
+
+BIN = Path(sys.executable).parent
+CONFIG = Path(__file__).resolve().parent.parent / 'config'
+DT = 0.002
+SIM_SECONDS = 10.0
+SWITCH_AT = 1.5        # [s] sim time at which the test starts the surface-tracking publisher
+TARGET_N = 8.0         # [N] pressing force (the tool pushes down: base fz = -8 N)
+RADIUS, FREQ = 0.05, 0.2
+# Settling: the press stack starts 1 cm above the table, touches it at 0.33 s (impact peak
+# ~67 N) and every sample is within +-1 N from 1.07 s on (offline demo and live run alike,
+# lockstep is deterministic): settling time 0.74 s after contact, 1.1 s after the start.
+SETTLE_PRESS = 1.1     # [s] after the press stack started
+SETTLE_CIRCLE = 1.0    # [s] after the circle stack started
+RECORDED = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
+            'sim/contact_wrench']  # the iiwa under FRI has no wrist F/T sensor
+TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
+         '/command/joint_position': 'sensor_msgs/msg/JointState',
+         '/spg/task_stack': 'std_msgs/msg/String', '/spg/status': 'std_msgs/msg/String',
+         '/sim/contact_wrench': 'geometry_msgs/msg/WrenchStamped'}
+
+
+def _demo_stacks():
+    """The two stacks of the README demo scenario (approach/press, surface tracking)."""
+    doc = yaml.safe_load((CONFIG / 'scenarios' / 'demo_lbr.yaml').read_text())
+    return doc, [entry['stack'] for entry in doc['stacks']]
+
+
+def _stamp(msg):
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+class Procs:
+    """Child processes of one test, each logging to a file; stopped by PID."""
+
+    def __init__(self, tmp_path, env):
+        self.tmp_path, self.env = tmp_path, env
+        self.procs, self.logs = {}, {}
+
+    def start(self, name, *args, exe=None):
+        self.logs[name] = open(self.tmp_path / f'{name}.log', 'w+')
+        self.procs[name] = subprocess.Popen([str(BIN / (exe or name)), *args], env=self.env,
+                                            stdout=self.logs[name], stderr=subprocess.STDOUT)
+        return self.procs[name]
+
+    def log(self, name):
+        if not self.logs[name].closed:
+            self.logs[name].flush()
+        return (self.tmp_path / f'{name}.log').read_text()
+
+    def stop(self, name, sig=signal.SIGTERM, timeout=15.0):
+        proc = self.procs[name]
+        if proc.poll() is None:
+            proc.send_signal(sig)
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout=5)
+        return proc.returncode
+
+    def close(self):
+        for proc in reversed(list(self.procs.values())):
+            stop_process(proc)
+        for f in self.logs.values():
+            f.close()
+
+
+def _bridge_args(q0=None, duration=SIM_SECONDS, scene='table'):
+    args = ['--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'interface:=lbr_fri', '-p',
+            f'scene:={scene}', '-p', 'mode:=lockstep', '-p', f'duration:={duration}']
+    if scene == 'table':
+        args += ['-p', 'scene_options:=\'{"gap": 0.01}\'']  # the demo's start: 1 cm above
+    if q0 is not None:
+        args += ['-p', f'q0:={[float(x) for x in q0]}']
+    return args
+
+
+def _spg_args(doc):
+    pspm = doc['spg']['pspm']
+    return ['--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
+            '-p', f"pspm.shuffle:={pspm['shuffle']}",
+            '-p', f"pspm.shuffle_budget:={pspm['shuffle_budget']}",
+            '-p', f"status.decimation:={doc['spg']['status_decimation']}"]
+
+
+@pytest.fixture(scope='module')
+def live_run(tmp_path_factory):
+    """Run the demo over DDS once; returns the bag path, the logs and the stack times."""
+    tmp_path = tmp_path_factory.mktemp('e2e')
+    env = loopback_env()
+    doc, stacks = _demo_stacks()
+    files = []
+    for i, stack in enumerate(stacks):
+        files.append(tmp_path / f'stack_{i}.yaml')
+        files[-1].write_text(yaml.safe_dump(stack, sort_keys=False))
+    bag_path = tmp_path / 'bag'
+    procs = Procs(tmp_path, env)
+    old = {k: os.environ.get(k) for k in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID',
+                                          'IFC_SPG_ROS_BACKEND')}
+    for key in old:
+        os.environ[key] = env[key]
+    dds.init(['test'])
+    node = dds.Node('listener')
+    status, sim_t = [], [0.0]
+    node.create_subscription(messages.String, 'spg/status',
+                             lambda m: status.append(json.loads(m.data)), 100)
+    node.create_subscription(messages.JointState, 'joint_states',
+                             lambda m: sim_t.__setitem__(0, _stamp(m) * 1e-9), 100)
+
+    def spin_until(condition, timeout):
+        return dds.spin_until(condition, timeout, nodes=node)
+
+    def accepted(n):
+        return sum(s.get('event', {}).get('type') == 'stack_accepted' for s in status) >= n
+
+    wall = time.monotonic()
+    try:
+        rec = procs.start('recorder', 'bag', 'record', '-o', str(bag_path), *RECORDED,
+                          exe='ifc-spg')
+        spg = procs.start('spg_node', *_spg_args(doc))
+        assert spin_until(lambda: 'recording' in procs.log('recorder') or
+                          rec.poll() is not None, 60.0) and rec.poll() is None, \
+            procs.log('recorder')
+        procs.start('publisher_press', str(files[0]), '--robot', 'lbr_iiwa14',
+                    exe='task_publisher')
+        assert spin_until(lambda: accepted(1) or spg.poll() is not None, 60.0), \
+            procs.log('spg_node')
+        bridge = procs.start('sim_bridge', *_bridge_args())
+        # the Table 3.2 stack: a second publisher, started when the sim passes SWITCH_AT
+        assert spin_until(lambda: sim_t[0] >= SWITCH_AT or bridge.poll() is not None, 120.0)
+        procs.start('publisher_track', str(files[1]), '--robot', 'lbr_iiwa14',
+                    exe='task_publisher')
+        assert spin_until(lambda: bridge.poll() is not None, 180.0), procs.log('sim_bridge')
+        assert bridge.returncode == 0, procs.log('sim_bridge')
+        spin_until(lambda: False, 0.5)
+        assert procs.stop('spg_node') == 0, procs.log('spg_node')
+        time.sleep(0.3)
+        assert procs.stop('recorder', signal.SIGINT, 30.0) == 0, procs.log('recorder')
+    finally:
+        procs.close()
+        dds.shutdown()
+        for key, value in old.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+    return {'bag': bag_path, 'logs': {n: procs.log(n) for n in procs.logs}, 'doc': doc,
+            'wall': time.monotonic() - wall}
+
+
+def _read(bag_path):
+    """Every recorded message, read with rosbags (not our reader): {topic: [(type, msg)]}."""
+    from rosbags.highlevel import AnyReader
+
+    out, types = {}, {}
+    with AnyReader([Path(bag_path)]) as reader:
+        for conn in reader.connections:
+            types[conn.topic] = conn.msgtype
+        for conn, _, raw in reader.messages():
+            out.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
+    return types, out
+
+
+@pytest.fixture(scope='module')
+def recorded(live_run):
+    return _read(live_run['bag'])
+
+
+def _since(statuses):
+    """Stamp [s] at which each stack (by name) started, from spg/status."""
+    out = {}
+    for d in statuses:
+        st = d.get('stack')
+        if st and st.get('since') is not None:
+            out.setdefault(st['name'], float(st['since']))
+    return out
+
+
+def test_bag_has_every_topic_with_its_type_and_one_command_per_tick(live_run, recorded):
+    types, msgs = recorded
+    assert types == TYPES
+    assert all(msgs[t] for t in TYPES), {t: len(msgs.get(t, [])) for t in TYPES}
+    states, commands = msgs['/joint_states'], msgs['/command/joint_position']
+    state_stamps = sorted({_stamp(m) for m in states})
+    command_stamps = [_stamp(m) for m in commands]
+    ticks = round(SIM_SECONDS / DT)
+    # one command per joint-state stamp: every state answered once, none missed
+    assert len(state_stamps) == ticks
+    assert sorted(set(command_stamps)) == state_stamps
+    assert np.all(np.diff(state_stamps) == round(DT * 1e9))
+    # repeats only for a state the lockstep bridge re-sent (answered with the same command)
+    assert len(command_stamps) == ticks + len(states) - len(state_stamps)
+    # the SPG's own count (exit line) agrees: no tick without a command, nothing rejected
+    match = re.search(r'spg_node: (\d+) ticks, (\d+) commands, rejected (\{.*?\})',
+                      live_run['logs']['spg_node'])
+    assert match, live_run['logs']['spg_node']
+    assert int(match.group(1)) == ticks and int(match.group(2)) == len(command_stamps)
+    rejected = ast.literal_eval(match.group(3))  # the printed dict of counts
+    assert sum(v for k, v in rejected.items() if k != 'duplicate_stamp') == 0
+    assert 'without a command' not in live_run['logs']['sim_bridge']
+    docs = [json.loads(m.data) for m in msgs['/spg/status']]
+    assert [d['stack']['name'] for d in docs if d.get('stack')][-1] == 'surface_tracking'
+    assert not {d['spg']['status'] for d in docs if d.get('spg')} & {'hold', 'bad_input'}
+
+
+def _force(msgs):
+    """(t [s], force the tool exerts along base z [N]; pressing down is negative)."""
+    w = msgs['/sim/contact_wrench']
+    t = np.array([_stamp(m) * 1e-9 for m in w])
+    # sim/contact_wrench is the environment on the robot: the tool exerts the opposite
+    fz = -np.array([m.wrench.force.z for m in w])
+    order = np.argsort(t)
+    return t[order], fz[order]
+
+
+def _moving_average(t, x, window=0.05):
+    """Causal moving average over ``window`` [s] (the offline runner's metric window)."""
+    n = max(1, round(window / DT))
+    c = np.cumsum(np.insert(x, 0, 0.0))
+    out = np.empty_like(x)
+    for i in range(len(x)):
+        lo = max(0, i + 1 - n)
+        out[i] = (c[i + 1] - c[lo]) / (i + 1 - lo)
+    return out
+
+
+def test_contact_force_settles_at_8_newton(recorded):
+    types, msgs = recorded
+    docs = [json.loads(m.data) for m in msgs['/spg/status']]
+    since = _since(docs)
+    t, f = _force(msgs)
+    # most samples arrive (best-effort QoS on loopback): at least 95 % of the ticks
+    assert len(t) >= 0.95 * SIM_SECONDS / DT
+    press = (t >= since['approach'] + SETTLE_PRESS) & (t < since['surface_tracking'])
+    assert press.sum() > 100
+    # pressing (before the circle): every sample within +-1 N of 8 N
+    err_press = f[press] + TARGET_N
+    assert np.max(np.abs(err_press)) <= 1.0, np.max(np.abs(err_press))
+    # while drawing the circle the error follows the circle's phase (the same in the offline
+    # demo, with and without friction): RMS about 1 N, peaks under 2.5 N, mean near 8 N
+    track = t >= since['surface_tracking'] + SETTLE_CIRCLE
+    err = f[track] + TARGET_N
+    rms, peak = np.sqrt(np.mean(err ** 2)), np.max(np.abs(_moving_average(t, f)[track] + TARGET_N))
+    print(f'force error: pressing max {np.max(np.abs(err_press)):.3f} N; circle mean '
+          f'{np.mean(err):.3f} N, RMS {rms:.3f} N, peak (50 ms average) {peak:.3f} N')
+    assert abs(np.mean(err)) <= 0.5
+    assert rms <= 1.3
+    assert peak <= 2.5
+    assert np.all(f[t > since['approach'] + SETTLE_PRESS] < 0)  # contact kept throughout
+
+
+def _tool_xy(robot, data, q):
+    import pinocchio as pin
+
+    pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+    return data.oMf[robot.frame_id('tool')].translation[:2].copy()
+
+
+def test_circle_is_tracked(recorded):
+    robot = RobotModel.from_config('lbr_iiwa14')
+    data = robot.model.createData()
+    _, msgs = recorded
+    since = _since([json.loads(m.data) for m in msgs['/spg/status']])
+    t0 = since['surface_tracking']
+    states = {_stamp(m): m for m in msgs['/joint_states']}
+    commands = {_stamp(m): m for m in msgs['/command/joint_position']}
+    stamps = sorted(states)
+    # the circle starts where the virtual tool was at activation (start: init)
+    before = max(s for s in stamps if s < round(t0 * 1e9))
+    start = _tool_xy(robot, data, commands[before].position)
+    center = start - [RADIUS, 0.0]
+    w = 2 * np.pi * FREQ
+    err_m, err_v = [], []
+    for s in stamps:
+        tt = s * 1e-9 - t0
+        if tt < SETTLE_CIRCLE:
+            continue
+        want = center + RADIUS * np.array([np.cos(w * tt), np.sin(w * tt)])
+        err_m.append(np.linalg.norm(_tool_xy(robot, data, states[s].position) - want))
+        err_v.append(np.linalg.norm(_tool_xy(robot, data, commands[s].position) - want))
+    assert len(err_m) > 0.5 * SIM_SECONDS / DT  # more than a full revolution (5 s)
+    rms_m, rms_v = np.sqrt(np.mean(np.square(err_m))), np.sqrt(np.mean(np.square(err_v)))
+    # The SPG's virtual tool follows the circle within 2 mm RMS (first-order task dynamics,
+    # gain 5/s: lag R w / gain = 6 mm would be the open-loop bound; the feed-forward rate
+    # removes most of it). The measured tool lags behind under joint impedance with 8 N of
+    # contact and table friction (mu 0.3): 2.4 N of friction on the K = 200 Nm/rad...1000
+    # joints gives ~1-2 cm; the offline demo measures 14 mm. Threshold 25 mm = R / 2: a tool
+    # that leaves the circle or stops on the table fails it.
+    print(f'circle tracking error RMS: virtual {rms_v * 1e3:.2f} mm, measured '
+          f'{rms_m * 1e3:.2f} mm')
+    assert rms_v <= 0.002, rms_v
+    assert rms_m <= 0.025, rms_m
+
+
+def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys):
+    from ifc_spg.replay import main, replay
+
+    res = replay(live_run['bag'])
+    assert res.ticks == round(SIM_SECONDS / DT) and res.missing == 0
+    assert res.compared == res.ticks and res.stacks == 2
+    assert res.max_abs_diff <= 1e-9, res
+    assert main([str(live_run['bag']), '--tolerance', '1e-9']) == 0
+    assert 'OK' in capsys.readouterr().out
+
+
+REACH = """version: 1
+name: reach
+robot: lbr_iiwa14
+tasks:
+  - name: posture
+    type: joint_position
+    equal: [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
+    gain: 5.0
+"""
+
+
+def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypatch):
+    """SIGKILL the lockstep bridge mid-run and start a new one where the robot stood (q0 =
+    the last measured q; its clock starts at 0 again), then SIGKILL the SPG mid-run and
+    start a new one: each first command after a restart is the measured q plus at most one
+    v_max step, and no command ever moves more than v_max dT from the one before (within a
+    session) — the command does not jump."""
+    env = loopback_env()
+    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
+        monkeypatch.setenv(key, env[key])
+    stack = tmp_path / 'reach.yaml'
+    stack.write_text(REACH)
+    robot = RobotModel.from_config('lbr_iiwa14')
+    dds.init(['test'])
+    node = dds.Node('listener')
+    status, states, commands = [], [], []
+    node.create_subscription(messages.String, 'spg/status',
+                             lambda m: status.append(json.loads(m.data)), 100)
+    node.create_subscription(messages.JointState, 'joint_states', states.append, 100)
+    node.create_subscription(messages.JointState, 'command/joint_position', commands.append,
+                             100)
+    procs = Procs(tmp_path, env)
+
+    def spin_until(condition, timeout):
+        return dds.spin_until(condition, timeout, nodes=node)
+
+    def events(kind):
+        return sum(s.get('event', {}).get('type') == kind for s in status)
+
+    def sim_t():
+        return _stamp(states[-1]) * 1e-9 if states else 0.0
+
+    spg_args = ['--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
+                '-p', 'status.decimation:=50']
+    try:
+        spg = procs.start('spg_node', *spg_args)
+        procs.start('task_publisher', str(stack))
+        assert spin_until(lambda: events('stack_accepted') or spg.poll() is not None, 60.0), \
+            procs.log('spg_node')
+        bridge = procs.start('bridge1', *_bridge_args(duration=0.0, scene='free'),
+                             exe='sim_bridge')
+        assert spin_until(lambda: sim_t() >= 1.0 or bridge.poll() is not None, 60.0), \
+            procs.log('bridge1')
+        assert procs.stop('bridge1', signal.SIGKILL) == -signal.SIGKILL  # mid-run, no goodbye
+        spin_until(lambda: False, 0.3)
+        assert spin_until(lambda: events('watchdog') >= 1, 10.0), procs.log('spg_node')
+        q_last = np.array(max(states, key=_stamp).position)
+        n_before, n_states = len(commands), len(states)
+        bridge = procs.start('bridge2', *_bridge_args(q0=q_last, duration=2.0, scene='free'),
+                             exe='sim_bridge')
+        assert spin_until(lambda: events('resumed') >= 1 or bridge.poll() is not None, 60.0), \
+            procs.log('spg_node')
+        assert spin_until(lambda: (len(commands) > n_before and _stamp(commands[-1]) >= 0.8e9)
+                          or bridge.poll() is not None, 60.0), procs.log('bridge2')
+        assert procs.stop('spg_node', signal.SIGKILL) == -signal.SIGKILL  # SPG dies mid-run
+        spin_until(lambda: False, 0.3)
+        n_spg1 = len(commands)
+        spg = procs.start('spg_node2', *spg_args, exe='spg_node')
+        assert spin_until(lambda: bridge.poll() is not None, 90.0), procs.log('bridge2')
+        assert bridge.returncode == 0, procs.log('bridge2')
+        spin_until(lambda: False, 0.5)
+        assert procs.stop('spg_node2') == 0, procs.log('spg_node2')
+    finally:
+        procs.close()
+        dds.shutdown()
+
+    # the latched stack reached the new SPG
+    assert "task stack 'reach' (id 1) accepted" in procs.log('spg_node2')
+    v_step = robot.v_max * DT + 1e-9
+    q_meas = {}  # the second bridge's states (the first one used the same stamps)
+    for s in states[n_states:]:
+        q_meas.setdefault(_stamp(s), []).append(np.array(s.position))
+    # sessions: bridge1 + spg1, bridge2 + spg1 (restart: stamps from 0), bridge2 + spg2
+    sessions = [commands[:n_before], commands[n_before:n_spg1], commands[n_spg1:]]
+    assert all(len(c) > 50 for c in sessions), [len(c) for c in sessions]
+    jumps = []
+    for k, cmds in enumerate(sessions):
+        q_v = np.array([c.position for c in cmds])
+        stamps = np.array([_stamp(c) for c in cmds])
+        assert np.all(np.diff(stamps) >= 0)
+        assert np.all(np.abs(np.diff(q_v, axis=0)) <= v_step)  # never a jump in a session
+        assert np.all(q_v >= robot.q_min) and np.all(q_v <= robot.q_max)
+        if k:
+            # the first command after a restart: the measured q it answers + one step
+            first = min(np.max(np.abs(q_v[0] - q)) for q in q_meas[stamps[0]])
+            assert first <= np.max(v_step), first
+            jumps.append(float(np.max(np.abs(q_v[0] - sessions[k - 1][-1].position))))
+    # and relative to the last command before the fault: only the impedance offset q_v - q
+    # of a robot moving at <= 5/s towards its target (the FRI emulation holds q_v - q small)
+    print(f'|first command after restart - last command before| = {jumps} rad')
+    assert max(jumps) <= 0.05, jumps
+    # the second bridge started where the first one stopped (its clock from 0 again)
+    assert _stamp(sessions[1][0]) < _stamp(sessions[0][-1])
+    np.testing.assert_allclose(q_meas[_stamp(sessions[1][0])][0], q_last, atol=1e-3)
+
+
+def test_latency_bench_smoke():
+    """``python -m ifc_spg.latency_bench`` (realtime bridge + SPG over DDS), 3 s only."""
+    from ifc_spg.latency_bench import run
+
+    res = run(3.0)
+    assert res['expected_ticks'] == 1500
+    assert abs(res['states'] - 1500) <= 5  # the realtime bridge publishes at 500 Hz
+    assert res['commands'] >= 0.9 * res['states']
+    lat = res['latency_ms']
+    assert 0 < lat['p50'] <= lat['p99'] <= lat['max']
+    assert res['bridge_missed_commands'] is not None
