@@ -18,10 +18,10 @@ already received are written, then the MCAP index and ``metadata.yaml``.
 """
 
 import argparse
+from pathlib import Path
 import signal
 import sys
 import time
-from pathlib import Path
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.ros.qos import (

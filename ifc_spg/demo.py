@@ -11,9 +11,9 @@ and prints a short summary.
 """
 
 import argparse
+from pathlib import Path
 import shutil
 import sys
-from pathlib import Path
 
 from ifc_spg.errors import IfcSpgError
 

@@ -21,8 +21,8 @@ Vertical dotted lines mark task-stack switches. Rendering uses matplotlib's Agg 
 import argparse
 import html
 import json
-import sys
 from pathlib import Path
+import sys
 
 import numpy as np
 

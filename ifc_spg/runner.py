@@ -54,9 +54,9 @@ import dataclasses
 import json
 import math
 import os
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 

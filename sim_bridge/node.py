@@ -27,10 +27,10 @@ absolute deadlines; a period without a command holds the last q_v (as FRI does) 
 counted and reported.
 """
 
+from dataclasses import dataclass
 import json
 import math
 import sys
-from dataclasses import dataclass
 
 import numpy as np
 

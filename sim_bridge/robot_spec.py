@@ -9,8 +9,8 @@ with each other (self-collision of mesh models costs ~80 µs/step and the SPG ke
 away from itself anyway).
 """
 
-import os
 from dataclasses import dataclass
+import os
 
 import mujoco
 import numpy as np

@@ -16,8 +16,8 @@ a new command (after the first one) keeps the last q_v and is counted in
 ``State.missed_commands``.
 """
 
-import math
 from dataclasses import dataclass, field
+import math
 
 import mujoco
 import numpy as np

@@ -5,8 +5,12 @@ import pytest
 
 from ifc_spg import RobotModel
 from ifc_spg.hqp import DaqpCascade
-from ifc_spg.limits import JointVelocityLimits, VelocityBox, joint_velocity_bounds
-from ifc_spg.limits import stopping_velocity
+from ifc_spg.limits import (
+    JointVelocityLimits,
+    VelocityBox,
+    joint_velocity_bounds,
+    stopping_velocity,
+)
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
 from ifc_spg.tasks import Level
 

@@ -12,7 +12,7 @@ import pinocchio as pin
 import pytest
 
 from ifc_spg.errors import ModelError, UnknownJoint, UnknownRobot
-from ifc_spg.model import CARTESIAN_ADMITTANCE, generate, JOINT_IMPEDANCE, RobotModel, robots
+from ifc_spg.model import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, RobotModel, generate, robots
 from ifc_spg.model.robots import ROBOTS, load_robot, mjcf_spec, mujoco_indices
 
 N_RANDOM = 50

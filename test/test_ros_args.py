@@ -128,7 +128,7 @@ ERROR_CASES = [
     (['--ros-args', '--param-file', 'x.yaml'],
      r"unknown ROS argument '--param-file'; did you mean '--params-file'\?"),
     (['--ros-args', '--log-level', 'verbose'], r"invalid log level 'verbose'.*valid: debug"),
-    (['--ros-args', '--params-file', '/nonexistent/p.yaml'], r"cannot read params file"),
+    (['--ros-args', '--params-file', '/nonexistent/p.yaml'], r'cannot read params file'),
     (['--ros-args', '--params-file', '{bad_yaml}'], r'is not valid YAML'),
     (['--ros-args', '--params-file', '{no_section}'], r"not inside 'ros__parameters'"),
     (['--ros-args', '--params-file', '{not_mapping}'], r'expected a mapping of node names'),

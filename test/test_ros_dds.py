@@ -108,8 +108,12 @@ def _read_all(reader, timeout=5.0, predicate=lambda samples: bool(samples)):
 
 
 def test_wire_names_user_data_and_discovery_info(domain):
-    from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsParticipant,
-                                    BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription)
+    from cyclonedds.builtin import (
+        BuiltinDataReader,
+        BuiltinTopicDcpsParticipant,
+        BuiltinTopicDcpsPublication,
+        BuiltinTopicDcpsSubscription,
+    )
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.qos import Policy, Qos
     from cyclonedds.sub import DataReader
@@ -197,7 +201,7 @@ def test_parameters_overrides_types_ranges(domain, tmp_path):
 def test_parameter_override_type_mismatch_is_clear(domain):
     ros.init(['prog', '--ros-args', '-p', 'rate:=500'])
     node = ros.Node('spg')
-    with pytest.raises(ParameterError, match=r"value 500 has type PARAMETER_INTEGER, expected "
+    with pytest.raises(ParameterError, match=r'value 500 has type PARAMETER_INTEGER, expected '
                                              r'PARAMETER_DOUBLE \(write 1.0, not 1'):
         node.declare_parameter('rate', 100.0)
 
@@ -235,9 +239,9 @@ def test_errors_name_the_fix(domain, monkeypatch):
     ros.init()
     node = ros.Node('n')
     pub = node.create_publisher(messages.String, 'chatter', 10)
-    with pytest.raises(ParameterError, match="expects std_msgs/msg/String, got JointState"):
+    with pytest.raises(ParameterError, match='expects std_msgs/msg/String, got JointState'):
         pub.publish(messages.JointState())
-    with pytest.raises(ParameterError, match="already used with type std_msgs/msg/String"):
+    with pytest.raises(ParameterError, match='already used with type std_msgs/msg/String'):
         node.create_publisher(messages.JointState, 'chatter', 10)
     with pytest.raises(ParameterError, match='invalid node name'):
         ros.Node('bad-name')

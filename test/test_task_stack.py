@@ -43,7 +43,7 @@ def test_one_file_per_table_with_header_and_robot():
     for f in STACK_FILES:
         text = read(f)
         table = os.path.basename(f).split('_')[1:3]
-        assert text.startswith(f"# Thesis Table {table[0]}.{table[1]}"), f
+        assert text.startswith(f'# Thesis Table {table[0]}.{table[1]}'), f
         stack = TaskStack.from_file(f)
         assert stack.robot in ('lbr4', 'lbr_iiwa14', 'icub_upper_body', 'accrea_dual_arm')
 

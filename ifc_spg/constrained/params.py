@@ -7,8 +7,8 @@ numbers; :func:`load_params` reads it (or any file of that shape) and overrides 
 dataclass defaults, so the YAML only overrides (STYLE #4).
 """
 
-import math
 from dataclasses import dataclass, field, fields, replace
+import math
 
 import numpy as np
 

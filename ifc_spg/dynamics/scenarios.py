@@ -19,8 +19,8 @@ A problem file (YAML) names a model and a state::
       eps: 1.0e-6
 """
 
-import os
 from dataclasses import dataclass, field
+import os
 
 import numpy as np
 import pinocchio as pin

@@ -25,8 +25,8 @@ Reference method (the report's): sample μ on a grid over the box, run the full 
 for each sample, keep the sample with the largest acceleration energy.
 """
 
-import itertools
 from dataclasses import dataclass
+import itertools
 
 import numpy as np
 

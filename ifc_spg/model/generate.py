@@ -18,7 +18,14 @@ import os
 import sys
 
 from ifc_spg.model.robots import (
-    ACCREA_ARM, ACCREA_SHOULDER, ACCREA_TORSO, DATA_DIR, LBR4, LBR_IIWA14, accrea_home_deg)
+    ACCREA_ARM,
+    ACCREA_SHOULDER,
+    ACCREA_TORSO,
+    DATA_DIR,
+    LBR4,
+    LBR_IIWA14,
+    accrea_home_deg,
+)
 
 __all__ = ['arm_mjcf', 'accrea_mjcf', 'generate', 'main']
 

@@ -28,7 +28,11 @@ import pinocchio as pin
 
 from ifc_spg.errors import ModelError, UnknownJoint, UnknownRobot, did_you_mean
 from ifc_spg.model.robot_model import (
-    CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance, RobotModel)
+    CARTESIAN_ADMITTANCE,
+    JOINT_IMPEDANCE,
+    CartesianAdmittance,
+    RobotModel,
+)
 
 __all__ = [
     'ArmTable', 'Link', 'ROBOTS', 'LBR4', 'LBR_IIWA14', 'ACCREA_ARM', 'DATA_DIR',
@@ -380,9 +384,8 @@ def icub_mjcf_spec():
     urdf = icub_urdf_path()
     with open(urdf, encoding='utf-8') as f:
         text = f.read()
-    block = ('<mujoco><compiler strippath="true" meshdir="{}" fusestatic="false" '
-             'discardvisual="true" balanceinertia="false"/></mujoco>').format(
-                 _icub_mesh_dir(urdf))
+    block = (f'<mujoco><compiler strippath="true" meshdir="{_icub_mesh_dir(urdf)}" fusestatic="false" '
+             'discardvisual="true" balanceinertia="false"/></mujoco>')
     start = text.find('<robot')
     end = text.find('>', start)
     if start < 0 or end < 0:

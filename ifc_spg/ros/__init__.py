@@ -44,13 +44,18 @@ if _rclpy_available():
     BACKEND = 'rclpy'
     import time as _time
 
-    import rclpy
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    import rclpy
     from rclpy import init, ok, shutdown, spin, spin_once
     from rclpy.node import Node
     from rclpy.parameter import Parameter
-    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
-                           qos_profile_sensor_data)
+    from rclpy.qos import (
+        DurabilityPolicy,
+        HistoryPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+        qos_profile_sensor_data,
+    )
 
     def latched(depth=1):  # noqa: F811 - the rclpy flavour of the same profile
         """Reliable, transient-local, keep-last ``depth`` profile."""
@@ -78,7 +83,16 @@ if _rclpy_available():
 else:
     BACKEND = 'cyclonedds'
     from ifc_spg.ros.dds import Node, init, ok, shutdown, spin, spin_once, spin_until
-    from ifc_spg.ros.parameters import (FloatingPointRange, IntegerRange, Parameter,
-                                        ParameterDescriptor)
-    from ifc_spg.ros.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile,
-                                 ReliabilityPolicy, qos_profile_sensor_data)
+    from ifc_spg.ros.parameters import (
+        FloatingPointRange,
+        IntegerRange,
+        Parameter,
+        ParameterDescriptor,
+    )
+    from ifc_spg.ros.qos import (
+        DurabilityPolicy,
+        HistoryPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+        qos_profile_sensor_data,
+    )

@@ -27,10 +27,19 @@ from ifc_spg.ros import messages
 from ifc_spg.ros.cdr import CDR_HEADER, PRIMITIVES, parse_field_type
 from ifc_spg.ros.clock import Clock
 from ifc_spg.ros.logging import Logger
-from ifc_spg.ros.names import (expand_topic_name, fully_qualified_node_name, remap_name,
-                               validate_namespace, validate_node_name)
-from ifc_spg.ros.parameters import (Parameter, ParameterDescriptor, ParameterType,
-                                    check_parameter_value)
+from ifc_spg.ros.names import (
+    expand_topic_name,
+    fully_qualified_node_name,
+    remap_name,
+    validate_namespace,
+    validate_node_name,
+)
+from ifc_spg.ros.parameters import (
+    Parameter,
+    ParameterDescriptor,
+    ParameterType,
+    check_parameter_value,
+)
 from ifc_spg.ros.qos import as_qos, latched, to_dds_qos
 from ifc_spg.ros.ros_args import parse_ros_args
 

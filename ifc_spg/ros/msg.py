@@ -14,14 +14,41 @@ __all__ = ['Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'Multi
 if BACKEND == 'rclpy':
     from builtin_interfaces.msg import Duration, Time
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from geometry_msgs.msg import (Point, Pose, PoseStamped, Quaternion, Vector3, Wrench,
-                                   WrenchStamped)
+    from geometry_msgs.msg import (
+        Point,
+        Pose,
+        PoseStamped,
+        Quaternion,
+        Vector3,
+        Wrench,
+        WrenchStamped,
+    )
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import (Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout,
-                              String)
+    from std_msgs.msg import (
+        Float64MultiArray,
+        Header,
+        MultiArrayDimension,
+        MultiArrayLayout,
+        String,
+    )
 else:
-    from ifc_spg.ros.messages import (DiagnosticArray, DiagnosticStatus, Duration,
-                                      Float64MultiArray, Header, JointState, KeyValue,
-                                      MultiArrayDimension, MultiArrayLayout, Point, Pose,
-                                      PoseStamped, Quaternion, String, Time, Vector3, Wrench,
-                                      WrenchStamped)
+    from ifc_spg.ros.messages import (
+        DiagnosticArray,
+        DiagnosticStatus,
+        Duration,
+        Float64MultiArray,
+        Header,
+        JointState,
+        KeyValue,
+        MultiArrayDimension,
+        MultiArrayLayout,
+        Point,
+        Pose,
+        PoseStamped,
+        Quaternion,
+        String,
+        Time,
+        Vector3,
+        Wrench,
+        WrenchStamped,
+    )

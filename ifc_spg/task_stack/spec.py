@@ -10,9 +10,9 @@ Component vectors (bounds, gains, trajectory parameters) are written as one numb
 ``amplitude: {y: 0.1, z: 0.05}`` (unnamed components: 0).
 """
 
+from dataclasses import dataclass, field
 import math
 import re
-from dataclasses import dataclass, field
 from types import MappingProxyType
 
 import numpy as np

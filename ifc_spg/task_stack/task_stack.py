@@ -11,9 +11,9 @@ The order of ``tasks`` is the priority (first = highest). See docs/ARCHITECTURE.
 "Task stack" and ``ifc_spg/schema/task_stack.schema.json``.
 """
 
+from dataclasses import dataclass, field
 import json
 import os
-from dataclasses import dataclass, field
 
 from ifc_spg.task_stack.builder import build_tasks
 from ifc_spg.task_stack.errors import TaskStackError
