@@ -226,18 +226,35 @@ class DaqpCascade(CascadeSolver):
         qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
         slacks = []
         start = 0
+        a_sent = False
         for i, m in enumerate(ms):
             end = start + m
             sl = slice(start, end)
+            slack = slice(n + start, n + end)
+            if not levels[i].equality and _satisfied(a := A_all[sl] @ qdot, orig_lo[sl],
+                                                     orig_hi[sl]):
+                # The current solution already satisfies this level with zero slack. It
+                # minimizes rho |qdot|^2 over everything the higher levels allow, so it is
+                # this level's optimum too: no QP needed (typical for inactive
+                # inequalities: obstacles, boxes, torque bands).
+                slacks.append(np.zeros(m))
+                lo = np.minimum(orig_lo[sl], a)
+                hi = np.maximum(orig_hi[sl], a)
+                lo -= band[sl]
+                hi += band[sl]
+                lo_rows[sl] = lo
+                hi_rows[sl] = hi
+                start = end
+                continue
             lo_rows[sl] = orig_lo[sl]
             hi_rows[sl] = orig_hi[sl]
             row_sense[sl] = eq_sense[sl]
-            slack = slice(n + start, n + end)
             bl[slack] = -_BIG
             bu[slack] = _BIG
             sense[slack] = 0
-            if i == 0:
+            if not a_sent:
                 ws.model.update(A=C, bupper=bu, blower=bl, sense=sense)
+                a_sent = True
             else:
                 ws.model.update(bupper=bu, blower=bl, sense=sense)
             x, _, flag, _ = self._solve_model(ws.model)
@@ -304,6 +321,11 @@ class _Workspace:
         settings_ = dict(self.model.settings)
         settings_.update(settings)
         self.model.settings = settings_
+
+
+def _satisfied(a, lo, hi):
+    """True if lo <= a <= hi everywhere."""
+    return np.maximum(lo - a, a - hi).max() <= 0.0
 
 
 def _result(qdot, lo, hi, slacks, status, failed):

@@ -65,7 +65,11 @@ class CartesianPoseTask(Task):
         self.relative = bool(relative)
         self._p_ref = np.zeros(3)
         self.free_axis = _free_rotation_axis(S)
+        self._rotational = bool(np.any(S[3:] != 0.0))
+        self._translational = bool(np.any(S[:3] != 0.0))
         super().__init__(robot, dim=S.shape[1], **kwargs)
+        self._zero = np.zeros(self.dim)
+        self._zero.setflags(write=False)
 
     def activate(self, kin):
         p, R, _ = kin.frame(self.frame_id, virtual=True)
@@ -91,15 +95,20 @@ class CartesianPoseTask(Task):
         p, R, J = kin.frame(self.frame_id, virtual=True)
         if self._R_ref is None:
             self._R_ref = R.copy()
+        St = self._S_base(R).T
+        if not self._rotational:  # position rows only: the orientation error is not needed
+            return St[:, :3] @ (p - self._p_ref), St[:, :3] @ J[:3], self._zero
         R_e = R @ self.reference_orientation(R).T
+        J_rot = pin.Jlog3(R_e) @ R_e.T @ J[3:]
+        if not self._translational:
+            return St[:, 3:] @ pin.log3(R_e), St[:, 3:] @ J_rot, self._zero
         x = np.empty(6)
         x[:3] = p - self._p_ref
         x[3:] = pin.log3(R_e)
         Jx = np.empty_like(J)
         Jx[:3] = J[:3]
-        Jx[3:] = pin.Jlog3(R_e) @ R_e.T @ J[3:]
-        St = self._S_base(R).T
-        return St @ x, St @ Jx, np.zeros(self.dim)
+        Jx[3:] = J_rot
+        return St @ x, St @ Jx, self._zero
 
     def compute_measured_rate(self, kin):
         _, R, J = kin.frame(self.frame_id, virtual=False)

@@ -1,7 +1,9 @@
 """Joint torque task: alpha = tau_s (selected joints), A = K, gamma = K qdot (Table 3.1)."""
 
+import numpy as np
 
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.tasks.joint_position_task import joint_indices
 from ifc_spg.tasks.static_interaction import static_torque
 from ifc_spg.tasks.task import Task
@@ -31,10 +33,24 @@ class JointTorqueTask(Task):
             raise IfcSpgError(f"joint_torque task: joint(s) {', '.join(stiff)} are stiff "
                               '(position controlled) and have no static torque; remove them')
         super().__init__(robot, dim=len(self.indices), **kwargs)
+        self._fast = robot.ifc == JOINT_IMPEDANCE
+        if self._fast:  # tau_s = K (q_v - q) on the selected joints: A is constant
+            K = robot.stiffness[self.indices]
+            self._K = K
+            self._D = robot.damping[self.indices]
+            A = np.zeros((self.dim, robot.n))
+            A[np.arange(self.dim), self.indices] = K
+            A.setflags(write=False)
+            self._A = A
 
     def compute(self, kin):
-        tau, A, g = static_torque(self.robot, kin, self.include_damping)
         i = self.indices
+        if self._fast:
+            tau = self._K * (kin.q_v[i] - kin.q[i])
+            if self.include_damping:
+                tau -= self._D * kin.qdot[i]
+            return tau, self._A, self._K * kin.qdot[i]
+        tau, A, g = static_torque(self.robot, kin, self.include_damping)
         return tau[i], A[i], g[i]
 
     def compute_gamma(self, kin):
