@@ -3,4 +3,25 @@
 import os
 import sys
 
+import pytest
+
 sys.path.insert(0, os.path.dirname(__file__))
+
+from helpers import use_loopback  # noqa: E402 (needs the path above)
+
+
+@pytest.fixture
+def dds_env(monkeypatch):
+    """This test on its own loopback DDS domain: the environment (also for child processes);
+    the built-in DDS backend is shut down afterwards."""
+    from ifc_spg.ros import dds
+
+    env = use_loopback(monkeypatch)
+    yield env
+    dds.shutdown()
+
+
+@pytest.fixture
+def domain(dds_env):
+    """This test's ROS domain id, on loopback (see ``dds_env``)."""
+    return int(dds_env['ROS_DOMAIN_ID'])

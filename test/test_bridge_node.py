@@ -9,20 +9,10 @@ import pytest
 from ifc_spg.errors import ParameterError
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import qos_profile_sensor_data
-from ifc_spg.ros.testing import LOOPBACK_CONFIG, random_domain_id
 from sim_bridge.node import SimBridge, main, parse_push_frame
 from sim_bridge.simulation import Simulation
 
 pytestmark = pytest.mark.dds
-
-
-@pytest.fixture
-def domain(monkeypatch):
-    monkeypatch.setenv('CYCLONEDDS_URI', LOOPBACK_CONFIG)
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(random_domain_id()))
-    monkeypatch.setenv('IFC_SPG_ROS_BACKEND', 'cyclonedds')
-    yield
-    dds.shutdown()
 
 
 def _commands(k, q0):
@@ -54,7 +44,8 @@ class EchoSpg:
 
 
 def _bridge(args):
-    dds.init(['prog', '--ros-args', *functools.reduce(operator.iadd, (['-p', a] for a in args), [])])
+    dds.init(['prog', '--ros-args',
+              *functools.reduce(operator.iadd, (['-p', a] for a in args), [])])
     node = dds.Node('sim_bridge')
     spg_node = dds.Node('spg')
     spin = node.context.executor((node, spg_node)).spin_once

@@ -6,37 +6,26 @@ bag recorded meanwhile must hold every command the SPG published and close clean
 SIGINT; the SPG must exit cleanly on SIGTERM."""
 
 import json
-from pathlib import Path
 import re
 import signal
 import subprocess
-import sys
 import time
 
+from helpers import BIN, CONFIG, TARGET, reach_stack, use_loopback
 import numpy as np
 import pytest
 
 from ifc_spg.bag import BagReader
 from ifc_spg.model import RobotModel
 from ifc_spg.ros import dds, messages
-from ifc_spg.ros.testing import loopback_env
+from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = pytest.mark.dds
 
-BIN = Path(sys.executable).parent
-CONFIG = Path(__file__).resolve().parent.parent / 'config'
-TARGET = np.array([0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3])
 DT = 0.002
 HOG_SECONDS = 5.0
-STACK = f"""version: 1
-name: reach
-robot: lbr_iiwa14
-tasks:
-  - name: posture
-    type: joint_position
-    equal: {TARGET.tolist()}
-    gain: 5.0
-"""
+STOP_TIMEOUT = 10.0    # [s] from a signal to SIGKILL
+STACK = reach_stack('lbr_iiwa14')
 # a busy loop pinned to the last core, ending by itself after HOG_SECONDS (and killed by PID)
 HOG = ('import os, time\n'
        'os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})\n'
@@ -45,26 +34,8 @@ HOG = ('import os, time\n'
        '    pass\n')
 
 
-def _stop(proc, sig=signal.SIGTERM, timeout=10.0):
-    """Stop a child we started, by PID: ``sig`` first, SIGKILL if it does not exit."""
-    if proc.poll() is None:
-        proc.send_signal(sig)
-        try:
-            proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
-    return proc.returncode
-
-
-def _stamp(msg):
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
-
-
 def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monkeypatch):
-    env = loopback_env()
-    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
-        monkeypatch.setenv(key, env[key])
+    env = use_loopback(monkeypatch)
     stack = tmp_path / 'reach.yaml'
     stack.write_text(STACK)
     bag_path = tmp_path / 'bag'
@@ -74,19 +45,11 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
     status = []
     node.create_subscription(messages.String, 'spg/status',
                              lambda m: status.append(json.loads(m.data)), 100)
-    procs, logs = {}, {}
+    procs = ProcessGroup(tmp_path, env)
+    start, log = procs.start, procs.log
 
-    def start(name, *args, exe=None):
-        logs[name] = open(tmp_path / f'{name}.log', 'w+')
-        cmd = [str(BIN / (exe or name)), *args] if exe != 'python' else [sys.executable, *args]
-        procs[name] = subprocess.Popen(cmd, env=env, stdout=logs[name],
-                                       stderr=subprocess.STDOUT)
-        return procs[name]
-
-    def log(name):
-        if not logs[name].closed:
-            logs[name].flush()
-        return (tmp_path / f'{name}.log').read_text()
+    def stop(name, sig=signal.SIGTERM, timeout=STOP_TIMEOUT):
+        return procs.stop(name, sig, timeout)
 
     def spin_until(condition, timeout):
         return dds.spin_until(condition, timeout, nodes=node)
@@ -101,17 +64,17 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
                           60.0) and rec.poll() is None, log('recorder')
         spg = start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
                     '-p', 'status.decimation:=50')
-        pub = start('task_publisher', str(stack))
+        start('task_publisher', str(stack))
         assert spin_until(lambda: event('stack_accepted') or spg.poll() is not None, 60.0), \
             log('spg_node')
         # the task publisher disappears (SIGKILL: no goodbye); the stack stays latched
-        assert _stop(pub, signal.SIGKILL) == -signal.SIGKILL
+        assert stop('task_publisher', signal.SIGKILL) == -signal.SIGKILL
         # run 1: realtime bridge while a CPU hog loads the machine (bounded, killed by PID)
-        hog = start('hog', '-c', HOG, exe='python')
+        start('hog', '-c', HOG, exe='python')
         bridge = start('bridge1', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=free',
                        '-p', 'mode:=realtime', '-p', 'duration:=3.0', exe='sim_bridge')
         assert spin_until(lambda: bridge.poll() is not None, 60.0), log('bridge1')
-        _stop(hog, signal.SIGKILL)
+        stop('hog', signal.SIGKILL)
         assert bridge.returncode == 0, log('bridge1')
         # the joint states stopped: the watchdog trips and reports it
         assert spin_until(lambda: event('watchdog'), 10.0), log('spg_node')
@@ -122,14 +85,11 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         assert bridge.returncode == 0, log('bridge2')
         assert spin_until(lambda: event('resumed'), 10.0), log('spg_node')
         spin_until(lambda: False, 0.5)
-        assert _stop(spg, signal.SIGTERM) == 0, log('spg_node')  # clean exit on SIGTERM
+        assert stop('spg_node', signal.SIGTERM) == 0, log('spg_node')  # clean exit on SIGTERM
         time.sleep(0.3)
-        assert _stop(rec, signal.SIGINT, 30.0) == 0, log('recorder')  # closes the bag
+        assert stop('recorder', signal.SIGINT, 30.0) == 0, log('recorder')  # closes the bag
     finally:
-        for proc in reversed(list(procs.values())):
-            _stop(proc, signal.SIGKILL)
-        for f in logs.values():
-            f.close()
+        procs.close(signal.SIGKILL, STOP_TIMEOUT)
         dds.shutdown()
 
     # every command the SPG published is in the bag (the SPG's count from its exit line)
@@ -147,7 +107,7 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
     # every command safe; within a session q_v moves at most v_max dT per tick
     q_v = np.array([c.position for c in commands])
     v = np.array([c.velocity for c in commands])
-    stamps = np.array([_stamp(c) for c in commands])
+    stamps = np.array([stamp_ns(c) for c in commands])
     assert np.all(np.isfinite(q_v)) and np.all(np.isfinite(v))
     assert np.all(q_v >= robot.q_min) and np.all(q_v <= robot.q_max)
     assert np.all(np.abs(v) <= robot.v_max * (1 + 1e-9))
@@ -157,10 +117,10 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
     restarts = np.flatnonzero(np.diff(stamps) < 0)
     assert restarts.size == 1                            # the second bridge
     first = restarts[0] + 1
-    q_meas = {_stamp(s): np.array(s.position) for s in states}
+    q_meas = {stamp_ns(s): np.array(s.position) for s in states}
     assert np.all(np.abs(q_v[first] - q_meas[stamps[first]]) <= robot.v_max * DT + 1e-9)
     # the restarted run still reached the stack's target
-    last = max(states, key=_stamp)
+    last = max(states, key=stamp_ns)
     np.testing.assert_allclose(last.position, TARGET, atol=0.02)
 
 

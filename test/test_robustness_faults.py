@@ -3,6 +3,7 @@
 joint states, a silent source (watchdog), a restarted bridge and a restarted SPG. Each test
 asserts the guarantee of README.md "What is always true", every command through CommandChecker."""
 
+from helpers import TARGET, FakeClock, reach_stack
 import numpy as np
 import pytest
 
@@ -13,25 +14,7 @@ from ifc_spg.spg_runner import SpgRunner
 from sim_bridge.simulation import SimConfig, Simulation
 
 DT = 0.002
-TARGET = [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
-REACH = f"""version: 1
-name: reach
-tasks:
-  - name: posture
-    type: joint_position
-    equal: {TARGET}
-    gain: 5.0
-"""
-
-
-class FakeClock:
-    """Monotonic clock [s] of the runner's watchdog, advanced with simulated time."""
-
-    def __init__(self):
-        self.t = 1000.0
-
-    def __call__(self):
-        return self.t
+REACH = reach_stack()
 
 
 class Loop:
@@ -44,7 +27,7 @@ class Loop:
     def __init__(self, q0=None, scene='free', watchdog=0.05, robot='lbr_iiwa14'):
         self.sim = Simulation(SimConfig(robot=robot, scene=scene, q0=q0))
         self.robot = self.sim.robot
-        self.clock = FakeClock()
+        self.clock = FakeClock(1000.0)
         self.runner = SpgRunner(SpgConfig(robot=robot, watchdog_timeout=watchdog),
                                 robot=self.robot, clock=self.clock)
         self.checker = CommandChecker(self.robot, DT)

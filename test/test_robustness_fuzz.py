@@ -3,8 +3,8 @@ task stacks. No exception escapes, every message either ticks or is counted as r
 every command satisfies the limit guarantees (CommandChecker, README.md "What is always true")."""
 
 import math
-from pathlib import Path
 
+from helpers import CONFIG, DT_NS, FakeClock
 import numpy as np
 import pytest
 
@@ -13,19 +13,8 @@ from ifc_spg.soak import STACKS, CommandChecker
 from ifc_spg.spg_config import SpgConfig
 from ifc_spg.spg_runner import REJECT_REASONS, SpgRunner
 
-DT_NS = 2_000_000
-TASKS = Path(__file__).resolve().parent.parent / 'config' / 'tasks'
+TASKS = CONFIG / 'tasks'
 SPECIALS = (math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, 1e6, -1e6)
-
-
-class FakeClock:
-    """Monotonic clock [s] advanced by the test (2 ms per delivered message)."""
-
-    def __init__(self):
-        self.t = 0.0
-
-    def __call__(self):
-        return self.t
 
 
 class TrackingRobot:

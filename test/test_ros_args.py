@@ -145,7 +145,7 @@ def test_malformed_arguments_raise_clear_errors(argv, pattern, tmp_path):
     for key, text in files.items():
         (tmp_path / f'{key}.yaml').write_text(text)
     for key in files:
-        argv = [a.replace('{%s}' % key, str(tmp_path / f'{key}.yaml')) for a in argv]
+        argv = [a.replace('{' + key + '}', str(tmp_path / f'{key}.yaml')) for a in argv]
     with pytest.raises(ParameterError, match=pattern):
         parse_ros_args(argv)
 

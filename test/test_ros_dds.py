@@ -12,20 +12,10 @@ import pytest
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import QoSProfile, latched, qos_profile_sensor_data
-from ifc_spg.ros.testing import LOOPBACK_CONFIG, random_domain_id
 
 pytestmark = pytest.mark.dds
 
 ros = dds  # the built-in backend, whatever rclpy availability
-
-
-@pytest.fixture
-def domain(monkeypatch):
-    domain_id = random_domain_id()
-    monkeypatch.setenv('CYCLONEDDS_URI', LOOPBACK_CONFIG)
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(domain_id))
-    yield domain_id
-    ros.shutdown()
 
 
 def joint_state(i):
@@ -156,7 +146,7 @@ def test_wire_names_user_data_and_discovery_info(domain):
     deadline = time.monotonic() + 5.0
     infos = []
     while time.monotonic() < deadline and not infos:
-        for data, info in ddspy_take(info_reader._ref, SampleState.Any | ViewState.Any |
+        for data, _info in ddspy_take(info_reader._ref, SampleState.Any | ViewState.Any |
                                      InstanceState.Any, 16):
             infos.append(messages.deserialize(messages.ParticipantEntitiesInfo, data))
         time.sleep(0.02)

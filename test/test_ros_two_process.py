@@ -2,18 +2,16 @@
 ``cyclonedds`` CLI seeing the ROS type on ``rt/...`` of a running node."""
 
 import json
-from pathlib import Path
 import subprocess
-import sys
 import time
 
+from helpers import BIN
 import pytest
 
 from ifc_spg.ros.testing import loopback_env, stop_process
 
 pytestmark = pytest.mark.dds
 
-BIN = Path(sys.executable).parent
 IFC_SPG = str(BIN / 'ifc-spg')
 CYCLONEDDS = str(BIN / 'cyclonedds')
 RATE_HZ, DURATION_S = 500.0, 10.0

@@ -2,37 +2,27 @@
 that must stop every process they started."""
 
 import os
-from pathlib import Path
 import re
 import signal
 import subprocess
-import sys
 import time
 import xml.etree.ElementTree as ET
 
+from helpers import BIN, ROOT, reach_stack, use_loopback
 import pytest
 
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import latched
 from ifc_spg.ros.testing import LOOPBACK_CONFIG, loopback_env, stop_process
 
-ROOT = Path(__file__).resolve().parent.parent
 SCRIPTS = sorted((ROOT / 'scripts').glob('*.sh'))
 RUNNABLE = [p for p in SCRIPTS if p.name != 'lib.sh']
-STACK = """version: 1
-name: reach
-robot: lbr_iiwa14
-tasks:
-  - name: posture
-    type: joint_position
-    equal: [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
-    gain: 5.0
-"""
+STACK = reach_stack('lbr_iiwa14')
 
 
 def _env():
     env = loopback_env()
-    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
+    env['PATH'] = f'{BIN}{os.pathsep}{env["PATH"]}'
     return env
 
 
@@ -94,9 +84,7 @@ def test_check_stacks_exit_codes(tmp_path):
 
 
 def test_publish_stack_delivers_and_exits(tmp_path, monkeypatch):
-    env = _env()
-    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
-        monkeypatch.setenv(key, env[key])
+    env = use_loopback(monkeypatch, _env())
     stack = tmp_path / 'reach.yaml'
     stack.write_text(STACK)
     dds.init(['listener'])

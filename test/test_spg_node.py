@@ -2,8 +2,8 @@
 the node and a fake robot (joint-state publisher, command/status listener) in one process."""
 
 import json
-from pathlib import Path
 
+from helpers import CONFIG, DT_NS, TARGET, parse_stack, reach_stack
 import numpy as np
 import pytest
 import yaml
@@ -12,40 +12,15 @@ from ifc_spg.model import RobotModel
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import latched
-from ifc_spg.ros.testing import LOOPBACK_CONFIG, random_domain_id
+from ifc_spg.ros.testing import stamp_ns
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.spg_config import PARAMETERS
 from ifc_spg.spg_node import SpgNode, main
-from ifc_spg.task_stack import TaskStack
 
 pytestmark = pytest.mark.dds
 
-CONFIG = Path(__file__).resolve().parent.parent / 'config'
-DT_NS = 2_000_000
-TARGET = [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
-STACK = f"""version: 1
-name: reach
-tasks:
-  - name: posture
-    type: joint_position
-    equal: {TARGET}
-    gain: 5.0
-"""
+STACK = reach_stack()
 BAD_STACK = STACK.replace('type: joint_position', 'type: joint_positon')
-
-
-def _parse(text):
-    return (TaskStack.from_text if hasattr(TaskStack, 'from_text') else
-            TaskStack.from_yaml)(text)
-
-
-@pytest.fixture
-def domain(monkeypatch):
-    monkeypatch.setenv('CYCLONEDDS_URI', LOOPBACK_CONFIG)
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(random_domain_id()))
-    monkeypatch.setenv('IFC_SPG_ROS_BACKEND', 'cyclonedds')
-    yield
-    dds.shutdown()
 
 
 class FakeRobot:
@@ -102,12 +77,8 @@ def _start(params):
     return spg, FakeRobot(dds.Node('fake_robot'), node)
 
 
-def _stamp_ns(msg):
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
-
-
 def _reference(robot, config):
-    return SetPointGenerator(robot, _parse(STACK), dt=config.dt,
+    return SetPointGenerator(robot, parse_stack(STACK), dt=config.dt,
                              pspm=PspmConfig(config.pspm_initial_energy, config.pspm_max_energy),
                              solver=config.solver, rho=config.rho,
                              torque_limits=config.torque_limits)
@@ -120,7 +91,7 @@ def _closed_loop(robot, spg, ref, fake, q, ticks, k0=0, names=None):
     order = [robot.joint_names.index(n) for n in names]
     for k in range(k0, k0 + ticks):
         cmd = fake.tick(names, q[order], qdot[order], k * DT_NS)
-        assert _stamp_ns(cmd) == k * DT_NS and list(cmd.name) == list(robot.joint_names)
+        assert stamp_ns(cmd) == k * DT_NS and list(cmd.name) == list(robot.joint_names)
         expected = ref.step(q, qdot, k * DT_NS * 1e-9)
         np.testing.assert_array_equal(cmd.position, expected)
         np.testing.assert_array_equal(cmd.velocity, ref.qdot_v)
@@ -176,9 +147,9 @@ def test_bad_messages_are_counted_not_fatal(domain):
     for k, (n, qq, zz, stamp) in enumerate(bad):
         fake.send(n, qq, zz, stamp * DT_NS)
         cmd = fake.tick(names, q, z, (6 + k) * DT_NS)  # the next good one is answered
-        assert _stamp_ns(cmd) == (6 + k) * DT_NS
+        assert stamp_ns(cmd) == (6 + k) * DT_NS
     again = fake.tick(names, q, z, 10 * DT_NS)  # duplicate stamp: the same answer again
-    assert _stamp_ns(again) == 10 * DT_NS and again.position == fake.commands[-2].position
+    assert stamp_ns(again) == 10 * DT_NS and again.position == fake.commands[-2].position
     fake.tick(names, q, z, 11 * DT_NS)
     assert fake.spin_until(lambda: fake.status[-1]['tick'] == 7)
     status = fake.status[-1]

@@ -1,68 +1,32 @@
 """End to end over loopback DDS: ``sim_bridge`` (lockstep, iiwa, free scene), ``spg_node`` and
 ``task_publisher`` as three processes through their console scripts; this test listens."""
 
-import json
-from pathlib import Path
-import subprocess
-import sys
 import time
 
+from helpers import CONFIG, TARGET, reach_stack, record_spg_topics, use_loopback
 import numpy as np
 import pytest
 
 from ifc_spg.model import RobotModel
-from ifc_spg.ros import dds, messages
-from ifc_spg.ros.testing import loopback_env, stop_process
+from ifc_spg.ros import dds
+from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
 pytestmark = pytest.mark.dds
 
-BIN = Path(sys.executable).parent
-CONFIG = Path(__file__).resolve().parent.parent / 'config'
-TARGET = np.array([0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3])
 SIM_SECONDS = 3.0
-STACK = f"""version: 1
-name: reach
-robot: lbr_iiwa14
-tasks:
-  - name: posture
-    type: joint_position
-    equal: {TARGET.tolist()}
-    gain: 5.0
-"""
-
-
-
-def _stamp(msg):
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+STACK = reach_stack('lbr_iiwa14')
 
 
 def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypatch):
-    env = loopback_env()
-    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
-        monkeypatch.setenv(key, env[key])
+    env = use_loopback(monkeypatch)
     stack = tmp_path / 'reach.yaml'
     stack.write_text(STACK)
     robot = RobotModel.from_config('lbr_iiwa14')
     dds.init(['test'])
     node = dds.Node('listener')
-    states, commands, status = [], [], []
-    node.create_subscription(messages.JointState, 'joint_states', states.append, 100)
-    node.create_subscription(messages.JointState, 'command/joint_position', commands.append, 100)
-    node.create_subscription(messages.String, 'spg/status',
-                             lambda m: status.append(json.loads(m.data)), 100)
-    procs = []
-    logs = {}
-
-    def start(name, *args):
-        logs[name] = open(tmp_path / f'{name}.log', 'w+')
-        procs.append(subprocess.Popen([str(BIN / name), *args], env=env, stdout=logs[name],
-                                      stderr=subprocess.STDOUT))
-        return procs[-1]
-
-    def log(name):
-        logs[name].flush()
-        return (tmp_path / f'{name}.log').read_text()
-
+    states, commands, status = record_spg_topics(node)
+    procs = ProcessGroup(tmp_path, env)
+    start, log = procs.start, procs.log
     try:
         spg = start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
                     '-p', 'status.decimation:=50')
@@ -81,17 +45,14 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
         assert dds.spin_until(lambda: len(commands) >= ticks, 10.0, nodes=node), \
             (len(commands), log('spg_node'))
     finally:
-        for proc in reversed(procs):
-            stop_process(proc)
-        for f in logs.values():
-            f.close()
+        procs.close()
         dds.shutdown()
     assert spg.returncode == 0  # a clean exit on SIGTERM
 
     # One command per tick, answering each state by its stamp (the lockstep bridge re-sends a
     # state it got no answer for; a repeated stamp is answered with the same command).
-    state_stamps = sorted({_stamp(m) for m in states})
-    command_stamps = [_stamp(m) for m in commands]
+    state_stamps = sorted({stamp_ns(m) for m in states})
+    command_stamps = [stamp_ns(m) for m in commands]
     assert sorted(set(command_stamps)) == state_stamps[:len(set(command_stamps))]
     assert len(set(command_stamps)) >= ticks
     q_v = np.array([m.position for m in commands])
@@ -101,7 +62,7 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
     steps = np.abs(np.diff(q_v, axis=0))
     assert np.all(steps <= robot.v_max * 0.002 + 1e-12)  # never faster than v_max
     # The simulated robot (not just q_v) reached the stack's target.
-    q_final = np.array(max(states, key=_stamp).position)
+    q_final = np.array(max(states, key=stamp_ns).position)
     np.testing.assert_allclose(q_final, TARGET, atol=0.01)
     last = [s for s in status if 'event' not in s][-1]
     assert last['stack']['name'] == 'reach' and last['state'] == 'running'

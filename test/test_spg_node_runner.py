@@ -2,6 +2,7 @@
 
 import json
 
+from helpers import DT_NS, FakeClock, parse_stack, reach_stack
 import numpy as np
 import pytest
 
@@ -11,33 +12,8 @@ from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.spg_config import PARAMETERS, SpgConfig, config_from_parameters
 from ifc_spg.spg_runner import REJECT_REASONS, SpgRunner, status_json
-from ifc_spg.task_stack import TaskStack
 
-DT_NS = 2_000_000
-TARGET = [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
-STACK = f"""version: 1
-name: reach
-tasks:
-  - name: posture
-    type: joint_position
-    equal: {TARGET}
-    gain: 5.0
-"""
-
-
-def _parse(text):
-    return (TaskStack.from_text if hasattr(TaskStack, 'from_text') else
-            TaskStack.from_yaml)(text)
-
-
-class FakeClock:
-    """A monotonic clock the test advances by hand [s]."""
-
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self):
-        return self.t
+STACK = reach_stack()
 
 
 @pytest.fixture(scope='module')
@@ -46,7 +22,7 @@ def robot():
 
 
 def _reference(robot, config):
-    return SetPointGenerator(robot, _parse(STACK), dt=config.dt,
+    return SetPointGenerator(robot, parse_stack(STACK), dt=config.dt,
                              pspm=PspmConfig(config.pspm_initial_energy, config.pspm_max_energy),
                              solver=config.solver, rho=config.rho,
                              torque_limits=config.torque_limits)
@@ -101,7 +77,7 @@ def test_every_bad_input_is_counted_and_the_next_good_one_ticks(robot):
 
 
 def test_watchdog_stops_and_restarts_from_the_measured_q(robot):
-    clock = FakeClock()
+    clock = FakeClock(100.0)
     config = SpgConfig(watchdog_timeout=0.05)
     runner = SpgRunner(config, robot, clock=clock)
     runner.handle_task_stack(STACK)
@@ -125,7 +101,7 @@ def test_watchdog_stops_and_restarts_from_the_measured_q(robot):
 
 
 def test_stamp_gap_trips_and_a_restarted_clock_is_accepted_after_it(robot):
-    runner = SpgRunner(SpgConfig(watchdog_timeout=0.05), robot, clock=FakeClock())
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.05), robot, clock=FakeClock(100.0))
     q, z, names = robot.q_home.copy(), np.zeros(robot.n), robot.joint_names
     runner.handle_joint_state(names, q, z, 1000 * DT_NS)
     cmd = runner.handle_joint_state(names, q + 0.01, z, 1000 * DT_NS + 60_000_000)
@@ -140,7 +116,7 @@ def test_stamp_gap_trips_and_a_restarted_clock_is_accepted_after_it(robot):
 
 
 def test_a_paused_source_with_continuous_stamps_continues_without_restart(robot):
-    clock = FakeClock()
+    clock = FakeClock(100.0)
     runner = SpgRunner(SpgConfig(watchdog_timeout=0.05), robot, clock=clock)
     ref = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot)
     for r in (runner, ref):

@@ -3,39 +3,21 @@ sequences, exit codes (in-process and as a process, loopback DDS, own domain).""
 
 from pathlib import Path
 import subprocess
-import sys
 import time
 
+from helpers import BIN, reach_stack
 import pytest
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import latched
-from ifc_spg.ros.testing import loopback_env, stop_process
+from ifc_spg.ros.testing import stop_process
 from ifc_spg.task_publisher import main, parse_entry
 from ifc_spg.task_stack.check import main as check_main
 
 pytestmark = pytest.mark.dds
 
-BIN = Path(sys.executable).parent
-STACK = """version: 1
-name: {name}
-robot: lbr_iiwa14
-tasks:
-  - name: posture
-    type: joint_position
-    equal: [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]
-    gain: 5.0
-"""
-
-
-@pytest.fixture
-def env(monkeypatch):
-    e = loopback_env()
-    for key in ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND'):
-        monkeypatch.setenv(key, e[key])
-    yield e
-    dds.shutdown()
+STACK = reach_stack('lbr_iiwa14', name='{name}')
 
 
 def _file(tmp_path, name, text=None):
@@ -99,7 +81,7 @@ def test_unreadable_file_and_bad_options_exit_2(tmp_path, capsys):
     assert main(['task_publisher']) == 2
 
 
-def test_once_waits_for_a_subscriber_and_delivers(tmp_path, env):
+def test_once_waits_for_a_subscriber_and_delivers(tmp_path, dds_env):
     path = _file(tmp_path, 'reach')
     listener = Listener()
     try:
@@ -110,16 +92,16 @@ def test_once_waits_for_a_subscriber_and_delivers(tmp_path, env):
         listener.close()
 
 
-def test_once_without_subscriber_exits_1(tmp_path, env):
+def test_once_without_subscriber_exits_1(tmp_path, dds_env):
     assert main(['task_publisher', _file(tmp_path, 'a'), '--once', '--timeout', '0.3']) == 1
 
 
-def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, env):
+def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, dds_env):
     a, b = _file(tmp_path, 'first'), _file(tmp_path, 'second')
     listener = Listener()
     proc = subprocess.Popen([str(BIN / 'task_publisher'), f'{b}@0.8', a,
                              '--wait-subscribers', '1', '--linger', '0.5'],
-                            env=env, stderr=subprocess.PIPE, text=True)
+                            env=dds_env, stderr=subprocess.PIPE, text=True)
     late = None
     try:
         assert listener.spin_until(lambda: len(listener.received) == 2, 30.0), \
@@ -139,9 +121,9 @@ def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, env)
             late.close()
 
 
-def test_stays_alive_until_sigterm_and_exits_0(tmp_path, env):
+def test_stays_alive_until_sigterm_and_exits_0(tmp_path, dds_env):
     listener = Listener()
-    proc = subprocess.Popen([str(BIN / 'task_publisher'), _file(tmp_path, 'a')], env=env,
+    proc = subprocess.Popen([str(BIN / 'task_publisher'), _file(tmp_path, 'a')], env=dds_env,
                             stderr=subprocess.DEVNULL)
     try:
         assert listener.spin_until(lambda: listener.received, 30.0)

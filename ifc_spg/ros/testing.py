@@ -1,17 +1,23 @@
-"""Test helpers: a loopback-only Cyclone DDS configuration and a random ROS domain.
+"""Test helpers: a loopback-only Cyclone DDS configuration, a random ROS domain, and child
+processes started (and stopped, by PID) from a test.
 
     env = loopback_env()            # for subprocesses: CYCLONEDDS_URI + ROS_DOMAIN_ID
-    monkeypatch.setenv(...)         # or apply to the current process in a test
+    monkeypatch.setenv(...)         # or apply LOOPBACK_KEYS to the current process in a test
+    procs = ProcessGroup(tmp_path, env)   # console scripts logging to tmp_path/<name>.log
 
 Cyclone binds to ``lo`` only (``lo`` has no MULTICAST flag, so multicast is switched off and the
 participants find each other by unicast to 127.0.0.1).
 """
 
 import os
+from pathlib import Path
 import random
+import signal
 import subprocess
+import sys
 
-__all__ = ['LOOPBACK_CONFIG', 'loopback_env', 'random_domain_id', 'stop_process']
+__all__ = ['LOOPBACK_CONFIG', 'LOOPBACK_KEYS', 'ProcessGroup', 'loopback_env',
+           'random_domain_id', 'stamp_ns', 'stop_process']
 
 LOOPBACK_CONFIG = (
     '<CycloneDDS><Domain Id="any"><General>'
@@ -21,6 +27,8 @@ LOOPBACK_CONFIG = (
     '<MaxAutoParticipantIndex>30</MaxAutoParticipantIndex>'
     '<Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
     '</Domain></CycloneDDS>')
+# the environment variables :func:`loopback_env` sets
+LOOPBACK_KEYS = ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND')
 
 
 def random_domain_id(rng=None):
@@ -38,13 +46,71 @@ def loopback_env(domain_id=None, base=None):
     return env
 
 
-def stop_process(proc, timeout=5.0):
-    """Terminate a child process we started (by its PID), reap it; return its exit code."""
+def stop_process(proc, timeout=5.0, sig=signal.SIGTERM):
+    """Stop a child process we started (by its PID) and reap it.
+
+    Args:
+        proc: a :class:`subprocess.Popen`.
+        timeout: how long to wait [s] after ``sig``, and again after SIGKILL.
+        sig: the signal sent first (SIGKILL follows if the child does not exit in time).
+
+    Returns:
+        The child's exit code (``-signal`` if a signal ended it).
+    """
     if proc.poll() is None:
-        proc.terminate()
+        proc.send_signal(sig)
         try:
             proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout=timeout)
     return proc.returncode
+
+
+def stamp_ns(msg):
+    """The ``header.stamp`` of a stamped message as an int [ns]."""
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+class ProcessGroup:
+    """Child processes of one test, each logging (stdout and stderr) to ``<name>.log``.
+
+    Args:
+        log_dir: folder of the log files.
+        env: environment of the children (e.g. :func:`loopback_env`).
+        bin_dir: folder of the console scripts; default: the running interpreter's.
+    """
+
+    def __init__(self, log_dir, env, bin_dir=None):
+        self.log_dir, self.env = Path(log_dir), env
+        self.bin_dir = Path(sys.executable).parent if bin_dir is None else Path(bin_dir)
+        self.procs, self.logs = {}, {}
+
+    def start(self, name, *args, exe=None):
+        """Start console script ``exe`` (default ``name``; ``'python'``: this interpreter).
+
+        Returns:
+            The :class:`subprocess.Popen`, also kept as ``procs[name]``.
+        """
+        self.logs[name] = open(self.log_dir / f'{name}.log', 'w+')
+        cmd = [sys.executable] if exe == 'python' else [str(self.bin_dir / (exe or name))]
+        self.procs[name] = subprocess.Popen([*cmd, *args], env=self.env,
+                                            stdout=self.logs[name], stderr=subprocess.STDOUT)
+        return self.procs[name]
+
+    def log(self, name):
+        """Everything child ``name`` has written so far (also after :meth:`close`)."""
+        if not self.logs[name].closed:
+            self.logs[name].flush()
+        return (self.log_dir / f'{name}.log').read_text()
+
+    def stop(self, name, sig=signal.SIGTERM, timeout=15.0):
+        """Stop child ``name`` with ``sig`` (SIGKILL after ``timeout`` [s]); its exit code."""
+        return stop_process(self.procs[name], timeout=timeout, sig=sig)
+
+    def close(self, sig=signal.SIGTERM, timeout=5.0):
+        """Stop every child still running, the last started first, and close the logs."""
+        for proc in reversed(list(self.procs.values())):
+            stop_process(proc, timeout=timeout, sig=sig)
+        for f in self.logs.values():
+            f.close()

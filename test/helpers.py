@@ -1,0 +1,72 @@
+"""Helpers shared by the tests: paths, the reach stack, a hand-driven clock, a loopback domain.
+
+Tests import them by name (conftest.py puts this folder on sys.path)::
+
+    from helpers import CONFIG, TARGET, reach_stack
+"""
+
+import json
+from pathlib import Path
+import sys
+
+from ifc_spg.ros import messages
+from ifc_spg.ros.testing import LOOPBACK_KEYS, loopback_env
+from ifc_spg.task_stack import TaskStack
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIG = ROOT / 'config'
+BIN = Path(sys.executable).parent          # the console scripts of this environment
+DT_NS = 2_000_000                          # [ns] the 500 Hz command period
+TARGET = [0.3, 0.7, 0.2, -0.9, 0.1, 1.2, 0.3]  # [rad] the reach stack's iiwa posture
+
+
+def reach_stack(robot=None, name='reach'):
+    """The one-task stack driving the joints to TARGET (gain 5.0), as YAML text.
+
+    Args:
+        robot: the ``robot:`` line's value; None leaves the line out.
+        name: the stack's name.
+    """
+    robot_line = '' if robot is None else f'robot: {robot}\n'
+    return (f'version: 1\nname: {name}\n{robot_line}tasks:\n  - name: posture\n'
+            f'    type: joint_position\n    equal: {TARGET}\n    gain: 5.0\n')
+
+
+def parse_stack(text):
+    """A TaskStack from YAML or JSON text."""
+    return TaskStack.from_text(text)
+
+
+class FakeClock:
+    """A monotonic clock [s] the test advances by hand (set ``t``)."""
+
+    def __init__(self, t=0.0):
+        self.t = t
+
+    def __call__(self):
+        return self.t
+
+
+def record_spg_topics(node, depth=100):
+    """Subscribe ``node`` to joint_states, command/joint_position and spg/status.
+
+    Returns:
+        The lists (states, commands, status) the messages are appended to; status documents
+        parsed from JSON.
+    """
+    states, commands, status = [], [], []
+    node.create_subscription(messages.JointState, 'joint_states', states.append, depth)
+    node.create_subscription(messages.JointState, 'command/joint_position', commands.append,
+                             depth)
+    node.create_subscription(messages.String, 'spg/status',
+                             lambda m: status.append(json.loads(m.data)), depth)
+    return states, commands, status
+
+
+def use_loopback(monkeypatch, env=None):
+    """Apply the loopback DDS variables of ``env`` (default: a new :func:`loopback_env`, on a
+    random domain) to this process for one test; return ``env`` for child processes."""
+    env = loopback_env() if env is None else env
+    for key in LOOPBACK_KEYS:
+        monkeypatch.setenv(key, env[key])
+    return env
