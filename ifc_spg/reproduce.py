@@ -458,6 +458,12 @@ def _fig_3_4(runs, quick, path):
     _save(fig, path)
 
 
+def _shade_pushes(ax, r):
+    """Shade the time windows of the run's pushes on ``ax``."""
+    for a, b in _push_windows(r):
+        ax.axvspan(a, b, color='0.9', zorder=0)
+
+
 def _push_windows(run):
     return [(p['at'], p['at'] + p['duration']) for p in run.pushes]
 
@@ -531,8 +537,7 @@ def _fig_cup(runs, quick, path, chain):
     axes[1].set_ylabel('orientation error [deg]')
     axes[1].legend()
     for ax in axes:
-        for a, b in _push_windows(r):
-            ax.axvspan(a, b, color='0.9', zorder=0)
+        _shade_pushes(ax, r)
         ax.set_xlabel('time [s]')
     _save(fig, path)
 
@@ -751,8 +756,7 @@ def _fig_4_2(runs, quick, path):
                 label='y virtual')
         ax.axhline(_BOX_HI[0], color='k', ls='--', lw=0.8, label='box face x = 0.5')
         ax.axhline(_BOX_LO[1], color='0.5', ls='--', lw=0.8, label='box face y = 0.2')
-        for a, b in _push_windows(r):
-            ax.axvspan(a, b, color='0.9', zorder=0)
+        _shade_pushes(ax, r)
         ax.set_title(f'K = {k:g} Nm/rad')
         ax.set_xlabel('time [s]')
     axes[0].set_ylabel('tool position [m]')
@@ -810,8 +814,7 @@ def _fig_4_3(runs, quick, path):
     axes[1].set_ylabel('x - x_init [mm]')
     axes[1].legend()
     for ax in axes:
-        for a, b in _push_windows(r):
-            ax.axvspan(a, b, color='0.9', zorder=0)
+        _shade_pushes(ax, r)
         ax.set_xlabel('time [s]')
     _save(fig, path)
 
@@ -857,8 +860,7 @@ def _fig_4_4(runs, quick, path):
     ax.plot(t, along * 100, color='#d62728', label='along z_ee')
     ax.plot(t, perp[:, 0] * 100, color='#1f77b4', label='perpendicular, x')
     ax.plot(t, perp[:, 1] * 100, color='#2ca02c', label='perpendicular, y')
-    for a, b in _push_windows(r):
-        ax.axvspan(a, b, color='0.9', zorder=0)
+    _shade_pushes(ax, r)
     ax.set_ylabel('tool displacement [cm]')
     ax.set_xlabel('time [s]')
     ax.legend()
