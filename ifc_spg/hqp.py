@@ -146,34 +146,8 @@ class DaqpCascade(CascadeSolver):
         self._solve = daqp.solve
         self._solve_model = lambda model: model.solve()
         self._settings = {'primal_tol': float(primal_tol)}
-        self._H = {}
         self._ws = {}
         self.cold_retries = 0
-
-    def _hessian(self, m):
-        H = self._H.get(m)
-        if H is None:
-            H = np.diag(np.concatenate([np.full(self.n, self.rho), np.ones(m)]))
-            self._H[m] = H
-        return H
-
-    def solve_level(self, A, lower, upper, A_bar, b_lo, b_hi, box_lo, box_hi, eq_rows):
-        n = self.n
-        m = A.shape[0]
-        r = A_bar.shape[0]
-        C = np.zeros((m + r, n + m))
-        C[:m, :n] = A
-        C[:m, n:] = -np.eye(m)
-        C[m:, :n] = A_bar
-        bu = np.concatenate([box_hi, np.full(m, _BIG), upper, b_hi])
-        bl = np.concatenate([box_lo, np.full(m, -_BIG), lower, b_lo])
-        np.clip(bu, -_BIG, _BIG, out=bu)
-        np.clip(bl, -_BIG, _BIG, out=bl)
-        sense = np.zeros(n + m + m + r, dtype=np.int32)
-        sense[n + m:][eq_rows] = _EQ
-        x, _, flag, _ = self._solve(self._hessian(m), np.zeros(n + m), C, bu, bl, sense,
-                                    **self._settings)
-        return x[:n], x[n:], flag == 1
 
     def solve(self, levels, box):
         """Solve the cascade (fast path: one stacked problem, only bounds change per level).
