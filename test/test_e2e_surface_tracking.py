@@ -367,7 +367,11 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
         q_v = np.array([c.position for c in cmds])
         stamps = np.array([stamp_ns(c) for c in cmds])
         assert np.all(np.diff(stamps) >= 0)
-        assert np.all(np.abs(np.diff(q_v, axis=0)) <= v_step)  # never a jump in a session
+        # never a jump in a session: at most v_max dT per tick. The test's own subscriber
+        # (keep-last history) may miss a command when this machine is loaded, so the bound
+        # is per tick between the commands it did receive.
+        ticks = np.maximum(np.round(np.diff(stamps) / (DT * 1e9)), 1.0)[:, None]
+        assert np.all(np.abs(np.diff(q_v, axis=0)) <= v_step * ticks)
         assert np.all(q_v >= robot.q_min) and np.all(q_v <= robot.q_max)
         if k:
             # the first command after a restart: the measured q it answers + one step
