@@ -27,8 +27,7 @@ __all__ = ['CascadeResult', 'CascadeSolver', 'DaqpCascade', 'ProxsuiteCascade', 
            'build_levels', 'make_solver', 'level_violation']
 
 _BIG = 1e30  # what the solvers take as infinity
-_EQ = 5      # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
-_IMMUTABLE = 4
+_EQ = 5  # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
 
 
 class CascadeResult(NamedTuple):
@@ -40,15 +39,12 @@ class CascadeResult(NamedTuple):
         status: 'ok', 'fallback' (a level failed; the previous level's solution is used)
             or 'hold' (the first level failed; zero velocity clipped into the box).
         failed_level: Index of the failed level, or -1.
-        box_violation: How far the solver's raw solution lay outside the box (>= 0) before
-            it was clipped; solver tolerance only.
     """
 
     qdot_v: np.ndarray
     slacks: list
     status: str
     failed_level: int
-    box_violation: float = 0.0
 
 
 def build_levels(tasks, kin, t):
@@ -110,8 +106,7 @@ class CascadeSolver:
             if not ok or not (np.all(np.isfinite(x)) and np.all(np.isfinite(s))):
                 slacks.extend(np.full(lev.A.shape[0], np.nan) for lev in levels[i:])
                 status = 'hold' if i == 0 else 'fallback'
-                return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, status, i,
-                                     _outside(qdot, box_lo, box_hi))
+                return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, status, i)
             qdot = x
             slacks.append(s)
             a = lev.A @ x
@@ -122,20 +117,25 @@ class CascadeSolver:
             b_lo = np.concatenate([lo, b_lo])
             b_hi = np.concatenate([hi, b_hi])
             eq_bar = np.concatenate([np.zeros(m, dtype=bool), eq_bar])
-        return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, 'ok', -1,
-                             _outside(qdot, box_lo, box_hi))
-
-
-def _outside(x, lo, hi):
-    return float(max(np.max(lo - x, initial=0.0), np.max(x - hi, initial=0.0)))
+        return CascadeResult(np.clip(qdot, box_lo, box_hi), slacks, 'ok', -1)
 
 
 class DaqpCascade(CascadeSolver):
     """The cascade with DAQP (exact dual active-set QP, PyPI ``daqp``).
 
-    The rows of all levels are stacked once per tick in priority order; level i solves
-    over the rows of levels 0..i with slack columns on its own rows only, and writes its
-    locked bounds in place. Nothing is re-assembled between levels.
+    The rows of all levels are stacked once per tick in priority order into one DAQP
+    model over qdot_v (n variables, the box as simple bounds); the rows of lower levels
+    stay unbounded until their level is locked. An equality level needs no slack
+    variables: with s = A_i qdot_v - beta_i free, (4.45)-(4.48) is exactly
+
+        min 1/2 qdot_v^T (rho I + A_i^T A_i) qdot_v - (A_i^T beta_i)^T qdot_v
+
+    under the locked higher rows and the box, so the model only gets a new cost per
+    level. An inequality level the current solution already satisfies is locked without
+    a QP; one that it violates is solved with its slacks, (4.45)-(4.48) as written.
+
+    The cost's condition number grows like |A_i|^2 / rho; below rho = 1e-6 (only used to
+    compare with pseudo-inverses) equality levels also take the slack form.
     """
 
     name = 'daqp'
@@ -147,16 +147,11 @@ class DaqpCascade(CascadeSolver):
         self._solve_model = lambda model: model.solve()
         self._settings = {'primal_tol': float(primal_tol)}
         self._ws = {}
+        self._normal_form = self.rho >= 1e-6
         self.cold_retries = 0
 
     def solve(self, levels, box):
-        """Solve the cascade (fast path: one stacked problem, only bounds change per level).
-
-        All levels share one constraint matrix [A_all, -I_R] over w = [qdot_v; s_1..s_k]:
-        level i frees its own slacks, fixes the others to zero (so the rows of the higher
-        levels are hard, at their locked bounds) and leaves the rows of lower levels
-        unbounded. The QP of level i is then exactly (4.45)-(4.48).
-        """
+        """Solve the cascade; return a :class:`CascadeResult` (see the class docstring)."""
         if not levels:
             return super().solve(levels, box)
         n = self.n
@@ -165,149 +160,175 @@ class DaqpCascade(CascadeSolver):
         ws = self._ws.get(R)
         if ws is None:
             ws = self._ws[R] = _Workspace(n, R, self.rho, self._settings)
-        C, bu, bl, sense = ws.C, ws.bu, ws.bl, ws.sense
-        A_all = C[:, :n]
+        A_all, orig_lo, orig_hi = ws.A, ws.orig_lo, ws.orig_hi
+        bl, bu, lo_rows, hi_rows = ws.bl, ws.bu, ws.lo_rows, ws.hi_rows
         row = 0
         for lev, m in zip(levels, ms):
             A_all[row:row + m] = lev.A
-            bl[n + R + row:n + R + row + m] = lev.lower
-            bu[n + R + row:n + R + row + m] = lev.upper
+            orig_lo[row:row + m] = lev.lower
+            orig_hi[row:row + m] = lev.upper
             row += m
-        np.abs(A_all, out=ws.abs_A)
-        # lock band of every row: lock_tolerance per unit of the row's 1-norm (see below)
-        band = ws.abs_A.sum(axis=1)
+        # lock band of every row: lock_tolerance per unit of the row's 1-norm. Locked
+        # equality rows of several levels are often redundant (higher levels may fix
+        # qdot_v completely); exact equalities would then be inconsistent by round-off.
+        band = np.abs(A_all).sum(axis=1)
         band += 1.0
         band *= self.lock_tolerance
-        lo_rows = bl[n + R:]
-        hi_rows = bu[n + R:]
-        np.maximum(lo_rows, -_BIG, out=lo_rows)
-        np.minimum(hi_rows, _BIG, out=hi_rows)
-        eq_all = lo_rows == hi_rows
-        eq_sense = np.where(eq_all, _EQ, 0)
-        orig_lo = lo_rows.copy()
-        orig_hi = hi_rows.copy()
-        # lower levels start unbounded; slacks start fixed at zero
-        lo_rows[:] = -_BIG
-        hi_rows[:] = _BIG
-        np.maximum(box.lower, -_BIG, out=bl[:n])
-        np.minimum(box.upper, _BIG, out=bu[:n])
-        bl[n:n + R] = 0.0
-        bu[n:n + R] = 0.0
-        sense[:] = 0
-        sense[n:n + R] = _EQ
-        row_sense = sense[n + R:]
-        zeros = ws.f
-        qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
+        bl[:n] = box.lower  # (DAQP takes +-inf as unbounded)
+        bu[:n] = box.upper
+        qdot = None  # no level solved yet: the point of the box nearest zero (made on demand)
         slacks = []
         start = 0
-        a_sent = False
-        for i, m in enumerate(ms):
+        for i, (lev, m) in enumerate(zip(levels, ms)):
             end = start + m
             sl = slice(start, end)
-            slack = slice(n + start, n + end)
-            if not levels[i].equality and _satisfied(a := A_all[sl] @ qdot, orig_lo[sl],
-                                                     orig_hi[sl]):
-                # The current solution already satisfies this level with zero slack. It
-                # minimizes rho |qdot|^2 over everything the higher levels allow, so it is
-                # this level's optimum too: no QP needed (typical for inactive
-                # inequalities: obstacles, boxes, torque bands).
-                slacks.append(np.zeros(m))
-                lo = np.minimum(orig_lo[sl], a)
-                hi = np.maximum(orig_hi[sl], a)
-                lo -= band[sl]
-                hi += band[sl]
-                lo_rows[sl] = lo
-                hi_rows[sl] = hi
-                start = end
-                continue
-            lo_rows[sl] = orig_lo[sl]
-            hi_rows[sl] = orig_hi[sl]
-            row_sense[sl] = eq_sense[sl]
-            bl[slack] = -_BIG
-            bu[slack] = _BIG
-            sense[slack] = 0
-            if not a_sent:
-                ws.model.update(A=C, bupper=bu, blower=bl, sense=sense)
-                a_sent = True
-            else:
-                ws.model.update(bupper=bu, blower=bl, sense=sense)
-            x, _, flag, _ = self._solve_model(ws.model)
-            if flag != 1:
-                # the warm-started workspace can end in a false 'infeasible' on degenerate
-                # levels (a higher level locked at a vertex of the box); a cold solve of the
-                # same problem is exact, so retry once before giving up
-                self.cold_retries += 1
-                # (DAQP writes its working set into `sense`: keep only the equality flags)
-                cold = np.where(sense & _IMMUTABLE, _EQ, 0).astype(np.int32)
-                x, _, flag, _ = self._solve(ws.H, ws.f, C, bu, bl, cold, **self._settings)
-            # x @ 0 is 0 for any finite x and NaN otherwise (cheaper than isfinite().all())
-            if flag != 1 or not math.isfinite(x @ zeros):
+            A_i = A_all[sl]
+            if lev.equality and self._normal_form:
+                beta = orig_lo[sl]
+                H, f, model = ws.level(i, start)
+                np.dot(A_i.T, A_i, out=H)
+                H.reshape(-1)[::n + 1] += self.rho
+                np.dot(beta, A_i, out=f)
+                np.negative(f, out=f)
+                # Each level index has its own DAQP model, which keeps its working set: the
+                # solve starts from this level's active bounds and rows of the last tick.
+                if start:
+                    model.update(H=H, f=f, A=A_all[:start], blower=bl[:n + start])
+                else:  # the first level: the box only
+                    model.update(H=H, f=f, blower=bl[:n])
+                x, _, flag, _ = self._solve_model(model)
+                if flag != 1:
+                    # a warm start can end in a false 'infeasible' on degenerate levels (a
+                    # higher level locked at a vertex of the box); retry cold
+                    self.cold_retries += 1
+                    model.update(sense=ws.cold_sense[:n + start])
+                    x, _, flag, _ = self._solve_model(model)
+                # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
+                if flag == 1 and math.isfinite(x @ f):
+                    qdot, a = _accept(ws, x, start, end, end < R)
+                    slacks.append(a - beta)
+                    if end < R:  # lock (4.60)-(4.62); the last level needs no lock
+                        lo_rows[sl] = a - band[sl]
+                        hi_rows[sl] = a + band[sl]
+                    start = end
+                    continue
+                # retry below in the slack form (better conditioned)
+            elif not lev.equality:
+                if qdot is None:
+                    qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
+                a = A_i @ qdot
+                if _satisfied(a, orig_lo[sl], orig_hi[sl]):
+                    # The current solution satisfies this level with zero slack. It minimizes
+                    # rho |qdot|^2 over everything the higher levels allow, so it is this
+                    # level's optimum too: no QP needed (typical for inactive inequalities:
+                    # obstacles, boxes, torque bands).
+                    slacks.append(np.zeros(m))
+                    lo_rows[sl] = np.minimum(orig_lo[sl], a) - band[sl]
+                    hi_rows[sl] = np.maximum(orig_hi[sl], a) + band[sl]
+                    start = end
+                    continue
+            w, flag = self._solve_with_slacks(ws, start, end)
+            if flag != 1 or not math.isfinite(w @ ws.zeros_w[:n + m]):
                 slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
-                return _result(qdot, bl[:n], bu[:n], slacks, 'hold' if i == 0 else 'fallback',
-                               i)
-            qdot = x[:n]
-            s = x[slack]
+                if qdot is None:
+                    qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
+                return CascadeResult(qdot, slacks, 'hold' if i == 0 else 'fallback', i)
+            x = w[:n]
+            qdot, a = _accept(ws, x, start, end, end < R)
+            s = w[n:]
             slacks.append(s)
-            a = A_all[sl] @ qdot
-            # lock: [lower + s*, upper + s*] (A qdot* for equality rows), widened by a band
-            # of lock_tolerance relative to the row norm. Locked equality rows of several
-            # levels are often redundant (higher levels may fix qdot_v completely); exact
-            # equalities would then be inconsistent by round-off and the level infeasible.
-            if levels[i].equality:
-                lo = a.copy()
-                hi = a
-            else:
-                lo = np.minimum(orig_lo[sl] + s, a)
-                hi = np.maximum(orig_hi[sl] + s, a)
-                eq = eq_all[sl]
-                if eq.any():
-                    lo[eq] = a[eq]
-                    hi[eq] = a[eq]
-            lo -= band[sl]
-            hi += band[sl]
-            lo_rows[sl] = lo
-            hi_rows[sl] = hi
-            row_sense[sl] = 0
-            # lock: the slacks of this level are fixed to zero from now on
-            bl[slack] = 0.0
-            bu[slack] = 0.0
-            sense[slack] = _EQ
+            # lock: [lower + s*, upper + s*] (A qdot* for equality rows), widened by the band
+            eq = orig_lo[sl] == orig_hi[sl]
+            lo = np.where(eq, a, np.minimum(orig_lo[sl] + s, a))
+            hi = np.where(eq, a, np.maximum(orig_hi[sl] + s, a))
+            lo_rows[sl] = lo - band[sl]
+            hi_rows[sl] = hi + band[sl]
             start = end
-        return _result(qdot, bl[:n], bu[:n], slacks, 'ok', -1)
+        return CascadeResult(qdot, slacks, 'ok', -1)
+
+    def _solve_with_slacks(self, ws, start, end):
+        """Level ``start:end`` as (4.45)-(4.48) over [qdot_v; s]; return ``(x, exitflag)``."""
+        n, m = self.n, end - start
+        C = np.zeros((end, n + m))
+        C[:, :n] = ws.A[:end]
+        C[start:, n:] = -_eye(m)
+        bu = np.concatenate([ws.bu[:n], np.full(m, _BIG), ws.hi_rows[:start],
+                             ws.orig_hi[start:end]])
+        bl = np.concatenate([ws.bl[:n], np.full(m, -_BIG), ws.lo_rows[:start],
+                             ws.orig_lo[start:end]])
+        sense = np.zeros(n + m + end, dtype=np.int32)
+        sense[n + m + start:] = np.where(ws.orig_lo[start:end] == ws.orig_hi[start:end], _EQ, 0)
+        H = np.diag(np.concatenate([np.full(n, self.rho), np.ones(m)]))
+        x, _, flag, _ = self._solve(H, np.zeros(n + m), C, bu, bl, sense, **self._settings)
+        return x, flag
 
 
 class _Workspace:
-    """Preallocated stacked problem of a cascade with R task rows over n joints, and the
-    DAQP model (workspace) that solves it; only bounds (and A once per tick) change."""
+    """Preallocated rows and bounds of a cascade with R task rows over n joints, and one
+    DAQP model per level index that points at them (so updates only say what changed)."""
 
     def __init__(self, n, R, rho, settings):
-        self.C = np.zeros((R, n + R))
-        self.C[:, n:] = -np.eye(R)
-        self.H = np.diag(np.concatenate([np.full(n, rho), np.ones(R)]))
-        self.f = np.zeros(n + R)
-        self.bu = np.zeros(n + R + R)
-        self.bl = np.zeros(n + R + R)
-        self.sense = np.zeros(n + R + R, dtype=np.int32)
-        self.abs_A = np.zeros((R, n))
-        import daqp
-        self.model = daqp.Model()
-        self.model.setup(self.H, self.f, self.C, self.bu, self.bl, self.sense)
-        settings_ = dict(self.model.settings)
-        settings_.update(settings)
-        self.model.settings = settings_
+        self.n = n
+        self.A = np.zeros((R, n))
+        self.orig_lo = np.zeros(R)
+        self.orig_hi = np.zeros(R)
+        self.bu = np.full(n + R, np.inf)
+        self.bl = np.full(n + R, -np.inf)
+        self.lo_rows = self.bl[n:]
+        self.hi_rows = self.bu[n:]
+        self.cold_sense = np.zeros(n + R, dtype=np.int32)
+        self.zeros_w = np.zeros(n + R)
+        self.settings = settings
+        self._levels = {}
+
+    def level(self, i, start):
+        """``(H, f, model)`` of level index i, whose higher levels have ``start`` rows.
+
+        The model sees the box and the first ``start`` rows (views of the shared arrays),
+        and keeps its working set from tick to tick: a warm start.
+        """
+        key = (i, start)
+        hit = self._levels.get(key)
+        if hit is None:
+            import daqp
+            n = self.n
+            H, f = np.eye(n), np.zeros(n)
+            model = daqp.Model()
+            model.setup(H, f, self.A[:start], self.bu[:n + start], self.bl[:n + start],
+                        self.cold_sense[:n + start])
+            settings = dict(model.settings)
+            settings.update(self.settings)
+            model.settings = settings
+            hit = self._levels[key] = (H, f, model)
+        return hit
+
+
+def _accept(ws, x, start, end, widen):
+    """Take the solution ``x`` of the level of rows ``start:end``.
+
+    ``x`` satisfies the box and the locked rows only up to DAQP's primal tolerance
+    (1e-6), more than the lock band. Clipped into the box, it then widens (if ``widen``)
+    any locked band it lies outside of, so the locked set always contains the current
+    solution and a lower level is never infeasible because of round-off.
+
+    Returns:
+        ``(qdot_v, A_i qdot_v)``.
+    """
+    n = x.shape[0]
+    qdot = np.minimum(np.maximum(x, ws.bl[:n]), ws.bu[:n])
+    if not (widen and start):
+        return qdot, ws.A[start:end] @ qdot
+    a = ws.A[:end] @ qdot
+    lo, hi, a_up = ws.lo_rows[:start], ws.hi_rows[:start], a[:start]
+    np.minimum(lo, a_up, out=lo)
+    np.maximum(hi, a_up, out=hi)
+    return qdot, a[start:]
 
 
 def _satisfied(a, lo, hi):
+
     """True if lo <= a <= hi everywhere."""
     return np.maximum(lo - a, a - hi).max() <= 0.0
-
-
-def _result(qdot, lo, hi, slacks, status, failed):
-    clipped = np.minimum(np.maximum(qdot, lo), hi)
-    clipped -= qdot
-    outside = float(np.abs(clipped).max())
-    clipped += qdot
-    return CascadeResult(clipped, slacks, status, failed, outside)
 
 
 _EYES = {}

@@ -79,6 +79,7 @@ class EnergyTanks:
         self._shuffling = config.shuffle > 0.0 and config.shuffle_budget > 0.0
         self._D_over_dt = self.D / self.dt
         self._inv_dt = 1.0 / self.dt
+        self._minus_inv_dt = -self._inv_dt
         self._half_K = 0.5 * self.K
         with np.errstate(divide='ignore'):
             self._two_over_K = np.where(self.K > 0, 2.0 / self.K, 0.0)
@@ -99,18 +100,25 @@ class EnergyTanks:
         if self._q_prev is None:
             self._q_prev = np.array(q, dtype=float)
         step = q - self._q_prev
-        self.dissipated_min = self._D_over_dt * step * step
+        step *= step
+        step *= self._D_over_dt
+        self.dissipated_min = step
         self._q_prev[:] = q
         if self._shuffling:
             room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
             self._shuffle_now = np.minimum(self.config.shuffle, room)
-            self._avail = self.energy + self.dissipated_min + self._shuffle_now
+            self._avail = self.energy + step + self._shuffle_now
         else:
-            self._avail = self.energy + self.dissipated_min
+            self._avail = self.energy + step
         dq = q_v - q
-        r = np.sqrt(self._avail * self._two_over_K + dq * dq)
-        lower = (-r - dq) * self._inv_dt
-        upper = (r - dq) * self._inv_dt
+        r = self._avail * self._two_over_K
+        r += dq * dq
+        np.sqrt(r, out=r)
+        upper = r - dq
+        upper *= self._inv_dt
+        r += dq
+        r *= self._minus_inv_dt
+        lower = r
         if not self._all:
             lower[~self.mask] = -np.inf
             upper[~self.mask] = np.inf
@@ -125,9 +133,15 @@ class EnergyTanks:
             qdot_v: Applied virtual joint velocity in [rad/s].
         """
         dq = q_v - q
-        new = dq + self.dt * qdot_v
-        dEk = self._half_K * (new * new - dq * dq)
-        e = np.minimum(self._avail - dEk, self.config.max_energy)
+        new = qdot_v * self.dt
+        new += dq
+        new *= new
+        dq *= dq
+        new -= dq
+        dEk = new
+        dEk *= self._half_K
+        e = self._avail - dEk
+        np.minimum(e, self.config.max_energy, out=e)
         if not self._all:
             e[~self.mask] = self.energy[~self.mask]
         e_min = e.min()

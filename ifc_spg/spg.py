@@ -215,7 +215,7 @@ class SetPointGenerator:
             pb = self.tanks.bounds(q, q_v)
             lower = np.maximum(box.lower, pb.lower)
             upper = np.minimum(box.upper, pb.upper)
-            if np.isnan(lower.sum() + upper.sum()):
+            if not math.isfinite(lower @ self._zeros + upper @ self._zeros):  # NaN: see below
                 # an overflow in the passivity bounds (absurd measurements): stop that joint
                 lower[np.isnan(lower)] = 0.0
                 upper[np.isnan(upper)] = 0.0

@@ -8,6 +8,7 @@ from ifc_spg.hqp import DaqpCascade
 from ifc_spg.limits import (
     JointVelocityLimits,
     VelocityBox,
+    intersect_soft,
     joint_velocity_bounds,
     stopping_velocity,
 )
@@ -22,9 +23,18 @@ def test_fast_limits_equal_the_function():
     r = IIWA
     fast = JointVelocityLimits(r.q_min, r.q_max, r.v_max, r.a_max, DT)
     rng = np.random.default_rng(0)
-    for i in range(2000):
-        q = rng.uniform(r.q_min, r.q_max) if i % 2 else \
-            np.clip(r.q_max - rng.exponential(0.01, 7), r.q_min, r.q_max)
+    # distances at which v_stop reaches v_max (the fast path's switch), found by a scan
+    d_grid = np.linspace(0.0, 3.0, 300001)
+    d_free = np.array([d_grid[np.argmax(stopping_velocity(d_grid, a, DT) >= v)]
+                       for a, v in zip(r.a_max, r.v_max)])
+    for i in range(3000):
+        if i % 3 == 0:
+            q = rng.uniform(r.q_min, r.q_max)
+        elif i % 3 == 1:
+            q = np.clip(r.q_max - rng.exponential(0.01, 7), r.q_min, r.q_max)
+        else:  # around the switch distance, from either limit
+            d = d_free * rng.uniform(0.99, 1.01, 7)
+            q = np.where(rng.random(7) < 0.5, r.q_min + d, r.q_max - d)
         a, b = fast.box(q), joint_velocity_bounds(q, r.q_min, r.q_max, r.v_max, r.a_max, DT)
         np.testing.assert_allclose(a.lower, b.lower, atol=1e-12)
         np.testing.assert_allclose(a.upper, b.upper, atol=1e-12)
@@ -74,3 +84,32 @@ def test_closed_form_torque_level_equals_the_cascade():
         worst = max(worst, err)
         assert err < 1e-6
     print(f'closed-form torque level vs cascade: max |dqdot| {worst:.1e}')
+
+
+def _intersect_soft_reference(hard, soft):
+    """The definition, case by case: intersection, or the nearest end of the hard box."""
+    lower, upper = [], []
+    for hl, hu, sl, su in zip(hard.lower, hard.upper, soft.lower, soft.upper):
+        if su < hl:  # soft box entirely below the hard box
+            lower.append(hl), upper.append(hl)
+        elif sl > hu:  # entirely above
+            lower.append(hu), upper.append(hu)
+        else:
+            lower.append(max(hl, sl)), upper.append(min(hu, su))
+    return np.array(lower), np.array(upper)
+
+
+def test_intersect_soft_matches_its_definition():
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        n = 7
+        hl = rng.uniform(-2, 1, n)
+        hard = VelocityBox(hl, hl + rng.uniform(0, 1, n) * (rng.random(n) > 0.1))
+        sl = rng.uniform(-3, 2, n)
+        soft = VelocityBox(sl, sl + rng.uniform(0, 1, n))
+        got = intersect_soft(hard, soft)
+        ref = _intersect_soft_reference(hard, soft)
+        np.testing.assert_array_equal(got.lower, ref[0])
+        np.testing.assert_array_equal(got.upper, ref[1])
+        assert np.all(got.lower <= got.upper)
+        assert np.all(got.lower >= hard.lower) and np.all(got.upper <= hard.upper)

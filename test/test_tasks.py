@@ -252,3 +252,38 @@ def test_free_rotation_axis_never_enters_the_error(frame):
             d_v = Rv @ (R0.T @ axis) if frame != 'base' else axis
             assert abs(np.dot(err, d_v)) < 1e-9          # nothing about the free axis
             np.testing.assert_allclose(np.linalg.norm(err), tilt, atol=1e-9)
+
+
+def test_full_pose_equals_the_same_axes_in_another_order():
+    """The full base-frame pose (a shortcut skips S) agrees with a permuted subspace."""
+    rng = np.random.default_rng(11)
+    robot = ROBOTS['lbr_iiwa14']
+    order = ['rz', 'x', 'ry', 'z', 'rx', 'y']
+    perm = [AXES.index(a) for a in order]
+    for _ in range(20):
+        q, qdot, q_v = random_state(robot, rng)
+        kin = kin_at(robot, robot.q_home, qdot, robot.q_home)
+        full = CartesianPoseTask(robot, frame='tool', equal='init')
+        shuffled = CartesianPoseTask(robot, frame='tool', axes=order, equal='init')
+        full.activate(kin), shuffled.activate(kin)
+        kin = kin_at(robot, q, qdot, q_v)
+        a_f, A_f, _ = full.compute(kin)
+        a_s, A_s, _ = shuffled.compute(kin)
+        assert np.abs(a_f).max() > 1e-3  # away from the target
+        np.testing.assert_allclose(a_f[perm], a_s, atol=1e-12)
+        np.testing.assert_allclose(A_f[perm], A_s, atol=1e-12)
+
+
+def test_minimal_rotation_takes_u_onto_v_by_the_least_angle():
+    from ifc_spg.tasks.cartesian_pose_task import _minimal_rotation
+    rng = np.random.default_rng(5)
+    for k in range(500):
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        v = rng.normal(size=3) if k % 50 else -u  # include the antiparallel case
+        v /= np.linalg.norm(v)
+        R = _minimal_rotation(u, v)
+        np.testing.assert_allclose(R @ u, v, atol=1e-12)
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+        angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+        np.testing.assert_allclose(angle, np.arccos(np.clip(u @ v, -1, 1)), atol=1e-7)

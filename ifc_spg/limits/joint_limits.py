@@ -61,15 +61,14 @@ def stopping_velocity(distance, a_max, dt):
 
 
 def intersect_soft(hard, soft):
-    """Intersect ``hard`` with ``soft``; where empty, the point of ``hard`` nearest ``soft``."""
-    lower = np.maximum(hard.lower, soft.lower)
-    upper = np.minimum(hard.upper, soft.upper)
-    empty = lower > upper
-    if np.any(empty):
-        below = empty & (soft.upper < hard.lower)  # soft box entirely below the hard box
-        above = empty & ~below
-        lower[below] = upper[below] = hard.lower[below]
-        lower[above] = upper[above] = hard.upper[above]
+    """Intersect ``hard`` with ``soft``; where empty, the point of ``hard`` nearest ``soft``.
+
+    Both ends of ``soft`` clipped into ``hard``: where the boxes overlap this is their
+    intersection; where ``soft`` lies below (above) ``hard`` both ends become hard.lower
+    (hard.upper).
+    """
+    lower = np.minimum(np.maximum(soft.lower, hard.lower), hard.upper)
+    upper = np.maximum(np.minimum(soft.upper, hard.upper), hard.lower)
     return VelocityBox(lower, upper)
 
 
@@ -86,22 +85,53 @@ class JointVelocityLimits:
     def __init__(self, q_min, q_max, v_max, a_max, dt):
         self.n = len(q_min)
         self.dt = float(dt)
-        self._lim = np.concatenate([-np.asarray(q_min, float), np.asarray(q_max, float)])
-        self._sign = np.concatenate([np.ones(self.n), -np.ones(self.n)])
+        self._q_min = np.asarray(q_min, float)
+        self._q_max = np.asarray(q_max, float)
         self._v = np.concatenate([v_max, v_max]).astype(float)
         c = np.concatenate([a_max, a_max]).astype(float) * self.dt
-        self._c = c
         self._half_c = 0.5 * c
-        self._k_scale = 8.0 / (c * self.dt)
+        # k = floor((sqrt(1 + 8 d / (c dT)) - 1) / 2) = floor(sqrt(1/4 + 2 d / (c dT)) - 1/2)
+        self._k_scale = 2.0 / (c * self.dt)
         self._inv_dt = 1.0 / self.dt
+        self._d = np.zeros(2 * self.n)
+        # Far from the limits the box is (-v_max, v_max): v_stop grows with d, so beyond
+        # the first distance where it reaches v_max (found by bisection) it stays there.
+        lo, hi = np.zeros(2 * self.n), np.full(2 * self.n, 1.0)
+        while np.any(stopping_velocity(hi, 2 * self._half_c / self.dt, self.dt) < self._v):
+            hi *= 2.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            reached = stopping_velocity(mid, 2 * self._half_c / self.dt, self.dt) >= self._v
+            hi = np.where(reached, mid, hi)
+            lo = np.where(reached, lo, mid)
+        self._d_free = hi  # v_stop(d_free) >= v_max
+        free = (-self._v[:self.n].copy(), self._v[self.n:].copy())
+        for b in free:
+            b.setflags(write=False)
+        self._free_box = VelocityBox(*free)
 
     def box(self, q_v):
-        """The :class:`VelocityBox` at the virtual configuration ``q_v`` (as the function)."""
-        # d = [q_v - q_min; q_max - q_v]
-        d = self._lim + self._sign * np.concatenate([q_v, q_v])
+        """The :class:`VelocityBox` at the virtual configuration ``q_v`` (as the function).
+
+        The returned arrays may be read-only (shared between ticks far from the limits).
+        """
+        n = self.n
+        d = self._d  # d = [q_v - q_min; q_max - q_v]
+        np.subtract(q_v, self._q_min, out=d[:n])
+        np.subtract(self._q_max, q_v, out=d[n:])
+        if (d >= self._d_free).all():
+            return self._free_box
         np.maximum(d, 0.0, out=d)
-        k = np.floor(0.5 * (np.sqrt(1.0 + self._k_scale * d) - 1.0))
+        k = d * self._k_scale
+        k += 0.25
+        np.sqrt(k, out=k)
+        k -= 0.5
+        np.floor(k, out=k)
         k1 = k + 1.0
-        stop = (d * self._inv_dt + self._half_c * k * k1) / k1
+        k *= k1
+        k *= self._half_c
+        stop = d * self._inv_dt
+        stop += k
+        stop /= k1
         np.minimum(stop, self._v, out=stop)
-        return VelocityBox(-stop[:self.n], stop[self.n:])
+        return VelocityBox(-stop[:n], stop[n:])

@@ -51,11 +51,14 @@ class TorqueLimitLevel:
         self._gain_tau = self.gain * self.tau_max
         self._K_over = self.K / (self.rho + self.K * self.K)
         self._zeros = np.zeros(self.idx.size)
+        # every joint compliant (the usual case): slices instead of index arrays (no copies)
+        self._sel = slice(None) if self.idx.size == K.size else self.idx
 
     def apply(self, q, qdot, q_v, box):
         """Solve the level; return ``(level, slack, box)`` with the box narrowed by the lock."""
-        i, K = self.idx, self.K
-        comp = K * (qdot[i] - self.gain * (q_v[i] - q[i]))  # K qdot - Lambda tau_s
+        i, K = self._sel, self.K
+        comp = qdot[i] - self.gain * (q_v[i] - q[i])
+        comp *= K                                           # K qdot - Lambda tau_s
         lo_b = comp - self._gain_tau                        # beta_m
         hi_b = comp + self._gain_tau                        # beta_M
         if not math.isfinite(comp @ self._zeros):  # overflow on absurd measurements:
@@ -63,12 +66,15 @@ class TorqueLimitLevel:
             lo_b[bad], hi_b[bad] = -np.inf, np.inf
         lower = box.lower.copy()
         upper = box.upper.copy()
+        lower_i, upper_i = lower[i], upper[i]  # (views when every joint is compliant)
         # minimizer of rho x^2 + dist(K x, [lo_b, hi_b])^2, projected onto the box
-        x = np.minimum(np.maximum(0.0, lo_b), hi_b) * self._K_over
-        x = np.minimum(np.maximum(x, lower[i]), upper[i])
+        x = np.minimum(np.maximum(0.0, lo_b), hi_b)
+        x *= self._K_over
+        np.minimum(np.maximum(x, lower_i), upper_i, out=x)
         Kx = K * x
         s = Kx - np.minimum(np.maximum(Kx, lo_b), hi_b)
-        s[np.isnan(s)] = 0.0
-        lower[i] = np.maximum(lower[i], np.minimum((lo_b + s) / K, x) - self.band)
-        upper[i] = np.minimum(upper[i], np.maximum((hi_b + s) / K, x) + self.band)
+        if not math.isfinite(s @ self._zeros):
+            s[np.isnan(s)] = 0.0
+        lower[i] = np.maximum(lower_i, np.minimum((lo_b + s) / K, x) - self.band)
+        upper[i] = np.minimum(upper_i, np.maximum((hi_b + s) / K, x) + self.band)
         return Level(self.name, self.A, lo_b, hi_b, False), s, VelocityBox(lower, upper)

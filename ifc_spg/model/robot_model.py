@@ -98,6 +98,12 @@ class RobotModel:
             mask[self.joint_index(j)] = True
         mask.setflags(write=False)
         self.stiff_mask = mask
+        # what the static interaction model uses every tick: stiff joints have no spring
+        self.compliant_stiffness = _readonly(np.where(mask, 0.0, self.stiffness), n,
+                                             'compliant_stiffness')
+        self.compliant_damping = _readonly(np.where(mask, 0.0, self.damping), n,
+                                           'compliant_damping')
+        self.compliant_columns = _readonly((~mask).astype(float), n, 'compliant_columns')
         self.frames = dict(frames)
         self._frame_ids = {}
         for chain, fname in self.frames.items():

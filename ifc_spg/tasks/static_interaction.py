@@ -24,14 +24,18 @@ __all__ = ['DAMPING', 'static_torque', 'static_wrench', 'check_admittance_chain'
 DAMPING = 1e-3  # lambda of the damped pseudo-inverse J^{+T} = (J J^T + lambda^2 I)^{-1} J
 
 
+_DAMPING_EYE = DAMPING ** 2 * np.eye(6)
+_DAMPING_EYE.setflags(write=False)
+
+
 def compliant_stiffness(robot):
     """Per-joint stiffness with zeros at stiff (position-controlled) joints, in [Nm/rad]."""
-    return np.where(robot.stiff_mask, 0.0, robot.stiffness)
+    return robot.compliant_stiffness
 
 
 def compliant_damping(robot):
     """Per-joint damping with zeros at stiff (position-controlled) joints, in [Nms/rad]."""
-    return np.where(robot.stiff_mask, 0.0, robot.damping)
+    return robot.compliant_damping
 
 
 def check_admittance_chain(robot, frame):
@@ -69,23 +73,23 @@ def static_wrench(robot, kin, frame, include_damping=False):
     if robot.ifc != JOINT_IMPEDANCE:
         h, A, g, _ = _admittance_wrench(robot, kin, frame)
         return h, A, g, R
-    K = compliant_stiffness(robot)
-    Jc = J * (~robot.stiff_mask)
-    P = np.linalg.solve(Jc @ Jc.T + DAMPING ** 2 * np.eye(6), Jc)  # J^{+T}
+    K = robot.compliant_stiffness
+    Jc = J * robot.compliant_columns
+    P = np.linalg.solve(Jc @ Jc.T + _DAMPING_EYE, Jc)  # J^{+T}
     PK = P * K
     tau = K * (kin.q_v - kin.q)
     if include_damping:
-        tau = tau - compliant_damping(robot) * kin.qdot
+        tau = tau - robot.compliant_damping * kin.qdot
     return P @ tau, PK, PK @ kin.qdot, R
 
 
 def static_torque(robot, kin, include_damping=False):
     """Return ``(tau_s (n,), A (n, n), gamma (n,))``; see :func:`static_wrench` for damping."""
     if robot.ifc == JOINT_IMPEDANCE:
-        K = compliant_stiffness(robot)
+        K = robot.compliant_stiffness
         tau = K * (kin.q_v - kin.q)
         if include_damping:
-            tau = tau - compliant_damping(robot) * kin.qdot
+            tau = tau - robot.compliant_damping * kin.qdot
         return tau, np.diag(K), K * kin.qdot
     n = robot.n
     tau, A, g = np.zeros(n), np.zeros((n, n)), np.zeros(n)
