@@ -159,3 +159,22 @@ def test_metrics_against_hand_computation():
     assert m['rms_f_perp'] == pytest.approx(3.0)
     assert m['success'] is False  # |f| = 5 N > 4.5 N
     assert m['travel'] == pytest.approx(0.4)
+
+
+def test_pooled_rms_is_the_rms_of_the_concatenated_runs():
+    """The thesis' "overall RMS" over several runs (5.5.3): from per-run summaries."""
+    from ifc_spg.constrained.metrics import pooled_rms
+    rng = np.random.default_rng(7)
+    runs, series = [], []
+    for n in (40, 7, 123):
+        t = np.arange(n) * 0.002
+        f = rng.normal(size=(n, 3))
+        runs.append(summarize(t, np.zeros(n), f, [0.0, 0.0, 1.0], static_force=2.0 * f))
+        series.append(perpendicular_force(f, [0.0, 0.0, 1.0]))
+        assert runs[-1]['samples'] == n
+    slow = math.sqrt(np.mean(np.concatenate(series) ** 2))
+    assert pooled_rms(runs) == pytest.approx(slow, rel=1e-12)
+    assert pooled_rms(runs, 'rms_fs_perp') == pytest.approx(2.0 * slow, rel=1e-12)
+    # Not the mean of the per-run RMS values (the runs have different lengths).
+    assert abs(pooled_rms(runs) - np.mean([r['rms_f_perp'] for r in runs])) > 1e-3
+    assert pooled_rms([]) == 0.0

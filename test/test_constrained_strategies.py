@@ -334,3 +334,16 @@ def test_initial_error_about_the_true_direction_is_rejected():
     with pytest.raises(ParameterError, match="'scene_z' is parallel to the true direction"):
         run(Scenario(strategy='admittance', robot='accrea_dual_arm', scene='drawer_vertical',
                      duration=0.01, error_axis='scene_z'))
+
+
+def test_joint_compliance_orientation_term_is_the_conflicting_subtask():
+    """5.5.3: in the joint-compliance strategy the orientation regulator (5.10) fights the
+    force task; switching it off lowers the static erroneous force f_s,perp (fixed true
+    direction, K = 100 Nm/rad, kappa = 10 N/s, full lift) by more than half."""
+    m = {}
+    for orientation in ('fixed', 'free'):
+        params = StrategyParams(stiffness=100.0, kappa=10.0, orientation=orientation)
+        m[orientation] = _run('joint_compliance', params=params, fixed_direction=True,
+                              duration=20.0).metrics
+        assert m[orientation]['success'], m
+    assert m['free']['rms_fs_perp'] < 0.5 * m['fixed']['rms_fs_perp'], m

@@ -182,3 +182,21 @@ def test_table_4_5_pspm_bounds_the_injected_energy(quick):
     assert on['energy_in_min_j'] >= -c2 - 2e-4
     assert on['tank_energy_min_j'] >= 0.0
     assert on['error_amplitude_last_1s_rad'] < 0.1 * off['error_amplitude_last_1s_rad']
+
+
+def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
+    """Table 5.1 (5.5.3), quick: one (K, kappa) pair of the grid, the full 0.29 m lift;
+    the task-specification strategy has less than 30 % of the joint-compliance strategy's
+    RMS |f_perp| (thesis: -70 % / -86 %), with the fixed and the SMA direction."""
+    check, _, _ = reproduce.run_experiment(reproduce.TABLE_5_1, tmp_path, quick=True,
+                                           figures=False)
+    n = check.numbers
+    for case in ('fixed_direction', 'sma_estimator'):
+        jc, ts = n[case]['rms_f_perp_jc_to_ts_n']
+        assert n[case]['opened'] == {'joint_compliance': 1, 'task_specification': 1}, n[case]
+        assert ts < 0.3 * jc, (case, n[case])
+        assert n[case]['reduction_percent'] == pytest.approx(100.0 * (jc - ts) / jc)
+        (row,) = n[case]['runs']
+        assert (row['stiffness'], row['kappa']) == (40.0, 15.0)
+    saved = json.loads((tmp_path / 'table_5_1.json').read_text())
+    assert saved['fixed_direction']['runs'][0]['task_specification']['travel'] >= 0.29

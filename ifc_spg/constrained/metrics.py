@@ -9,6 +9,7 @@ import numpy as np
 __all__ = [
     'error_angles',
     'perpendicular_force',
+    'pooled_rms',
     'rms',
     'summarize',
     'time_to_open',
@@ -39,6 +40,23 @@ def rms(x):
     """Root mean square of a series (0 for an empty one)."""
     x = np.asarray(x, dtype=float)
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def pooled_rms(runs, key='rms_f_perp'):
+    """Overall RMS of several runs: the RMS of all their samples together, in [N].
+
+    The thesis' "overall RMS of |f_perp|" over a set of runs (5.5.3). From each run's RMS and
+    sample count, sqrt(sum_i n_i rms_i^2 / sum_i n_i), which equals the RMS of the
+    concatenated series.
+
+    Args:
+        runs: :func:`summarize` dicts (with ``samples`` and ``key``).
+        key: The per-run RMS to pool (``rms_f_perp`` or ``rms_fs_perp``).
+    """
+    n = sum(int(m['samples']) for m in runs)
+    if n == 0:
+        return 0.0
+    return float(np.sqrt(sum(m['samples'] * m[key] ** 2 for m in runs) / n))
 
 
 def error_angles(estimate, truth):
@@ -81,7 +99,8 @@ def summarize(t, env_q, force, true_direction, estimate=None, static_force=None,
 
     Returns:
         Dict with ``rms_f_perp``, ``max_f_perp``, ``max_force``, ``travel``,
-        ``time_to_open``, ``success`` and, when given, ``rms_error_angle_deg``,
+        ``time_to_open``, ``success``, ``samples`` (samples in the evaluated window, for
+        :func:`pooled_rms`) and, when given, ``rms_error_angle_deg``,
         ``final_error_angle_deg``, ``rms_fs_perp``.
     """
     t = np.asarray(t, dtype=float)
@@ -102,6 +121,7 @@ def summarize(t, env_q, force, true_direction, estimate=None, static_force=None,
         'travel': travel(env_q),
         'time_to_open': topen,
         'success': None if target is None else bool(topen is not None and fmax <= force_limit),
+        'samples': int(len(f_perp)),
     }
     if estimate is not None:
         ang = np.degrees(error_angles(np.asarray(estimate)[sl], td))
