@@ -27,6 +27,7 @@ __all__ = ['CascadeResult', 'CascadeSolver', 'DaqpCascade', 'ProxsuiteCascade', 
            'build_levels', 'make_solver', 'level_violation']
 
 _BIG = 1e30  # what the solvers take as infinity
+_TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
 _EQ = 5  # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
 
 
@@ -134,6 +135,12 @@ class DaqpCascade(CascadeSolver):
     level. An inequality level the current solution already satisfies is locked without
     a QP; one that it violates is solved with its slacks, (4.45)-(4.48) as written.
 
+    Each level index has its own DAQP model over views of one stacked workspace (the box
+    and the higher levels' rows, scaled to unit norm); DAQP keeps a model's working set
+    between solves, so every level starts from its own active set of the last tick. A
+    failed solve retries cold, then in the slack form, then with the locked bands widened
+    to the solver's tolerance (degenerate vertices), before the level is given up.
+
     The cost's condition number grows like |A_i|^2 / rho; below rho = 1e-6 (only used to
     compare with pseudo-inverses) equality levels also take the slack form.
     """
@@ -149,6 +156,8 @@ class DaqpCascade(CascadeSolver):
         self._ws = {}
         self._normal_form = self.rho >= 1e-6
         self.cold_retries = 0
+        self.relaxed_retries = 0
+        self._relax = float(primal_tol)
 
     def solve(self, levels, box):
         """Solve the cascade; return a :class:`CascadeResult` (see the class docstring)."""
@@ -168,12 +177,21 @@ class DaqpCascade(CascadeSolver):
             orig_lo[row:row + m] = lev.lower
             orig_hi[row:row + m] = lev.upper
             row += m
-        # lock band of every row: lock_tolerance per unit of the row's 1-norm. Locked
-        # equality rows of several levels are often redundant (higher levels may fix
+        # The models see the rows scaled to unit norm (the same constraints; DAQP's
+        # tolerances are absolute, and a wrench row of norm ~400 next to pose rows of
+        # norm ~1 otherwise made levels falsely infeasible).
+        norm = ws.norm
+        np.einsum('ij,ij->i', A_all, A_all, out=norm)
+        np.sqrt(norm, out=norm)
+        np.maximum(norm, _TINY, out=norm)
+        np.divide(A_all, norm[:, None], out=ws.A_unit)
+        # lock band of every row: lock_tolerance (1 + |row|_1), in unit-row coordinates.
+        # Locked equality rows of several levels are often redundant (higher levels may fix
         # qdot_v completely); exact equalities would then be inconsistent by round-off.
         band = np.abs(A_all).sum(axis=1)
         band += 1.0
         band *= self.lock_tolerance
+        band /= norm
         bl[:n] = box.lower  # (DAQP takes +-inf as unbounded)
         bu[:n] = box.upper
         qdot = None  # no level solved yet: the point of the box nearest zero (made on demand)
@@ -185,15 +203,15 @@ class DaqpCascade(CascadeSolver):
             A_i = A_all[sl]
             if lev.equality and self._normal_form:
                 beta = orig_lo[sl]
-                H, f, model = ws.level(i, start)
+                H, H_diag, f, model = ws.level(i, start)
                 np.dot(A_i.T, A_i, out=H)
-                H.reshape(-1)[::n + 1] += self.rho
+                H_diag += self.rho
                 np.dot(beta, A_i, out=f)
                 np.negative(f, out=f)
                 # Each level index has its own DAQP model, which keeps its working set: the
                 # solve starts from this level's active bounds and rows of the last tick.
                 if start:
-                    model.update(H=H, f=f, A=A_all[:start], blower=bl[:n + start])
+                    model.update(H=H, f=f, A=ws.A_unit[:start], blower=bl[:n + start])
                 else:  # the first level: the box only
                     model.update(H=H, f=f, blower=bl[:n])
                 x, _, flag, _ = self._solve_model(model)
@@ -205,11 +223,11 @@ class DaqpCascade(CascadeSolver):
                     x, _, flag, _ = self._solve_model(model)
                 # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
                 if flag == 1 and math.isfinite(x @ f):
-                    qdot, a = _accept(ws, x, start, end, end < R)
-                    slacks.append(a - beta)
+                    qdot, a_unit = _accept(ws, x, start, end, end < R)
+                    slacks.append(a_unit * norm[sl] - beta)
                     if end < R:  # lock (4.60)-(4.62); the last level needs no lock
-                        lo_rows[sl] = a - band[sl]
-                        hi_rows[sl] = a + band[sl]
+                        lo_rows[sl] = a_unit - band[sl]
+                        hi_rows[sl] = a_unit + band[sl]
                     start = end
                     continue
                 # retry below in the slack form (better conditioned)
@@ -223,26 +241,35 @@ class DaqpCascade(CascadeSolver):
                     # level's optimum too: no QP needed (typical for inactive inequalities:
                     # obstacles, boxes, torque bands).
                     slacks.append(np.zeros(m))
-                    lo_rows[sl] = np.minimum(orig_lo[sl], a) - band[sl]
-                    hi_rows[sl] = np.maximum(orig_hi[sl], a) + band[sl]
+                    lo_rows[sl] = np.minimum(orig_lo[sl], a) / norm[sl] - band[sl]
+                    hi_rows[sl] = np.maximum(orig_hi[sl], a) / norm[sl] + band[sl]
                     start = end
                     continue
             w, flag = self._solve_with_slacks(ws, start, end)
+            if flag != 1 and start:
+                # Degenerate: the locked bands (1e-9 wide) meet the box at a vertex and DAQP
+                # cannot tell them from infeasible. Widen the bands to the solver's own
+                # tolerance (the higher levels move by at most that) and solve once more.
+                self.relaxed_retries += 1
+                ws.lo_rows[:start] -= self._relax
+                ws.hi_rows[:start] += self._relax
+                w, flag = self._solve_with_slacks(ws, start, end)
             if flag != 1 or not math.isfinite(w @ ws.zeros_w[:n + m]):
                 slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
                 if qdot is None:
                     qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
                 return CascadeResult(qdot, slacks, 'hold' if i == 0 else 'fallback', i)
             x = w[:n]
-            qdot, a = _accept(ws, x, start, end, end < R)
+            qdot, a_unit = _accept(ws, x, start, end, end < R)
+            a = a_unit * norm[sl]
             s = w[n:]
             slacks.append(s)
             # lock: [lower + s*, upper + s*] (A qdot* for equality rows), widened by the band
             eq = orig_lo[sl] == orig_hi[sl]
             lo = np.where(eq, a, np.minimum(orig_lo[sl] + s, a))
             hi = np.where(eq, a, np.maximum(orig_hi[sl] + s, a))
-            lo_rows[sl] = lo - band[sl]
-            hi_rows[sl] = hi + band[sl]
+            lo_rows[sl] = lo / norm[sl] - band[sl]
+            hi_rows[sl] = hi / norm[sl] + band[sl]
             start = end
         return CascadeResult(qdot, slacks, 'ok', -1)
 
@@ -250,7 +277,8 @@ class DaqpCascade(CascadeSolver):
         """Level ``start:end`` as (4.45)-(4.48) over [qdot_v; s]; return ``(x, exitflag)``."""
         n, m = self.n, end - start
         C = np.zeros((end, n + m))
-        C[:, :n] = ws.A[:end]
+        C[:start, :n] = ws.A_unit[:start]
+        C[start:, :n] = ws.A[start:end]
         C[start:, n:] = -_eye(m)
         bu = np.concatenate([ws.bu[:n], np.full(m, _BIG), ws.hi_rows[:start],
                              ws.orig_hi[start:end]])
@@ -269,7 +297,9 @@ class _Workspace:
 
     def __init__(self, n, R, rho, settings):
         self.n = n
-        self.A = np.zeros((R, n))
+        self.A = np.zeros((R, n))  # rows as the levels give them
+        self.A_unit = np.zeros((R, n))  # the same rows scaled to unit norm (the models')
+        self.norm = np.zeros(R)
         self.orig_lo = np.zeros(R)
         self.orig_hi = np.zeros(R)
         self.bu = np.full(n + R, np.inf)
@@ -282,7 +312,8 @@ class _Workspace:
         self._levels = {}
 
     def level(self, i, start):
-        """``(H, f, model)`` of level index i, whose higher levels have ``start`` rows.
+        """``(H, diagonal view of H, f, model)`` of level index i, whose higher levels have
+        ``start`` rows.
 
         The model sees the box and the first ``start`` rows (views of the shared arrays),
         and keeps its working set from tick to tick: a warm start.
@@ -294,12 +325,12 @@ class _Workspace:
             n = self.n
             H, f = np.eye(n), np.zeros(n)
             model = daqp.Model()
-            model.setup(H, f, self.A[:start], self.bu[:n + start], self.bl[:n + start],
+            model.setup(H, f, self.A_unit[:start], self.bu[:n + start], self.bl[:n + start],
                         self.cold_sense[:n + start])
             settings = dict(model.settings)
             settings.update(self.settings)
             model.settings = settings
-            hit = self._levels[key] = (H, f, model)
+            hit = self._levels[key] = (H, H.reshape(-1)[::n + 1], f, model)
         return hit
 
 
@@ -312,13 +343,13 @@ def _accept(ws, x, start, end, widen):
     solution and a lower level is never infeasible because of round-off.
 
     Returns:
-        ``(qdot_v, A_i qdot_v)``.
+        ``(qdot_v, A_i qdot_v)``, the latter in unit-row coordinates.
     """
     n = x.shape[0]
     qdot = np.minimum(np.maximum(x, ws.bl[:n]), ws.bu[:n])
     if not (widen and start):
-        return qdot, ws.A[start:end] @ qdot
-    a = ws.A[:end] @ qdot
+        return qdot, ws.A_unit[start:end] @ qdot
+    a = ws.A_unit[:end] @ qdot
     lo, hi, a_up = ws.lo_rows[:start], ws.hi_rows[:start], a[:start]
     np.minimum(lo, a_up, out=lo)
     np.maximum(hi, a_up, out=hi)
