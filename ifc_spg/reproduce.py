@@ -543,6 +543,10 @@ def _fig_cup(runs, quick, path, chain):
 
 
 def _check_3_7(runs, quick):
+    """Table 3.7: contact kept (smoothed f_z below -1 N) >= 90 % of the time after t0 = 1 s,
+    f_z RMS error < 3.5 N from -7 N, right-hand (cup) orientation within 3 deg and position
+    within 20 mm; the full run must also wipe (left hand y range >= 4 cm of the 8 cm steps).
+    The torso yaw excursion and the virtual wipe error are reported, not checked."""
     r = runs['wipe_cup']
     t0 = 1.0
     f = r.contact_force()[:, 2][r.after(t0, r.s.t_cw)]
@@ -556,18 +560,22 @@ def _check_3_7(runs, quick):
     rdisp = float(np.max(np.linalg.norm(pos - pos[0], axis=1)))
     lpos, _ = r.tool_positions('l_palm')
     ly = float(np.ptp(lpos[:, 1]))
+    yaw = np.rad2deg(r.s.q[:, list(r.s.joint_names).index('torso_yaw')])
+    yaw_max = float(np.max(np.abs(yaw - yaw[0])))
     out = {'force_error_rms_n': ferr, 'contact_lost_share': lost,
-           'left_hand_wipe_error_rms_m': _rms(ep[m]), 'left_hand_y_range_m': ly,
+           'left_hand_wipe_error_rms_m': _rms(ep[m]),
+           'left_hand_wipe_virtual_error_rms_m': _rms(ev[m]), 'left_hand_y_range_m': ly,
            'right_hand_orientation_error_max_deg': float(ang.max()),
-           'right_hand_displacement_max_m': rdisp}
+           'right_hand_displacement_max_m': rdisp, 'torso_yaw_excursion_max_deg': yaw_max}
     need_y = 0.04 if not quick else 0.0
     ok = ferr < 3.5 and lost < 0.1 and ang.max() < 3.0 and rdisp < 0.02 and ly >= need_y
     return Check(bool(ok), out,
                  f'left wrist force error RMS {ferr:.2f} N at 7 N (contact lost '
                  f'{100 * lost:.1f} %), left hand y range {ly * 100:.1f} cm, wipe error RMS '
-                 f'{_rms(ep[m]) * 1e3:.1f} mm; right hand orientation error max '
-                 f'{ang.max():.2f} deg, displacement max {rdisp * 1e3:.1f} mm (pass: < 3.5 N, '
-                 f'< 10 %, y range >= {need_y * 100:.0f} cm, < 3 deg, < 20 mm)')
+                 f'{_rms(ep[m]) * 1e3:.1f} mm (virtual {_rms(ev[m]) * 1e3:.1f} mm); right hand '
+                 f'orientation error max {ang.max():.2f} deg, displacement max '
+                 f'{rdisp * 1e3:.1f} mm; torso yaw drifted up to {yaw_max:.1f} deg (pass: '
+                 f'< 3.5 N, < 10 %, y range >= {need_y * 100:.0f} cm, < 3 deg, < 20 mm)')
 
 
 def _fig_3_7(runs, quick, path):
@@ -980,7 +988,7 @@ EXPERIMENTS = (
     Experiment('table_3_7', 'Table 3.7', 'iCub wiping with the left hand (-7 N) while holding '
                'a cup with the right', (RunSpec('wipe_cup',
                                                 'thesis_3_7_icub_wiping_cup_holding.yaml',
-                                                quick=3.0),), _check_3_7, _fig_3_7),
+                                                quick=8.0),), _check_3_7, _fig_3_7),
     Experiment('table_4_1', 'Table 4.1', 'Constrained trajectory tracking into an obstacle: '
                'with 1b the static joint torques stay within +-5 Nm, with 3b the static force '
                'components within +-10 N; with 1a_3a neither (Fig. 4.14)',

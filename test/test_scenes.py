@@ -149,7 +149,8 @@ def test_table_offset_and_obstacle_options_are_checked():
 
 
 def test_icub_table_placement_of_table_3_7_touches_only_the_left_hand():
-    """The Table 3.7 table: its top at the lowest point of the left hand, clear of the torso."""
+    """The Table 3.7 table at the scenario's q0: 2 mm below the left forearm's wiping pad
+    (the closest robot geom), the fingers and everything else > 1 cm above it."""
     import mujoco
 
     from ifc_spg.runner import find_config_dir, load_scenario
@@ -157,16 +158,18 @@ def test_icub_table_placement_of_table_3_7_touches_only_the_left_hand():
     sc = load_scenario(find_config_dir() / 'scenarios' /
                        'thesis_3_7_icub_wiping_cup_holding.yaml')
     sim = Simulation(robot='icub_upper_body', scene='table', scene_options=sc.scene_options,
-                     contact_chain='l_contact')
+                     q0=sc.q0, contact_chain='l_contact')
     m, d = sim.model, sim.data
     table = m.geom('table_top').id
-    # distance of every robot geom to the table top at q0: only the hand is within 1 mm
+    pad = m.geom('l_wipe_pad').id
+    # distance of every robot geom to the table top at q0
     near = {}
     for g in range(m.ngeom):
         if m.geom_bodyid[g] in (m.body('table').id, 0):
             continue
         dist = mujoco.mj_geomDistance(m, d, g, table, 0.05, None)
         if dist < 0.05:
-            near[m.body(m.geom_bodyid[g]).name] = dist
-    assert near['l_hand'] < 1e-3
-    assert all(dist > 5e-3 for body, dist in near.items() if body != 'l_hand'), near
+            near[m.geom(g).name or m.body(m.geom_bodyid[g]).name] = dist
+    assert abs(near.pop('l_wipe_pad') - 0.002) < 5e-4
+    assert all(dist > 0.01 for dist in near.values()), near
+    assert m.geom_bodyid[pad] == m.site('l_contact').bodyid[0]  # on the chain's last link

@@ -36,7 +36,8 @@ from ifc_spg.model.robot_model import (
 
 __all__ = [
     'ArmTable', 'Link', 'ROBOTS', 'LBR4', 'LBR_IIWA14', 'ACCREA_ARM', 'DATA_DIR',
-    'ICUB_JOINTS', 'ICUB_FRAMES', 'load_robot', 'model_file', 'mjcf_spec', 'icub_mjcf_spec',
+    'ICUB_JOINTS', 'ICUB_FRAMES', 'ICUB_WIPE_PAD', 'ICUB_WIPE_ARM_DEG',
+    'load_robot', 'model_file', 'mjcf_spec', 'icub_mjcf_spec',
     'icub_urdf_path', 'mujoco_indices', 'accrea_home_deg',
 ]
 
@@ -248,6 +249,18 @@ ICUB_FRAMES = {
 _ICUB_V_MAX_DEG = (50.0,) * 3 + (100.0,) * 14
 _ICUB_TAU_MAX = (40.0, 40.0, 20.0) + (20.0, 20.0, 10.0, 10.0, 2.0, 2.0, 2.0) * 2
 _ICUB_HOME_DEG = (0.0, 0.0, 0.0) + (-30.0, 30.0, 0.0, 45.0, 0.0, 0.0, 0.0) * 2
+# Wiping pad (Table 3.7): a sphere on the left forearm link, i.e. on the last compliant link
+# of chain LW (l_contact), so the table touches the robot at the end of the force chain as
+# the thesis' static model assumes ("force tasks are executed at the wrist only"); the iCub
+# fingers, behind the stiff wrist joints, would touch it off the chain. Body, centre [m] in
+# the ``l_forearm_dh_frame`` (= l_contact) frame, radius [m]: the centre lies 5.0 cm straight
+# below l_contact, the pad's lowest point 6.5 cm below it (1.2 cm below the fingers), in the
+# wiping posture ICUB_WIPE_ARM_DEG (prosup 25 deg; in other postures the offset turns with
+# the forearm). Collision only: no mass, not in the SPG's model.
+ICUB_WIPE_PAD = ('l_forearm_dh_frame', (-0.0479, 0.0098, 0.0104), 0.015)
+#: Left arm joints [deg] (shoulder pitch roll yaw, elbow, wrist prosup pitch yaw) of the
+#: Table 3.7 wiping posture: mid-range joints, the hand reaching forward and down.
+ICUB_WIPE_ARM_DEG = (-30.0, 45.0, 45.0, 60.0, 25.0, 0.0, 0.0)
 
 
 def model_file(name):
@@ -374,7 +387,8 @@ def icub_mjcf_spec():
     static links kept as bodies), every joint not in :data:`ICUB_JOINTS` is deleted (its
     child welded at q = 0, exactly like pinocchio's reduction) and the added frames
     (:data:`ICUB_FRAMES`) and the ``l_hand``/``r_hand`` link frames become sites, so every
-    chain of ``load_robot('icub_upper_body')`` is a site of the same name. The root link is
+    chain of ``load_robot('icub_upper_body')`` is a site of the same name. The left forearm
+    carries a massless wiping pad (:data:`ICUB_WIPE_PAD`, geom ``l_wipe_pad``). The root link is
     fixed to the world at the origin (iCub convention: x backwards, z up). MuJoCo orders the
     joints differently from pinocchio (right arm first): map them by name, see
     :func:`mujoco_indices`.
@@ -399,6 +413,9 @@ def icub_mjcf_spec():
         spec.body(link).add_site(name=fname, pos=list(offset), size=[0.005, 0, 0])
     for side in 'lr':
         spec.body(f'{side}_hand').add_site(name=f'{side}_hand', size=[0.005, 0, 0])
+    body, centre, radius = ICUB_WIPE_PAD
+    spec.body(body).add_geom(name='l_wipe_pad', type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                             size=[radius, 0.0, 0.0], pos=list(centre), mass=0.0)
     for geom in spec.geoms:
         geom.contype, geom.conaffinity = 1, 0  # no self-collision, collide with the scene
     return spec
