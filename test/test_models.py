@@ -293,3 +293,18 @@ def test_robot_model_mjcf_spec_default_and_missing_file():
                       v_max=1.0)
     with pytest.raises(ModelError, match="model 'bare' has no model_file"):
         bare.mjcf_spec()
+
+
+def test_compliant_gains_follow_overridden_stiffness_and_damping():
+    """The runner overrides K/D on a copy of the model; the static interaction model's
+    cached gains must follow (stiff joints stay at zero)."""
+    import copy
+    robot = RobotModel.from_config('icub_upper_body')
+    assert np.all(robot.compliant_stiffness[robot.stiff_mask] == 0)
+    other = copy.copy(robot)
+    other.stiffness = np.full(robot.n, 17.0)
+    other.damping = np.full(robot.n, 0.3)
+    np.testing.assert_array_equal(other.compliant_stiffness, np.where(robot.stiff_mask, 0, 17.0))
+    np.testing.assert_array_equal(other.compliant_damping, np.where(robot.stiff_mask, 0, 0.3))
+    np.testing.assert_array_equal(robot.compliant_stiffness,
+                                  np.where(robot.stiff_mask, 0, robot.stiffness))

@@ -98,12 +98,8 @@ class RobotModel:
             mask[self.joint_index(j)] = True
         mask.setflags(write=False)
         self.stiff_mask = mask
-        # what the static interaction model uses every tick: stiff joints have no spring
-        self.compliant_stiffness = _readonly(np.where(mask, 0.0, self.stiffness), n,
-                                             'compliant_stiffness')
-        self.compliant_damping = _readonly(np.where(mask, 0.0, self.damping), n,
-                                           'compliant_damping')
         self.compliant_columns = _readonly((~mask).astype(float), n, 'compliant_columns')
+        self._compliant = None  # (K, D, K with stiff joints zeroed, D likewise), see below
         self.frames = dict(frames)
         self._frame_ids = {}
         for chain, fname in self.frames.items():
@@ -175,6 +171,28 @@ class RobotModel:
         return mujoco.MjSpec.from_file(str(self.model_file))
 
     # -- lookups -------------------------------------------------------------------------
+    def _compliant_gains(self):
+        # cached for the 2 ms path, and rebuilt when K or D was replaced (the runner's
+        # scenario overrides copy the model and assign new arrays)
+        c = self._compliant
+        if c is None or c[0] is not self.stiffness or c[1] is not self.damping:
+            n = self.n
+            c = self._compliant = (
+                self.stiffness, self.damping,
+                _readonly(np.where(self.stiff_mask, 0.0, self.stiffness), n, 'stiffness'),
+                _readonly(np.where(self.stiff_mask, 0.0, self.damping), n, 'damping'))
+        return c
+
+    @property
+    def compliant_stiffness(self):
+        """Joint stiffness K with zeros at stiff (position-controlled) joints [Nm/rad]."""
+        return self._compliant_gains()[2]
+
+    @property
+    def compliant_damping(self):
+        """Joint damping D with zeros at stiff (position-controlled) joints [Nms/rad]."""
+        return self._compliant_gains()[3]
+
     def create_data(self):
         """Return a fresh pinocchio ``Data`` owned by the caller."""
         return self.model.createData()
