@@ -73,7 +73,8 @@ def summary(result, pngs):
     if tick:
         lines.append(f"  SPG tick time p50 {tick['p50']:.2f} ms, p99 {tick['p99']:.2f} ms, max "
                      f"{tick['max']:.2f} ms")
-    lines.append(f'  bag:     {result.bag}   (ifc-spg bag info / replay / plot; Foxglove opens it)')
+    lines.append(f'  bag:     {result.bag}   '
+                 '(ifc-spg bag info / replay / plot; Foxglove opens it)')
     lines.append(f'  metrics: {result.metrics_path}')
     if pngs:
         lines.append(f'  plots:   {Path(pngs[0]).parent / "index.html"} ({len(pngs)} figures)')

@@ -54,7 +54,7 @@ def load_series(path):
 
     s = BagSeries()
     with BagReader(path) as bag:
-        for topic, t_log, msg in bag.messages():
+        for topic, _t_log, msg in bag.messages():
             name = topic.lstrip('/')
             if name == 'joint_states':
                 s.joint_names = list(msg.name)

@@ -55,7 +55,7 @@ def bench_scaling(rng, dofs, calls):
         solver = VereshchaginSolver(model, tip_frame='tip')
         states = _states(rng, model, 20)
         solver.solve(*states[0])
-        t = _time_calls(lambda q, v, tau: solver.solve(q, v, tau), states,
+        t = _time_calls(lambda q, v, tau, solver=solver: solver.solve(q, v, tau), states,
                         max(1, calls // 20))
         rows.append((n, float(np.median(t))))
     n = np.array([r[0] for r in rows], dtype=float)
@@ -99,7 +99,7 @@ def bench_friction(rng, problems, samples=21):
         qd[rng.choice(7, 3, replace=False)] = 0.0
         tau = rng.normal(size=7) * 5
         fs.solve(q, qd, tau)                       # warm-up (imports, QP object)
-        t_exact = _time_calls(lambda: fs.solve(q, qd, tau), [()], 50)
+        t_exact = _time_calls(lambda fs=fs, q=q, qd=qd, tau=tau: fs.solve(q, qd, tau), [()], 50)
         t0 = time.perf_counter()
         ref = fs.solve_sampling(q, qd, tau, samples=samples)
         t_samp = time.perf_counter() - t0

@@ -104,8 +104,8 @@ def _arm_bodies(arm, prefix, indent, tool_site, mount):
     else:
         out.extend(_tool_geoms(pad, prefix, f, length, r))
         out.append(f'{pad}<site name="{prefix}tool" pos="0 0 {_num(f + length)}" size="0.005"/>')
-    for depth in range(depth - 2, indent - 2, -2):
-        out.append(' ' * depth + '</body>')
+    for d in range(depth - 2, indent - 2, -2):
+        out.append(' ' * d + '</body>')
     return out
 
 

@@ -398,8 +398,8 @@ def icub_mjcf_spec():
     urdf = icub_urdf_path()
     with open(urdf, encoding='utf-8') as f:
         text = f.read()
-    block = (f'<mujoco><compiler strippath="true" meshdir="{_icub_mesh_dir(urdf)}" fusestatic="false" '
-             'discardvisual="true" balanceinertia="false"/></mujoco>')
+    block = (f'<mujoco><compiler strippath="true" meshdir="{_icub_mesh_dir(urdf)}" '
+             'fusestatic="false" discardvisual="true" balanceinertia="false"/></mujoco>')
     start = text.find('<robot')
     end = text.find('>', start)
     if start < 0 or end < 0:

@@ -124,7 +124,7 @@ def check_parameter_value(name, value, descriptor, expected_type=None):
             ParameterType.PARAMETER_INTEGER else ''
         raise ParameterError(f"parameter '{name}': value {value!r} has type {ptype.name}, "
                              f'expected {ParameterType(expected_type).name}{hint}')
-    for rng, kind, tol in ((descriptor.floating_point_range, float, 1e-9),
+    for rng, _kind, tol in ((descriptor.floating_point_range, float, 1e-9),
                            (descriptor.integer_range, int, 0)):
         if rng and isinstance(value, (int, float)) and not isinstance(value, bool):
             r = rng[0]

@@ -225,13 +225,15 @@ def bench(argv):
         data = messages.serialize(msg)
         typename = msg._TYPE
         rb = store.deserialize_cdr(data, typename)
-        ser = timeit.timeit(lambda: messages.serialize(msg), number=args.n) / args.n * 1e6
-        de = timeit.timeit(lambda: messages.deserialize(type(msg), data),
-                           number=args.n) / args.n * 1e6
-        rser = timeit.timeit(lambda: store.serialize_cdr(rb, typename),
-                             number=args.n) / args.n * 1e6
-        rde = timeit.timeit(lambda: store.deserialize_cdr(data, typename),
+        ser = timeit.timeit(lambda msg=msg: messages.serialize(msg),
                             number=args.n) / args.n * 1e6
+        de = timeit.timeit(lambda msg=msg, data=data: messages.deserialize(type(msg), data),
+                           number=args.n) / args.n * 1e6
+        rser = timeit.timeit(lambda rb=rb, typename=typename: store.serialize_cdr(rb, typename),
+                             number=args.n) / args.n * 1e6
+        rde = timeit.timeit(
+            lambda data=data, typename=typename: store.deserialize_cdr(data, typename),
+            number=args.n) / args.n * 1e6
         print(f'{label:<24} {ser:8.2f} {de:8.2f} {rser:12.2f} {rde:11.2f}')
     return 0
 

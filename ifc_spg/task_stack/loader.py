@@ -253,8 +253,8 @@ def _construct(node, path, marks, count, source):
             raise TaskStackError("YAML merge keys ('<<') are not supported; write the "
                                  'fields out', path, *_pos(key_node), source)
         if not isinstance(key_node, yaml.ScalarNode):
-            raise TaskStackError('mapping keys must be plain names, got a '
-                                 f"{'list' if isinstance(key_node, yaml.SequenceNode) else 'mapping'}",
+            kind = 'list' if isinstance(key_node, yaml.SequenceNode) else 'mapping'
+            raise TaskStackError(f'mapping keys must be plain names, got a {kind}',
                                  path, *_pos(key_node), source)
         key = key_node.value
         if key in out:

@@ -365,7 +365,8 @@ class _Parser:
                                f"task name '{t.name}' is used twice (also tasks[{seen[t.name]}]);"
                                ' names must be unique')
             seen[t.name] = t.index
-        return {'version': VERSION, 'name': name, 'robot': robot, 'description': desc, 'tasks': specs}
+        return {'version': VERSION, 'name': name, 'robot': robot, 'description': desc,
+                'tasks': specs}
 
     def task(self, path, x, index):
         self.mapping(path, x, 'a task')
