@@ -4,7 +4,11 @@
 
 The SPG configuration comes from the bag (metadata ``custom_data['ifc_spg.spg_config']``,
 else the first ``spg/status`` message carrying ``config``; ``--robot`` is the last resort,
-with default parameters). Every ``joint_states`` message is one tick, in stamp order, fed
+with default parameters), and so do the robot's IFC gains K, D the run used (a scenario's
+``sim: {stiffness, damping}``): ``custom_data['ifc_spg.robot_params']``, else ``robot_params``
+in ``spg/status``. A bag without them (recorded before they were stored) is replayed with
+the robot's default K, D and a warning; recorded limits that differ from the current robot
+model are warned about too. Every ``joint_states`` message is one tick, in stamp order, fed
 to a fresh :class:`~ifc_spg.spg_runner.SpgRunner` exactly as the live node or the offline
 runner did; each task stack on ``spg/task_stack`` is handed to it before the tick at which
 the recorded run activated it (``stack.since`` in ``spg/status``; without it, the first
@@ -27,7 +31,8 @@ import numpy as np
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 
-__all__ = ['ReplayResult', 'main', 'read_spg_config', 'replay']
+__all__ = ['ReplayResult', 'main', 'read_robot_params', 'read_spg_config', 'replay',
+           'replay_robot']
 
 
 @dataclasses.dataclass
@@ -43,6 +48,10 @@ class ReplayResult:
         missing: Ticks without a recorded command (or without a recomputed one).
         stacks: Task stacks handed to the SPG.
         config: The SPG configuration used (dict).
+        robot_params: The robot parameters used (dict of
+            :func:`~ifc_spg.spg_runner.robot_params`: K, D, limits).
+        gains_recorded: True when K, D came from the bag, False for the defaults.
+        warnings: What the replay could not take from the bag (messages).
     """
 
     max_abs_diff: float
@@ -53,6 +62,9 @@ class ReplayResult:
     missing: int
     stacks: int
     config: dict
+    robot_params: dict = None
+    gains_recorded: bool = False
+    warnings: list = dataclasses.field(default_factory=list)
 
 
 def read_spg_config(bag, statuses, robot=None):
@@ -79,6 +91,88 @@ def read_spg_config(bag, statuses, robot=None):
     # the recorded watchdog timeout is kept: the stamp-gap restart rule depends on it (the
     # wall-clock trips are replayed from the recorded 'watchdog' events, see replay())
     return SpgConfig(**doc)
+
+
+def read_robot_params(bag, statuses):
+    """The robot-parameter record of a bag (dict), or None for bags without one."""
+    from ifc_spg.runner import ROBOT_PARAMS_KEY
+
+    if ROBOT_PARAMS_KEY in bag.custom_data:
+        try:
+            doc = json.loads(bag.custom_data[ROBOT_PARAMS_KEY])
+        except json.JSONDecodeError as exc:
+            raise ParameterError(f"bag '{bag.path}': custom_data '{ROBOT_PARAMS_KEY}' is not "
+                                 f'JSON ({exc})') from None
+        if not isinstance(doc, dict):
+            raise ParameterError(f"bag '{bag.path}': custom_data '{ROBOT_PARAMS_KEY}' must be a "
+                                 f'JSON object, got {type(doc).__name__}')
+        return doc
+    return next((s['robot_params'] for _, s in statuses
+                 if isinstance(s, dict) and isinstance(s.get('robot_params'), dict)), None)
+
+
+_CHECKED = ('tau_max', 'v_max', 'a_max', 'q_min', 'q_max')
+
+
+def replay_robot(config, doc, where='bag'):
+    """The robot to replay with: ``config.robot`` with the recorded K, D of ``doc``.
+
+    Args:
+        config: The :class:`~ifc_spg.spg_config.SpgConfig` to replay with.
+        doc: The bag's robot-parameter record (:func:`read_robot_params`), or None.
+        where: Name of the bag for messages.
+
+    Returns:
+        ``(robot, gains_recorded, warnings)``.
+
+    Raises:
+        ParameterError: A record whose K or D is not a valid per-joint vector.
+    """
+    from ifc_spg.model import RobotModel
+    from ifc_spg.runner import ROBOT_PARAMS_KEY, robot_with_gains
+
+    robot = RobotModel.from_config(config.robot)
+    if doc is None:
+        return robot, False, [
+            f"{where} holds no robot parameters (no custom_data '{ROBOT_PARAMS_KEY}', no "
+            "spg/status with 'robot_params'; bags recorded before they were stored): "
+            f"replaying with the default K, D of '{robot.name}'. A run whose scenario "
+            'overrode sim.stiffness/sim.damping will not reproduce']
+    warnings = []
+    recorded = doc.get('robot')
+    if recorded is not None and recorded != robot.name:
+        return robot, False, [
+            f"{where} was recorded with robot '{recorded}', replaying as '{robot.name}' "
+            f'(--robot): its recorded K, D do not apply; using the defaults of '
+            f"'{robot.name}'"]
+    names = doc.get('joint_names')
+    if names is not None and list(names) != list(robot.joint_names):
+        raise ParameterError(f"{where}: custom_data '{ROBOT_PARAMS_KEY}' lists joints "
+                             f"{names} but robot '{robot.name}' has "
+                             f'{list(robot.joint_names)}; replay with --robot NAME of the '
+                             'recording robot')
+    for key in ('stiffness', 'damping'):
+        value = doc.get(key)
+        if not isinstance(value, list) or len(value) != robot.n:
+            raise ParameterError(f"{where}: custom_data '{ROBOT_PARAMS_KEY}' field '{key}' "
+                                 f"must list {robot.n} values (one per joint of "
+                                 f"'{robot.name}'), got {value!r}")
+    robot = robot_with_gains(robot, stiffness=doc['stiffness'], damping=doc['damping'],
+                             where=f"{where}: custom_data '{ROBOT_PARAMS_KEY}' field ")
+    for key in _CHECKED:
+        value = doc.get(key)
+        current = getattr(robot, key)
+        if value is not None and (len(value) != robot.n or
+                                  not np.array_equal(np.asarray(value, dtype=float), current)):
+            warnings.append(f"{where} recorded {key} = {value} but robot '{robot.name}' now "
+                            f'has {current.tolist()} (the model changed since the recording); '
+                            'replaying with the current values')
+    stiff = [j for j, s in zip(robot.joint_names, robot.stiff_mask) if s]
+    if doc.get('stiff_joints') is not None and list(doc['stiff_joints']) != stiff:
+        warnings.append(f"{where} recorded stiff_joints = {doc['stiff_joints']} but robot "
+                        f"'{robot.name}' now has {stiff} (the model changed since the "
+                        'recording); replaying with the current ones')
+    return robot, True, warnings
 
 
 def _activation_times(stack_msgs, statuses, accepted):
@@ -120,7 +214,7 @@ def _activation_times(stack_msgs, statuses, accepted):
 def replay(path, robot=None):
     """Recompute the commands of a bag; returns a :class:`ReplayResult`."""
     from ifc_spg.bag import BagReader, stamp_ns
-    from ifc_spg.spg_runner import SpgRunner, parse_task_stack
+    from ifc_spg.spg_runner import SpgRunner, parse_task_stack, robot_params
 
     with BagReader(path) as bag:
         topics = {t.lstrip('/'): t for t in bag.topics}
@@ -145,9 +239,11 @@ def replay(path, robot=None):
                 except json.JSONDecodeError:
                     pass
         config = read_spg_config(bag, statuses, robot)
+        model, gains_recorded, warnings = replay_robot(
+            config, read_robot_params(bag, statuses), where=f"bag '{bag.path}'")
     # a fixed clock: the runner never trips by itself; the live node's timer trips are
     # replayed at the tick count their 'watchdog' status event recorded
-    spg = SpgRunner(config, clock=lambda: 0.0)
+    spg = SpgRunner(config, robot=model, clock=lambda: 0.0)
     trips = sorted({int(doc['tick']) for _, doc in statuses
                     if isinstance(doc, dict) and isinstance(doc.get('event'), dict)
                     and doc['event'].get('type') == 'watchdog'
@@ -191,7 +287,8 @@ def replay(path, robot=None):
         if d > worst or worst_stamp is None:
             worst, worst_stamp, worst_joint = d, stamp * 1e-9, cmd.names[j]
     return ReplayResult(worst if compared else float('inf'), worst_stamp, worst_joint,
-                        len(seen), compared, missing, handed, dataclasses.asdict(config))
+                        len(seen), compared, missing, handed, dataclasses.asdict(config),
+                        robot_params(model), gains_recorded, warnings)
 
 
 def _in_order(msg, names):
@@ -215,13 +312,16 @@ def main(argv=None):
     except IfcSpgError as exc:
         print(f'ifc-spg replay: {exc}', file=sys.stderr)
         return 2
+    for warning in res.warnings:
+        print(f'ifc-spg replay: warning: {warning}', file=sys.stderr)
     ok = res.compared > 0 and res.missing == 0 and res.max_abs_diff <= opts.tolerance
     if opts.json:
         print(json.dumps({**dataclasses.asdict(res), 'tolerance': opts.tolerance, 'ok': ok}))
     else:
+        gains = 'K, D from the bag' if res.gains_recorded else 'default K, D'
         print(f'replayed {res.ticks} ticks ({res.stacks} task stack(s), robot '
-              f"'{res.config['robot']}', solver {res.config['solver']}); compared {res.compared}"
-              f' commands, {res.missing} missing')
+              f"'{res.config['robot']}' with {gains}, solver {res.config['solver']}); compared "
+              f'{res.compared} commands, {res.missing} missing')
         where = '' if res.worst_stamp is None else \
             f' (t = {res.worst_stamp:.3f} s, joint {res.worst_joint})'
         print(f'max |dq_v| = {res.max_abs_diff:.3e} rad{where}; tolerance {opts.tolerance:g}: '

@@ -9,9 +9,13 @@ period. The bag in ``DIR/bag`` has the topics a live run records, with the same 
 QoS and header stamps (log time = sim time): ``joint_states``, ``command/joint_position``,
 ``spg/task_stack``, ``spg/status``, ``sim/contact_wrench``, ``ft_sensor/wrench`` (robots
 with wrist sensors), ``sim/env_joint_states`` (scenes with mechanisms) and
-``sim/apply_wrench`` (the scenario's pushes). The SPG configuration is stored in the bag
-(metadata ``custom_data['ifc_spg.spg_config']`` and the first ``spg/status`` message) so
-``ifc-spg replay`` can recompute every command. ``DIR/metrics.json`` holds the metrics.
+``sim/apply_wrench`` (the scenario's pushes). Everything that sets the SPG's output besides
+the recorded joint states and task stacks is stored in the bag, each as JSON in the
+metadata's ``custom_data`` (``metadata.yaml``) and in the first ``spg/status`` message: the
+SPG configuration (``ifc_spg.spg_config`` / ``config``: dt, solver, rho, torque_limits, PSPM,
+watchdog) and the robot parameters the SPG ran with (``ifc_spg.robot_params`` /
+``robot_params``: K and D after the scenario's ``sim: {stiffness, damping}``, and the limits),
+so ``ifc-spg replay`` recomputes every command. ``DIR/metrics.json`` holds the metrics.
 
 A scenario file (YAML)::
 
@@ -64,16 +68,19 @@ from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 
 __all__ = [
     'CONFIG_KEY',
+    'ROBOT_PARAMS_KEY',
     'STACK_SINCE_KEY',
     'RunResult',
     'Scenario',
     'find_config_dir',
     'load_scenario',
     'main',
+    'robot_with_gains',
     'run_scenario',
 ]
 
 CONFIG_KEY = 'ifc_spg.spg_config'
+ROBOT_PARAMS_KEY = 'ifc_spg.robot_params'
 SCENARIO_KEY = 'ifc_spg.scenario'
 STACK_SINCE_KEY = 'since'
 _SCENARIO_KEYS = ('name', 'description', 'robot', 'interface', 'scene', 'scene_options', 'q0',
@@ -388,7 +395,7 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
     """
     from ifc_spg.bag import TOPICS, BagWriter
     from ifc_spg.ros import messages as m
-    from ifc_spg.spg_runner import SpgRunner, status_json
+    from ifc_spg.spg_runner import SpgRunner, robot_params, status_json
     from sim_bridge.simulation import SimConfig, Simulation
 
     if not isinstance(scenario, Scenario):
@@ -414,7 +421,9 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
     contact_chain = sim.contact_chain
     writer = BagWriter(bag_path)
     config_doc = dataclasses.asdict(config)
+    robot_doc = robot_params(runner.robot)
     writer.set_custom_data(CONFIG_KEY, json.dumps(config_doc, sort_keys=True))
+    writer.set_custom_data(ROBOT_PARAMS_KEY, json.dumps(robot_doc))
     writer.set_custom_data(SCENARIO_KEY, json.dumps({
         'name': scenario.name, 'path': scenario.path, 'scene': scenario.scene,
         'interface': sim.interface, 'duration': duration}))
@@ -430,7 +439,7 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
         writer.add_topic('/' + topic, *TOPICS[topic])
     writer.write_msg('/spg/status', 0, m.String(data=status_json(
         {'event': {'type': 'started', 'message': f'offline run of {scenario.name}'},
-         'config': config_doc, 'robot': robot.name, 'tick': 0})))
+         'config': config_doc, 'robot_params': robot_doc, 'robot': robot.name, 'tick': 0})))
 
     stacks = list(scenario.stacks)
     pushes = list(scenario.pushes)
@@ -564,28 +573,52 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
 def _robot_with_ifc(scenario):
     """The scenario's robot; ``sim: {stiffness, damping}`` override its IFC gains K [Nm/rad]
     and D [Nms/rad] (scalar or per joint) for the simulated controller AND the SPG."""
-    import copy
-
     from ifc_spg.model import RobotModel
 
-    robot = RobotModel.from_config(scenario.robot)
-    if 'stiffness' not in scenario.sim and 'damping' not in scenario.sim:
+    return robot_with_gains(RobotModel.from_config(scenario.robot),
+                            stiffness=scenario.sim.get('stiffness'),
+                            damping=scenario.sim.get('damping'),
+                            where=f"scenario '{scenario.path}': sim.")
+
+
+def robot_with_gains(robot, stiffness=None, damping=None, where=''):
+    """A copy of ``robot`` with other IFC gains (the model itself is shared, not modified).
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+        stiffness: Joint stiffness K in [Nm/rad], scalar or per joint (None: keep).
+        damping: Joint damping D in [Nms/rad], scalar or per joint (None: keep).
+        where: Prefix of error messages naming the source (e.g. ``"scenario 'x': sim."``).
+
+    Returns:
+        ``robot`` itself when neither is given, else a shallow copy with read-only arrays.
+
+    Raises:
+        ParameterError: A value that is not a finite number (K > 0, D >= 0), or a wrong count.
+    """
+    import copy
+
+    if stiffness is None and damping is None:
         return robot
     robot = copy.copy(robot)
-    for key in ('stiffness', 'damping'):
-        if key in scenario.sim:
-            value = np.asarray(scenario.sim[key], dtype=float).reshape(-1)
-            if value.size == 1:
-                value = np.full(robot.n, value[0])
-            if value.shape != (robot.n,) or not np.all(np.isfinite(value)) or np.any(
-                    value < 0) or (
-                    key == 'stiffness' and np.any(value <= 0)):
-                raise ParameterError(f"scenario '{scenario.path}': sim.{key} must be "
-                                     f'{"> 0" if key == "stiffness" else ">= 0"} '
-                                     f'(scalar or {robot.n} values), got {scenario.sim[key]!r}')
-            value = value.copy()
-            value.setflags(write=False)
-            setattr(robot, key, value)
+    for key, raw in (('stiffness', stiffness), ('damping', damping)):
+        if raw is None:
+            continue
+        try:
+            value = np.asarray(raw, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            value = np.array([np.nan])
+        if value.size == 1:
+            value = np.full(robot.n, value[0])
+        if value.shape != (robot.n,) or not np.all(np.isfinite(value)) or np.any(
+                value < 0) or (key == 'stiffness' and np.any(value <= 0)):
+            raise ParameterError(f'{where}{key} must be '
+                                 f'{"> 0" if key == "stiffness" else ">= 0"} '
+                                 f'(scalar or {robot.n} values for '
+                                 f"{', '.join(robot.joint_names)}), got {raw!r}")
+        value = value.copy()
+        value.setflags(write=False)
+        setattr(robot, key, value)
     return robot
 
 

@@ -47,7 +47,7 @@ from ifc_spg.spg import SetPointGenerator
 from ifc_spg.spg_config import SpgConfig
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
-           'parse_task_stack', 'status_json']
+           'parse_task_stack', 'robot_params', 'status_json']
 
 REJECT_REASONS = ('wrong_count', 'unknown_name', 'duplicate_name', 'non_finite',
                   'stamp_backwards', 'duplicate_stamp')
@@ -136,6 +136,27 @@ def _finite(x):
     if isinstance(x, (list, tuple)):
         return [_finite(v) for v in x]
     return x
+
+
+def robot_params(robot):
+    """The robot parameters the SPG computes with, as a JSON-ready dict.
+
+    ``ifc-spg replay`` applies ``stiffness`` and ``damping`` (which a scenario may override)
+    and compares the rest with the named configuration it loads.
+
+    Keys: robot (configuration name), joint_names, stiffness K [Nm/rad], damping D
+    [Nms/rad], stiff_joints (position-controlled joints), tau_max [Nm], v_max [rad/s],
+    a_max [rad/s^2], q_min / q_max [rad] (per joint, model order).
+    """
+    def floats(x):
+        return [float(v) for v in np.ravel(x)]
+
+    return {'robot': robot.name, 'joint_names': list(robot.joint_names),
+            'stiffness': floats(robot.stiffness), 'damping': floats(robot.damping),
+            'stiff_joints': [j for j, s in zip(robot.joint_names, robot.stiff_mask) if s],
+            'tau_max': floats(robot.tau_max), 'v_max': floats(robot.v_max),
+            'a_max': floats(robot.a_max), 'q_min': floats(robot.q_min),
+            'q_max': floats(robot.q_max)}
 
 
 def status_json(status):
@@ -380,7 +401,8 @@ class SpgRunner:
         residual (max violation of the level's velocity bounds), slack}], tank_energy [J],
         solve_time / tick_time [s], qdot_v [rad/s], rejected {reason: count}, watchdog
         {timeout, trips, resumes}, errors (the last few), event {type, message} (when given)
-        and config (the :class:`SpgConfig` as a dict; in the first document and every event).
+        config (the :class:`SpgConfig` as a dict) and robot_params (:func:`robot_params`: the
+        K, D and limits the SPG uses), both in the first document and every event.
 
         Args:
             event: Optional event name and message, e.g. ``('stack_rejected', text)``.
@@ -420,6 +442,7 @@ class SpgRunner:
             doc['event'] = {'type': event[0], 'message': event[1]}
         if event is not None or not self._config_sent:
             doc['config'] = dataclasses.asdict(self.config)  # replay rebuilds the runner
+            doc['robot_params'] = robot_params(self.robot)   # ... with these K, D
             self._config_sent = True
         return doc
 

@@ -129,3 +129,34 @@ def test_sigterm_stops_the_run_with_a_closed_bag_and_metrics(tmp_path):
     assert 0 < done < metrics['interrupted']['ticks_planned']
     with BagReader(out / 'bag') as bag:
         assert bag.topics['/command/joint_position'][1] == done
+
+
+def test_robot_params_recorded_in_metadata_and_first_status(short_run):
+    """K, D and limits the SPG ran with are in metadata.yaml and the first spg/status."""
+    from ifc_spg.model import RobotModel
+    from ifc_spg.runner import ROBOT_PARAMS_KEY
+
+    robot = RobotModel.from_config('lbr_iiwa14')
+    with BagReader(short_run.bag) as bag:
+        docs = [json.loads(m.data) for _, _, m in bag.messages({'/spg/status'})]
+        rec = json.loads(bag.custom_data[ROBOT_PARAMS_KEY])
+    assert rec['robot'] == 'lbr_iiwa14' and rec['joint_names'] == list(robot.joint_names)
+    assert rec['stiffness'] == robot.stiffness.tolist()
+    assert rec['damping'] == robot.damping.tolist()
+    assert rec['tau_max'] == robot.tau_max.tolist() and rec['stiff_joints'] == []
+    assert docs[0]['robot_params'] == rec and docs[1]['robot_params'] == rec
+    assert all('robot_params' not in d for d in docs[2:])
+
+
+def test_scenario_gains_reach_the_record(tmp_path):
+    k = [300.0, 250.0, 200.0, 150.0, 100.0, 80.0, 60.0]
+    sc = load_scenario(SCENARIO, {'duration': 0.01, 'sim': {'stiffness': k, 'damping': 12.5},
+                                  'progress': 0})
+    run_scenario(sc, tmp_path, quiet=True)
+    with BagReader(tmp_path / 'bag') as bag:
+        rec = json.loads(bag.custom_data['ifc_spg.robot_params'])
+    assert rec['stiffness'] == k and rec['damping'] == [12.5] * 7
+    bad = SCENARIO.read_text().replace('duration: 1.5', 'duration: 1.5\nsim: {stiffness: [1, 2]}')
+    (tmp_path / 'bad.yaml').write_text(bad)
+    with pytest.raises(ParameterError, match=r'sim\.stiffness must be > 0 \(scalar or 7 values'):
+        run_scenario(load_scenario(tmp_path / 'bad.yaml'), tmp_path / 'o2', quiet=True)
