@@ -230,7 +230,8 @@ class DaqpCascade(CascadeSolver):
                         hi_rows[sl] = a_unit + band[sl]
                     start = end
                     continue
-                # retry below in the slack form (better conditioned)
+                # retry in the slack form (better conditioned)
+                w, flag = self._solve_with_slacks(ws, start, end)
             elif not lev.equality:
                 if qdot is None:
                     qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
@@ -245,7 +246,12 @@ class DaqpCascade(CascadeSolver):
                     hi_rows[sl] = np.maximum(orig_hi[sl], a) / norm[sl] + band[sl]
                     start = end
                     continue
-            w, flag = self._solve_with_slacks(ws, start, end)
+                w, flag = self._solve_slack_level(ws, i, start, end)  # warm started
+                if flag != 1:
+                    self.cold_retries += 1
+                    w, flag = self._solve_with_slacks(ws, start, end)
+            else:  # an equality level with rho < 1e-6
+                w, flag = self._solve_with_slacks(ws, start, end)
             if flag != 1 and start:
                 # Degenerate: the locked bands (1e-9 wide) meet the box at a vertex and DAQP
                 # cannot tell them from infeasible. Widen the bands to the solver's own
@@ -272,6 +278,28 @@ class DaqpCascade(CascadeSolver):
             hi_rows[sl] = hi / norm[sl] + band[sl]
             start = end
         return CascadeResult(qdot, slacks, 'ok', -1)
+
+    def _solve_slack_level(self, ws, i, start, end):
+        """Inequality level ``start:end`` as (4.45)-(4.48) over [qdot_v; s], with this level
+        index's persistent DAQP model (warm started); return ``(x, exitflag)``."""
+        n = self.n
+        if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
+            return self._solve_with_slacks(ws, start, end)  # equal rows: flagged, cold
+        C, bu, bl, model = ws.slack_level(i, start, end, self.rho)
+        m = end - start
+        C[:start, :n] = ws.A_unit[:start]
+        C[start:, :n] = ws.A[start:end]
+        bu[:n] = ws.bu[:n]
+        bl[:n] = ws.bl[:n]
+        bu[n + m:n + m + start] = ws.hi_rows[:start]
+        bl[n + m:n + m + start] = ws.lo_rows[:start]
+        bu[n + m + start:] = ws.orig_hi[start:end]
+        bl[n + m + start:] = ws.orig_lo[start:end]
+        model.update(A=C, blower=bl)
+        x, _, flag, _ = self._solve_model(model)
+        if flag != 1:
+            model.update(sense=ws.cold_sense[:n + m + end])  # forget the working set
+        return x, flag
 
     def _solve_with_slacks(self, ws, start, end):
         """Level ``start:end`` as (4.45)-(4.48) over [qdot_v; s]; return ``(x, exitflag)``."""
@@ -311,6 +339,16 @@ class _Workspace:
         self.settings = settings
         self._levels = {}
 
+    def slack_level(self, i, start, end, rho):
+        """``(C, bu, bl, model)`` of inequality level index i (rows ``start:end``): over
+        w = [qdot_v; s], C = [[A_higher, 0], [A_i, -I]], bounds [box; free; rows]; the model
+        points at C, bu and bl and keeps its working set from tick to tick."""
+        key = ('slack', i, start, end)
+        hit = self._levels.get(key)
+        if hit is None:
+            hit = self._levels[key] = _slack_model(self.n, start, end, rho, self.settings)
+        return hit
+
     def level(self, i, start):
         """``(H, diagonal view of H, f, model)`` of level index i, whose higher levels have
         ``start`` rows.
@@ -332,6 +370,23 @@ class _Workspace:
             model.settings = settings
             hit = self._levels[key] = (H, H.reshape(-1)[::n + 1], f, model)
         return hit
+
+
+def _slack_model(n, start, end, rho, settings):
+    """Arrays and DAQP model of an inequality level with slacks (see ``slack_level``)."""
+    import daqp
+    m = end - start
+    C = np.zeros((end, n + m))
+    C[start:, n:] = -np.eye(m)
+    bu = np.full(n + m + end, np.inf)
+    bl = np.full(n + m + end, -np.inf)
+    H = np.diag(np.concatenate([np.full(n, rho), np.ones(m)]))
+    model = daqp.Model()
+    model.setup(H, np.zeros(n + m), C, bu, bl, np.zeros(n + m + end, dtype=np.int32))
+    s = dict(model.settings)
+    s.update(settings)
+    model.settings = s
+    return C, bu, bl, model
 
 
 def _accept(ws, x, start, end, widen):
