@@ -192,6 +192,7 @@ class DaqpCascade(CascadeSolver):
         band += 1.0
         band *= self.lock_tolerance
         band /= norm
+        neg_lo = np.negative(orig_lo)
         bl[:n] = box.lower  # (DAQP takes +-inf as unbounded)
         bu[:n] = box.upper
         qdot = None  # no level solved yet: the point of the box nearest zero (made on demand)
@@ -206,8 +207,7 @@ class DaqpCascade(CascadeSolver):
                 H, H_diag, f, model = ws.level(i, start)
                 np.dot(A_i.T, A_i, out=H)
                 H_diag += self.rho
-                np.dot(beta, A_i, out=f)
-                np.negative(f, out=f)
+                np.dot(neg_lo[sl], A_i, out=f)  # f = -A_i^T beta
                 # Each level index has its own DAQP model, which keeps its working set: the
                 # solve starts from this level's active bounds and rows of the last tick.
                 if start:
@@ -217,17 +217,19 @@ class DaqpCascade(CascadeSolver):
                 x, _, flag, _ = self._solve_model(model)
                 if flag != 1:
                     # a warm start can end in a false 'infeasible' on degenerate levels (a
-                    # higher level locked at a vertex of the box); retry cold
+                    # higher level locked at a vertex of the box); retry cold, with the locked
+                    # bands widened to contain the current solution
                     self.cold_retries += 1
-                    model.update(sense=ws.cold_sense[:n + start])
+                    _widen(ws, qdot, start)
+                    model.update(blower=bl[:n + start], sense=ws.cold_sense[:n + start])
                     x, _, flag, _ = self._solve_model(model)
                 # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
                 if flag == 1 and math.isfinite(x @ f):
-                    qdot, a_unit = _accept(ws, x, start, end, end < R)
+                    qdot, a_unit = _accept(ws, x, start, end)
                     slacks.append(a_unit * norm[sl] - beta)
                     if end < R:  # lock (4.60)-(4.62); the last level needs no lock
-                        lo_rows[sl] = a_unit - band[sl]
-                        hi_rows[sl] = a_unit + band[sl]
+                        np.subtract(a_unit, band[sl], out=lo_rows[sl])
+                        np.add(a_unit, band[sl], out=hi_rows[sl])
                     start = end
                     continue
                 # retry in the slack form (better conditioned)
@@ -241,14 +243,20 @@ class DaqpCascade(CascadeSolver):
                     # rho |qdot|^2 over everything the higher levels allow, so it is this
                     # level's optimum too: no QP needed (typical for inactive inequalities:
                     # obstacles, boxes, torque bands).
+                    # Its lock [lower + s*, upper + s*] is its own bounds (s* = 0; they contain
+                    # the solution), in unit-row coordinates.
                     slacks.append(np.zeros(m))
-                    lo_rows[sl] = np.minimum(orig_lo[sl], a) / norm[sl] - band[sl]
-                    hi_rows[sl] = np.maximum(orig_hi[sl], a) / norm[sl] + band[sl]
+                    lo, hi = lo_rows[sl], hi_rows[sl]
+                    np.divide(orig_lo[sl], norm[sl], out=lo)
+                    lo -= band[sl]
+                    np.divide(orig_hi[sl], norm[sl], out=hi)
+                    hi += band[sl]
                     start = end
                     continue
                 w, flag = self._solve_slack_level(ws, i, start, end)  # warm started
                 if flag != 1:
                     self.cold_retries += 1
+                    _widen(ws, qdot, start)
                     w, flag = self._solve_with_slacks(ws, start, end)
             else:  # an equality level with rho < 1e-6
                 w, flag = self._solve_with_slacks(ws, start, end)
@@ -266,7 +274,7 @@ class DaqpCascade(CascadeSolver):
                     qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
                 return CascadeResult(qdot, slacks, 'hold' if i == 0 else 'fallback', i)
             x = w[:n]
-            qdot, a_unit = _accept(ws, x, start, end, end < R)
+            qdot, a_unit = _accept(ws, x, start, end)
             a = a_unit * norm[sl]
             s = w[n:]
             slacks.append(s)
@@ -389,26 +397,25 @@ def _slack_model(n, start, end, rho, settings):
     return C, bu, bl, model
 
 
-def _accept(ws, x, start, end, widen):
-    """Take the solution ``x`` of the level of rows ``start:end``.
-
-    ``x`` satisfies the box and the locked rows only up to DAQP's primal tolerance
-    (1e-6), more than the lock band. Clipped into the box, it then widens (if ``widen``)
-    any locked band it lies outside of, so the locked set always contains the current
-    solution and a lower level is never infeasible because of round-off.
-
-    Returns:
-        ``(qdot_v, A_i qdot_v)``, the latter in unit-row coordinates.
-    """
+def _accept(ws, x, start, end):
+    """Take the solution ``x`` of the level of rows ``start:end``, clipped into the box
+    (DAQP meets constraints to its 1e-6 tolerance); return ``(qdot_v, A_i qdot_v)``, the
+    latter in unit-row coordinates."""
     n = x.shape[0]
     qdot = np.minimum(np.maximum(x, ws.bl[:n]), ws.bu[:n])
-    if not (widen and start):
-        return qdot, ws.A_unit[start:end] @ qdot
-    a = ws.A_unit[:end] @ qdot
-    lo, hi, a_up = ws.lo_rows[:start], ws.hi_rows[:start], a[:start]
-    np.minimum(lo, a_up, out=lo)
-    np.maximum(hi, a_up, out=hi)
-    return qdot, a[start:]
+    return qdot, ws.A_unit[start:end] @ qdot
+
+
+def _widen(ws, qdot, start):
+    """Widen the locked bands of rows ``:start`` to contain ``qdot`` (the higher levels'
+    solution, inside the box): the locked set then surely contains a point, and a level
+    that DAQP called infeasible can be retried. Bands are 1e-9 wide and DAQP's tolerance is
+    1e-6, so a solution may lie just outside them."""
+    if qdot is None or not start:
+        return
+    a = ws.A_unit[:start] @ qdot
+    np.minimum(ws.lo_rows[:start], a, out=ws.lo_rows[:start])
+    np.maximum(ws.hi_rows[:start], a, out=ws.hi_rows[:start])
 
 
 def _satisfied(a, lo, hi):

@@ -76,6 +76,7 @@ class EnergyTanks:
         self.deficit = 0.0
         # constants of the 2 ms path
         self._all = bool(self.mask.all())
+        self._fixed = np.flatnonzero(~self.mask)  # joints without modulation (stiff)
         self._shuffling = config.shuffle > 0.0 and config.shuffle_budget > 0.0
         self._D_over_dt = self.D / self.dt
         self._inv_dt = 1.0 / self.dt
@@ -120,8 +121,8 @@ class EnergyTanks:
         r *= self._minus_inv_dt
         lower = r
         if not self._all:
-            lower[~self.mask] = -np.inf
-            upper[~self.mask] = np.inf
+            lower[self._fixed] = -np.inf
+            upper[self._fixed] = np.inf
         return VelocityBox(lower, upper)
 
     def update(self, q, q_v, qdot_v):
@@ -143,7 +144,7 @@ class EnergyTanks:
         e = self._avail - dEk
         np.minimum(e, self.config.max_energy, out=e)
         if not self._all:
-            e[~self.mask] = self.energy[~self.mask]
+            e[self._fixed] = self.energy[self._fixed]
         e_min = e.min()
         if not e_min >= 0.0:  # NaN (inf - inf on absurd measurements) or round-off below 0
             e[np.isnan(e)] = 0.0  # an overflow empties the tank
