@@ -92,13 +92,19 @@ def icub_stack(robot):
     ]
 
 
-def _closed_loop(spg, robot, ticks, progress):
+def _closed_loop(spg, robot, ticks, progress, budget=None):
+    """Run ``ticks`` closed-loop ticks (fewer if ``budget`` seconds run out first)."""
     from ifc_spg.testing import JointImpedancePlant
     plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
     q, qd, t = plant.q, plant.qdot, 0.0
     times = np.empty(ticks)
     statuses = {}
+    deadline = None if budget is None else time.perf_counter() + budget
     for i in range(ticks):
+        if deadline is not None and time.perf_counter() > deadline:
+            print(f'    ... stopped after {i} ticks: the {budget:g} s budget ran out',
+                  file=sys.stderr)
+            return times[:i], statuses
         q_v = spg.step(q, qd, t)
         times[i] = spg.info.tick_time
         statuses[spg.info.status] = statuses.get(spg.info.status, 0) + 1
@@ -109,22 +115,30 @@ def _closed_loop(spg, robot, ticks, progress):
 
 
 def _stats(times):
+    if times.size == 0:
+        return {'p50_us': float('nan'), 'p99_us': float('nan'), 'max_us': float('nan'),
+                'ticks': 0}
     us = times * 1e6
     return {'p50_us': float(np.median(us)), 'p99_us': float(np.percentile(us, 99)),
             'max_us': float(us.max()), 'ticks': int(us.size)}
 
 
-def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_ticks=None):
+def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_ticks=None,
+                slow_budget=None):
+    """Tick times of one stack per solver; solvers other than DAQP run ``slow_ticks`` ticks
+    at most, within ``slow_budget`` seconds (proxsuite can stall for seconds per tick)."""
     from ifc_spg.spg import SetPointGenerator
     rows = []
     for solver in solvers:
-        n_ticks = ticks if solver == 'daqp' or slow_ticks is None else min(ticks, slow_ticks)
+        slow = solver != 'daqp'
+        n_ticks = ticks if not slow or slow_ticks is None else min(ticks, slow_ticks)
+        budget = slow_budget if slow else None
         spg = SetPointGenerator(robot, make_stack(robot), solver=solver)
-        _closed_loop(spg, robot, 200, False)  # warm-up
+        _closed_loop(spg, robot, 200, False, budget)  # warm-up
         gc.collect()
         gc.disable()
         try:
-            times, statuses = _closed_loop(spg, robot, n_ticks, progress)
+            times, statuses = _closed_loop(spg, robot, n_ticks, progress, budget)
         finally:
             gc.enable()
         row = {'stack': name, 'solver': solver, 'levels': len(spg.info.level_names)}
@@ -206,7 +220,7 @@ def bench_pink(ticks):
 
 
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
-                   slow_ticks=300):
+                   slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
     from ifc_spg import RobotModel
     out = {'ticks': ticks, 'stacks': []}
@@ -216,7 +230,8 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                               ('icub_table_3_7', icub, icub_stack)):
         if progress:
             print(f'  {name} ...', file=sys.stderr)
-        out['stacks'] += bench_stack(name, robot, make, solvers, ticks, progress, slow_ticks)
+        out['stacks'] += bench_stack(name, robot, make, solvers, ticks, progress, slow_ticks,
+                                     slow_budget)
     if progress:
         print('  pink_ratio ...', file=sys.stderr)
     out['pink'] = bench_pink(ticks)
@@ -261,13 +276,15 @@ def main(argv=None):
     p.add_argument('--proxsuite-ticks', type=int, default=300,
                    help='ticks per proxsuite row (default 300: it stalls for up to ~0.2 s '
                         'on degenerate levels, so 20 000 ticks take minutes)')
+    p.add_argument('--proxsuite-budget', type=float, default=60.0,
+                   help='seconds per proxsuite row, warm-up included (default 60)')
     p.add_argument('--json', help='also write the results to this JSON file')
     args = p.parse_args(argv)
     ticks = 2000 if args.quick else args.ticks
     if ticks < 1:
         p.error('--ticks must be >= 1')
     res = run_benchmarks(ticks, tuple(s for s in args.solvers.split(',') if s),
-                         slow_ticks=args.proxsuite_ticks)
+                         slow_ticks=args.proxsuite_ticks, slow_budget=args.proxsuite_budget)
     print(format_report(res))
     if args.json:
         with open(args.json, 'w') as f:
