@@ -8,8 +8,9 @@ Variables w = [qdot_v; s] with s the slack of the current level. For i = 1..k::
          lower <= qdot_v <= upper                        (joint limits and PSPM, hard)
 
 then the level is locked: its rows join A_bar with bounds [beta_m + s*, beta_M + s*]
-(exactly A_i qdot_v* for equality rows, so round-off never makes a later level
-infeasible). A level whose solve fails keeps the previous level's solution.
+(A_i qdot_v* for equality rows), widened by a band of 1e-9 per unit row norm. A level
+whose solve fails (after the retries of :class:`DaqpCascade`) keeps the previous level's
+solution.
 
 Solvers share one interface (:class:`CascadeSolver`): ``daqp`` (dual active set, exact,
 default) and ``proxsuite`` (dense proximal ALM, warm started). Building the levels
@@ -124,22 +125,21 @@ class CascadeSolver:
 class DaqpCascade(CascadeSolver):
     """The cascade with DAQP (exact dual active-set QP, PyPI ``daqp``).
 
-    The rows of all levels are stacked once per tick in priority order into one DAQP
-    model over qdot_v (n variables, the box as simple bounds); the rows of lower levels
-    stay unbounded until their level is locked. An equality level needs no slack
-    variables: with s = A_i qdot_v - beta_i free, (4.45)-(4.48) is exactly
+    The rows of all levels are stacked once per tick in priority order. An equality level
+    needs no slack variables: with s = A_i qdot_v - beta_i free, (4.45)-(4.48) is exactly
 
         min 1/2 qdot_v^T (rho I + A_i^T A_i) qdot_v - (A_i^T beta_i)^T qdot_v
 
-    under the locked higher rows and the box, so the model only gets a new cost per
-    level. An inequality level the current solution already satisfies is locked without
-    a QP; one that it violates is solved with its slacks, (4.45)-(4.48) as written.
+    under the locked higher rows and the box (n variables). An inequality level the current
+    solution already satisfies is locked without a QP; one that it violates is solved with
+    its slacks, (4.45)-(4.48) as written.
 
-    Each level index has its own DAQP model over views of one stacked workspace (the box
+    Each level index has its own DAQP model over views of the stacked workspace (the box
     and the higher levels' rows, scaled to unit norm); DAQP keeps a model's working set
     between solves, so every level starts from its own active set of the last tick. A
-    failed solve retries cold, then in the slack form, then with the locked bands widened
-    to the solver's tolerance (degenerate vertices), before the level is given up.
+    failed solve retries cold with the locked bands widened to contain the current
+    solution, then in the slack form, then with the bands widened by the solver's
+    tolerance (degenerate vertices), before the level is given up.
 
     The cost's condition number grows like |A_i|^2 / rho; below rho = 1e-6 (only used to
     compare with pseudo-inverses) equality levels also take the slack form.
