@@ -293,7 +293,7 @@ class DaqpCascade(CascadeSolver):
         n = self.n
         if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
             return self._solve_with_slacks(ws, start, end)  # equal rows: flagged, cold
-        C, bu, bl, model = ws.slack_level(i, start, end, self.rho)
+        C, bu, bl, cold, model = ws.slack_level(i, start, end, self.rho)
         m = end - start
         C[:start, :n] = ws.A_unit[:start]
         C[start:, :n] = ws.A[start:end]
@@ -306,7 +306,7 @@ class DaqpCascade(CascadeSolver):
         model.update(A=C, blower=bl)
         x, _, flag, _ = self._solve_model(model)
         if flag != 1:
-            model.update(sense=ws.cold_sense[:n + m + end])  # forget the working set
+            model.update(sense=cold)  # forget the working set
         return x, flag
 
     def _solve_with_slacks(self, ws, start, end):
@@ -348,9 +348,10 @@ class _Workspace:
         self._levels = {}
 
     def slack_level(self, i, start, end, rho):
-        """``(C, bu, bl, model)`` of inequality level index i (rows ``start:end``): over
-        w = [qdot_v; s], C = [[A_higher, 0], [A_i, -I]], bounds [box; free; rows]; the model
-        points at C, bu and bl and keeps its working set from tick to tick."""
+        """``(C, bu, bl, cold sense, model)`` of inequality level index i (rows
+        ``start:end``): over w = [qdot_v; s], C = [[A_higher, 0], [A_i, -I]], bounds [box;
+        free; rows]; the model points at C, bu and bl and keeps its working set from tick to
+        tick."""
         key = ('slack', i, start, end)
         hit = self._levels.get(key)
         if hit is None:
@@ -389,12 +390,13 @@ def _slack_model(n, start, end, rho, settings):
     bu = np.full(n + m + end, np.inf)
     bl = np.full(n + m + end, -np.inf)
     H = np.diag(np.concatenate([np.full(n, rho), np.ones(m)]))
+    cold = np.zeros(n + m + end, dtype=np.int32)  # sense flags of a cold start
     model = daqp.Model()
-    model.setup(H, np.zeros(n + m), C, bu, bl, np.zeros(n + m + end, dtype=np.int32))
+    model.setup(H, np.zeros(n + m), C, bu, bl, cold.copy())
     s = dict(model.settings)
     s.update(settings)
     model.settings = s
-    return C, bu, bl, model
+    return C, bu, bl, cold, model
 
 
 def _accept(ws, x, start, end):

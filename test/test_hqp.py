@@ -244,3 +244,39 @@ def test_degenerate_level_is_solved_with_bands_widened_to_the_solver_tolerance()
         lv = levels[j]
         moved = np.abs(lv.A @ res.qdot_v - lv.A @ upto.qdot_v)
         assert np.all(moved <= 3e-6 * (1.0 + np.linalg.norm(lv.A, axis=1))), (lv.name, moved)
+
+
+def test_failed_warm_solve_retries_cold_and_the_level_model_recovers(monkeypatch):
+    """A level model whose warm solve fails is retried (cold, bands widened) within the
+    tick; the model forgets its working set and solves the next tick again."""
+    rng = np.random.default_rng(9)
+    n = 7
+    box = VelocityBox(np.full(n, -1.0), np.full(n, 1.0))
+    A_eq, A_in = rng.normal(size=(3, n)), rng.normal(size=(2, n))
+    target = A_in @ rng.uniform(-0.5, 0.5, n)
+    levels = [Level('eq', A_eq, np.ones(3) * 0.1, np.ones(3) * 0.1, True),
+              Level('ineq', A_in, target + 0.2, np.full(2, np.inf), False),  # violated at 0
+              Level('posture', np.eye(n), np.zeros(n), np.zeros(n), True)]
+    ref, _ = reference_cascade(levels, box.lower, box.upper, RHO)
+    solver = DaqpCascade(n, RHO)
+    np.testing.assert_allclose(solver.solve(levels, box).qdot_v, ref, atol=1e-6)
+    original = solver._solve_model
+    calls = []
+
+    def fail_call(k):
+        def solve(model):  # the k-th model solve of the tick reports 'infeasible'
+            x, f, flag, info = original(model)
+            calls.append(1)
+            return (x, f, -1, info) if len(calls) == k + 1 else (x, f, flag, info)
+        return solve
+
+    for k in range(3):  # the warm solves of 'eq', 'ineq' (slack model), 'posture'
+        calls.clear()
+        monkeypatch.setattr(solver, '_solve_model', fail_call(k))
+        res = solver.solve(levels, box)
+        assert res.status == 'ok' and len(calls) > k
+        np.testing.assert_allclose(res.qdot_v, ref, atol=1e-6)
+    monkeypatch.setattr(solver, '_solve_model', original)
+    before = solver.cold_retries
+    np.testing.assert_allclose(solver.solve(levels, box).qdot_v, ref, atol=1e-6)
+    assert solver.cold_retries == before
