@@ -368,22 +368,16 @@ class _Workspace:
         key = (i, start)
         hit = self._levels.get(key)
         if hit is None:
-            import daqp
             n = self.n
             H, f = np.eye(n), np.zeros(n)
-            model = daqp.Model()
-            model.setup(H, f, self.A_unit[:start], self.bu[:n + start], self.bl[:n + start],
-                        self.cold_sense[:n + start])
-            settings = dict(model.settings)
-            settings.update(self.settings)
-            model.settings = settings
+            model = _daqp_model(H, f, self.A_unit[:start], self.bu[:n + start],
+                                self.bl[:n + start], self.settings)
             hit = self._levels[key] = (H, H.reshape(-1)[::n + 1], f, model)
         return hit
 
 
 def _slack_model(n, start, end, rho, settings):
     """Arrays and DAQP model of an inequality level with slacks (see ``slack_level``)."""
-    import daqp
     m = end - start
     C = np.zeros((end, n + m))
     C[start:, n:] = -np.eye(m)
@@ -391,12 +385,20 @@ def _slack_model(n, start, end, rho, settings):
     bl = np.full(n + m + end, -np.inf)
     H = np.diag(np.concatenate([np.full(n, rho), np.ones(m)]))
     cold = np.zeros(n + m + end, dtype=np.int32)  # sense flags of a cold start
+    return C, bu, bl, cold, _daqp_model(H, np.zeros(n + m), C, bu, bl, settings)
+
+
+def _daqp_model(H, f, A, bu, bl, settings):
+    """A DAQP model pointing at these arrays (no copies: later in-place changes plus an
+    ``update`` naming them are seen), with its own all-inequality sense flags and
+    ``settings`` applied over DAQP's defaults."""
+    import daqp
     model = daqp.Model()
-    model.setup(H, np.zeros(n + m), C, bu, bl, cold.copy())
-    s = dict(model.settings)
-    s.update(settings)
-    model.settings = s
-    return C, bu, bl, cold, model
+    model.setup(H, f, A, bu, bl, np.zeros(bu.shape[0], dtype=np.int32))
+    merged = dict(model.settings)
+    merged.update(settings)
+    model.settings = merged
+    return model
 
 
 def _accept(ws, x, start, end):
