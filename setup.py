@@ -3,7 +3,7 @@
 from glob import glob
 import os
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 package_name = 'ifc_spg'
 
@@ -18,6 +18,18 @@ def tree(src, dst):
     return sorted(entries.items())
 
 
+def native_extensions():
+    """The C kernels of the 2 ms path (optional: without a compiler or numpy the package
+    falls back to its numpy code, see ifc_spg/native.py)."""
+    try:
+        import numpy
+    except ImportError:
+        return []
+    return [Extension('ifc_spg._native', ['ifc_spg/_native.c'],
+                      include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
+                      optional=True)]
+
+
 setup(
     name=package_name,
     version='0.1.0',
@@ -29,6 +41,7 @@ setup(
         ('share/' + package_name + '/schema', ['ifc_spg/schema/task_stack.schema.json']),
         *tree('config', os.path.join('share', package_name, 'config')),
     ],
+    ext_modules=native_extensions(),
     install_requires=['setuptools'],
     zip_safe=False,
     maintainer='ifc_spg developers',

@@ -14,6 +14,10 @@ joint-impedance plant (the plant is not timed). Stacks:
   interleaved tick by tick so that machine load affects both alike.
 
 Targets (issue 3): LBR p99 <= 0.3 ms and max <= 1 ms; iCub p99 <= 0.6 ms; ratio <= 1.0.
+
+A machine baseline runs next to each DAQP row, tick by tick: a fixed piece of pure Python
+work of about the same length, timed the same way. Its max and its count of periods over
+1 ms tell the machine's own scheduling stalls apart from the SPG's.
 """
 
 import argparse
@@ -92,35 +96,61 @@ def icub_stack(robot):
     ]
 
 
-def _closed_loop(spg, robot, ticks, progress, budget=None):
-    """Run ``ticks`` closed-loop ticks (fewer if ``budget`` seconds run out first)."""
+def _busy(count):
+    """A fixed piece of pure Python work (the machine baseline)."""
+    x = 0
+    for i in range(count):
+        x += i
+    return x
+
+
+def calibrate_baseline(seconds):
+    """The ``_busy`` count that takes about ``seconds`` here (median of 50 runs)."""
+    count = 1000
+    runs = []
+    for _ in range(50):
+        t0 = time.perf_counter()
+        _busy(count)
+        runs.append(time.perf_counter() - t0)
+    return max(1, int(count * seconds / float(np.median(runs))))
+
+
+def _closed_loop(spg, robot, ticks, progress, budget=None, baseline=None):
+    """Run ``ticks`` closed-loop ticks (fewer if ``budget`` seconds run out first); with a
+    ``baseline`` count, time ``_busy(baseline)`` after each tick too (see module doc)."""
     from ifc_spg.testing import JointImpedancePlant
     plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
     q, qd, t = plant.q, plant.qdot, 0.0
     times = np.empty(ticks)
+    base = np.empty(ticks if baseline else 0)
     statuses = {}
     deadline = None if budget is None else time.perf_counter() + budget
     for i in range(ticks):
         if deadline is not None and time.perf_counter() > deadline:
             print(f'    ... stopped after {i} ticks: the {budget:g} s budget ran out',
                   file=sys.stderr)
-            return times[:i], statuses
+            return times[:i], statuses, base[:i]
         q_v = spg.step(q, qd, t)
         times[i] = spg.info.tick_time
+        if baseline:
+            t0 = time.perf_counter()
+            _busy(baseline)
+            base[i] = time.perf_counter() - t0
         statuses[spg.info.status] = statuses.get(spg.info.status, 0) + 1
         q, qd, t = plant.step(q_v)
         if progress and i % max(1, ticks // 4) == 0 and i:
             print(f'    ... {i}/{ticks} ticks', file=sys.stderr)
-    return times, statuses
+    return times, statuses, base
 
 
 def _stats(times):
     if times.size == 0:
         return {'p50_us': float('nan'), 'p99_us': float('nan'), 'max_us': float('nan'),
-                'ticks': 0}
+                'ticks': 0, 'over_1ms': 0}
     us = times * 1e6
     return {'p50_us': float(np.median(us)), 'p99_us': float(np.percentile(us, 99)),
-            'max_us': float(us.max()), 'ticks': int(us.size)}
+            'max_us': float(us.max()), 'ticks': int(us.size),
+            'over_1ms': int(np.count_nonzero(us > 1000.0))}
 
 
 def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_ticks=None,
@@ -134,16 +164,20 @@ def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_tic
         n_ticks = ticks if not slow or slow_ticks is None else min(ticks, slow_ticks)
         budget = slow_budget if slow else None
         spg = SetPointGenerator(robot, make_stack(robot), solver=solver)
-        _closed_loop(spg, robot, 200, False, budget)  # warm-up
+        warm, _, _ = _closed_loop(spg, robot, 200, False, budget)  # warm-up
+        baseline = None if slow else calibrate_baseline(float(np.median(warm)))
         gc.collect()
         gc.disable()
         try:
-            times, statuses = _closed_loop(spg, robot, n_ticks, progress, budget)
+            times, statuses, base = _closed_loop(spg, robot, n_ticks, progress, budget,
+                                                 baseline)
         finally:
             gc.enable()
         row = {'stack': name, 'solver': solver, 'levels': len(spg.info.level_names)}
         row.update(_stats(times))
         row['status'] = statuses
+        if baseline:
+            row['baseline'] = _stats(base)
         rows.append(row)
     return rows
 
@@ -222,8 +256,8 @@ def bench_pink(ticks):
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
-    from ifc_spg import RobotModel
-    out = {'ticks': ticks, 'stacks': []}
+    from ifc_spg import RobotModel, native
+    out = {'ticks': ticks, 'stacks': [], 'implementation': native.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
     icub = RobotModel.from_config('icub_upper_body')
     for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),
@@ -242,7 +276,8 @@ TARGETS = {'lbr_table_4_1': (300.0, 1000.0), 'icub_table_3_7': (600.0, None)}
 
 
 def format_report(res):
-    lines = ['SPG full tick, closed loop (plant not timed)',
+    lines = [f"SPG full tick, closed loop (plant not timed); tick arithmetic: "
+             f"{res.get('implementation', '?')}",
              f"{'stack':<16}{'solver':<11}{'levels':>6}{'ticks':>7}{'p50 us':>10}{'p99 us':>10}"
              f"{'max us':>10}  {'target':<19}status"]
     for r in res['stacks']:
@@ -252,6 +287,13 @@ def format_report(res):
         lines.append(f"{r['stack']:<16}{r['solver']:<11}{r['levels']:>6}{r['ticks']:>7}"
                      f"{r['p50_us']:>10.1f}{r['p99_us']:>10.1f}{r['max_us']:>10.1f}  "
                      f"{target:<19}{'met' if ok else 'MISSED'} {r['status']}")
+    for r in res['stacks']:
+        if 'baseline' in r:
+            b = r['baseline']
+            lines.append(f"  {r['stack']}: SPG ticks over 1 ms: {r['over_1ms']}; machine "
+                         f"baseline next to it (fixed work, p50 {b['p50_us']:.0f} us): p99 "
+                         f"{b['p99_us']:.0f} us, max {b['max_us']:.0f} us, {b['over_1ms']} "
+                         f"over 1 ms")
     p = res['pink']
     lines += ['', '2-level strict stack (pose + posture) vs pink weighted solve (daqp), '
               'interleaved:',

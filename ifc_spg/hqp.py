@@ -22,6 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ifc_spg import native
 from ifc_spg.errors import SolverError, did_you_mean
 
 __all__ = ['CascadeResult', 'CascadeSolver', 'DaqpCascade', 'ProxsuiteCascade', 'SOLVERS',
@@ -158,6 +159,7 @@ class DaqpCascade(CascadeSolver):
         self.cold_retries = 0
         self.relaxed_retries = 0
         self._relax = float(primal_tol)
+        self._native = native.module  # C kernels of the row arithmetic, or None (numpy)
 
     def solve(self, levels, box):
         """Solve the cascade; return a :class:`CascadeResult` (see the class docstring)."""
@@ -171,28 +173,18 @@ class DaqpCascade(CascadeSolver):
             ws = self._ws[R] = _Workspace(n, R, self.rho, self._settings)
         A_all, orig_lo, orig_hi = ws.A, ws.orig_lo, ws.orig_hi
         bl, bu, lo_rows, hi_rows = ws.bl, ws.bu, ws.lo_rows, ws.hi_rows
-        row = 0
-        for lev, m in zip(levels, ms):
-            A_all[row:row + m] = lev.A
-            orig_lo[row:row + m] = lev.lower
-            orig_hi[row:row + m] = lev.upper
-            row += m
+        norm, band, nat = ws.norm, ws.band, self._native
         # The models see the rows scaled to unit norm (the same constraints; DAQP's
         # tolerances are absolute, and a wrench row of norm ~400 next to pose rows of
         # norm ~1 otherwise made levels falsely infeasible).
-        norm = ws.norm
-        np.einsum('ij,ij->i', A_all, A_all, out=norm)
-        np.sqrt(norm, out=norm)
-        np.maximum(norm, _TINY, out=norm)
-        np.divide(A_all, norm[:, None], out=ws.A_unit)
-        # lock band of every row: lock_tolerance (1 + |row|_1), in unit-row coordinates.
+        # Lock band of every row: lock_tolerance (1 + |row|_1), in unit-row coordinates.
         # Locked equality rows of several levels are often redundant (higher levels may fix
         # qdot_v completely); exact equalities would then be inconsistent by round-off.
-        band = np.abs(A_all).sum(axis=1)
-        band += 1.0
-        band *= self.lock_tolerance
-        band /= norm
-        neg_lo = np.negative(orig_lo)
+        if nat is not None:
+            nat.stack_rows(levels, A_all, orig_lo, orig_hi, norm, ws.A_unit, band,
+                           self.lock_tolerance)
+        else:
+            _stack_rows(levels, ms, ws, self.lock_tolerance)
         bl[:n] = box.lower  # (DAQP takes +-inf as unbounded)
         bu[:n] = box.upper
         qdot = None  # no level solved yet: the point of the box nearest zero (made on demand)
@@ -205,9 +197,13 @@ class DaqpCascade(CascadeSolver):
             if lev.equality and self._normal_form:
                 beta = orig_lo[sl]
                 H, H_diag, f, model = ws.level(i, start)
-                np.dot(A_i.T, A_i, out=H)
-                H_diag += self.rho
-                np.dot(neg_lo[sl], A_i, out=f)  # f = -A_i^T beta
+                if nat is not None:
+                    nat.normal_form(A_i, beta, self.rho, H, f)
+                else:
+                    np.dot(A_i.T, A_i, out=H)
+                    H_diag += self.rho
+                    np.dot(beta, A_i, out=f)
+                    np.negative(f, out=f)  # f = -A_i^T beta
                 # Each level index has its own DAQP model, which keeps its working set: the
                 # solve starts from this level's active bounds and rows of the last tick.
                 if start:
@@ -225,11 +221,19 @@ class DaqpCascade(CascadeSolver):
                     x, _, flag, _ = self._solve_model(model)
                 # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
                 if flag == 1 and math.isfinite(x @ f):
-                    qdot, a_unit = _accept(ws, x, start, end)
-                    slacks.append(a_unit * norm[sl] - beta)
-                    if end < R:  # lock (4.60)-(4.62); the last level needs no lock
-                        np.subtract(a_unit, band[sl], out=lo_rows[sl])
-                        np.add(a_unit, band[sl], out=hi_rows[sl])
+                    # lock (4.60)-(4.62) at A_i qdot_v +- band; the last level needs no lock
+                    lock = end < R
+                    if nat is not None:
+                        qdot, s = nat.accept(x, bl, bu, ws.A_unit[sl], norm[sl], beta,
+                                             band[sl], lo_rows[sl] if lock else None,
+                                             hi_rows[sl] if lock else None)
+                        slacks.append(s)
+                    else:
+                        qdot, a_unit = _accept(ws, x, start, end)
+                        slacks.append(a_unit * norm[sl] - beta)
+                        if lock:
+                            np.subtract(a_unit, band[sl], out=lo_rows[sl])
+                            np.add(a_unit, band[sl], out=hi_rows[sl])
                     start = end
                     continue
                 # retry in the slack form (better conditioned)
@@ -237,20 +241,18 @@ class DaqpCascade(CascadeSolver):
             elif not lev.equality:
                 if qdot is None:
                     qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
-                a = A_i @ qdot
-                if _satisfied(a, orig_lo[sl], orig_hi[sl]):
-                    # The current solution satisfies this level with zero slack. It minimizes
-                    # rho |qdot|^2 over everything the higher levels allow, so it is this
-                    # level's optimum too: no QP needed (typical for inactive inequalities:
-                    # obstacles, boxes, torque bands).
-                    # Its lock [lower + s*, upper + s*] is its own bounds (s* = 0; they contain
-                    # the solution), in unit-row coordinates.
+                # If the current solution satisfies this level with zero slack, it minimizes
+                # rho |qdot|^2 over everything the higher levels allow, so it is this level's
+                # optimum too: no QP needed (typical for inactive inequalities: obstacles,
+                # boxes, torque bands). Its lock [lower + s*, upper + s*] is its own bounds
+                # (s* = 0; they contain the solution), in unit-row coordinates.
+                if nat is not None:
+                    done = nat.lock_if_satisfied(A_i, qdot, orig_lo[sl], orig_hi[sl], norm[sl],
+                                                 band[sl], lo_rows[sl], hi_rows[sl])
+                else:
+                    done = _lock_if_satisfied(ws, qdot, start, end)
+                if done:
                     slacks.append(np.zeros(m))
-                    lo, hi = lo_rows[sl], hi_rows[sl]
-                    np.divide(orig_lo[sl], norm[sl], out=lo)
-                    lo -= band[sl]
-                    np.divide(orig_hi[sl], norm[sl], out=hi)
-                    hi += band[sl]
                     start = end
                     continue
                 w, flag = self._solve_slack_level(ws, i, start, end)  # warm started
@@ -336,6 +338,7 @@ class _Workspace:
         self.A = np.zeros((R, n))  # rows as the levels give them
         self.A_unit = np.zeros((R, n))  # the same rows scaled to unit norm (the models')
         self.norm = np.zeros(R)
+        self.band = np.zeros(R)  # half-width of each row's lock, in unit-row coordinates
         self.orig_lo = np.zeros(R)
         self.orig_hi = np.zeros(R)
         self.bu = np.full(n + R, np.inf)
@@ -399,6 +402,42 @@ def _daqp_model(H, f, A, bu, bl, settings):
     merged.update(settings)
     model.settings = merged
     return model
+
+
+def _stack_rows(levels, ms, ws, lock_tolerance):
+    """Stack the levels' rows and bounds into the workspace, with each row's norm, unit row
+    and lock band (``_native.stack_rows`` in numpy)."""
+    A_all, norm = ws.A, ws.norm
+    row = 0
+    for lev, m in zip(levels, ms):
+        A_all[row:row + m] = lev.A
+        ws.orig_lo[row:row + m] = lev.lower
+        ws.orig_hi[row:row + m] = lev.upper
+        row += m
+    np.einsum('ij,ij->i', A_all, A_all, out=norm)
+    np.sqrt(norm, out=norm)
+    np.maximum(norm, _TINY, out=norm)
+    np.divide(A_all, norm[:, None], out=ws.A_unit)
+    band = ws.band
+    np.abs(A_all).sum(axis=1, out=band)
+    band += 1.0
+    band *= lock_tolerance
+    band /= norm
+
+
+def _lock_if_satisfied(ws, qdot, start, end):
+    """If ``qdot`` satisfies the rows ``start:end``, lock them at their own bounds and return
+    True (``_native.lock_if_satisfied`` in numpy)."""
+    sl = slice(start, end)
+    a = ws.A[sl] @ qdot
+    if not _satisfied(a, ws.orig_lo[sl], ws.orig_hi[sl]):
+        return False
+    lo, hi = ws.lo_rows[sl], ws.hi_rows[sl]
+    np.divide(ws.orig_lo[sl], ws.norm[sl], out=lo)
+    lo -= ws.band[sl]
+    np.divide(ws.orig_hi[sl], ws.norm[sl], out=hi)
+    hi += ws.band[sl]
+    return True
 
 
 def _accept(ws, x, start, end):

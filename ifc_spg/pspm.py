@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ifc_spg import native
 from ifc_spg.errors import ParameterError
 from ifc_spg.limits.joint_limits import VelocityBox
 
@@ -84,6 +85,8 @@ class EnergyTanks:
         self._half_K = 0.5 * self.K
         with np.errstate(divide='ignore'):
             self._two_over_K = np.where(self.K > 0, 2.0 / self.K, 0.0)
+        self._modulated = self.mask.astype(float)
+        self._native = native.module  # C kernels (ifc_spg.native), or None: numpy below
 
     def reset(self, q):
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
@@ -100,15 +103,19 @@ class EnergyTanks:
         """
         if self._q_prev is None:
             self._q_prev = np.array(q, dtype=float)
+        if self._native is not None:
+            shuffle = self._shuffle() if self._shuffling else None
+            lower, upper, self.dissipated_min, self._avail = self._native.pspm_bounds(
+                q, q_v, self._q_prev, self.energy, shuffle, self._D_over_dt,
+                self._two_over_K, self._inv_dt, self._modulated)
+            return VelocityBox(lower, upper)
         step = q - self._q_prev
         step *= step
         step *= self._D_over_dt
         self.dissipated_min = step
         self._q_prev[:] = q
         if self._shuffling:
-            room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
-            self._shuffle_now = np.minimum(self.config.shuffle, room)
-            self._avail = self.energy + step + self._shuffle_now
+            self._avail = self.energy + step + self._shuffle()
         else:
             self._avail = self.energy + step
         dq = q_v - q
@@ -125,6 +132,12 @@ class EnergyTanks:
             upper[self._fixed] = np.inf
         return VelocityBox(lower, upper)
 
+    def _shuffle(self):
+        """This tick's shuffled energy per joint (capped by what is left of the budget)."""
+        room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
+        self._shuffle_now = np.minimum(self.config.shuffle, room)
+        return self._shuffle_now
+
     def update(self, q, q_v, qdot_v):
         """Book the applied step into the tanks (Alg. C.5 lines 21-25).
 
@@ -133,19 +146,24 @@ class EnergyTanks:
             q_v: Virtual joint positions before the step in [rad].
             qdot_v: Applied virtual joint velocity in [rad/s].
         """
-        dq = q_v - q
-        new = qdot_v * self.dt
-        new += dq
-        new *= new
-        dq *= dq
-        new -= dq
-        dEk = new
-        dEk *= self._half_K
-        e = self._avail - dEk
-        np.minimum(e, self.config.max_energy, out=e)
-        if not self._all:
-            e[self._fixed] = self.energy[self._fixed]
-        e_min = e.min()
+        if self._native is not None:
+            e, dEk, e_min = self._native.pspm_update(
+                q, q_v, qdot_v, self._avail, self._half_K, self.dt, self.config.max_energy,
+                self._modulated, self.energy)
+        else:
+            dq = q_v - q
+            new = qdot_v * self.dt
+            new += dq
+            new *= new
+            dq *= dq
+            new -= dq
+            dEk = new
+            dEk *= self._half_K
+            e = self._avail - dEk
+            np.minimum(e, self.config.max_energy, out=e)
+            if not self._all:
+                e[self._fixed] = self.energy[self._fixed]
+            e_min = e.min()
         if not e_min >= 0.0:  # NaN (inf - inf on absurd measurements) or round-off below 0
             e[np.isnan(e)] = 0.0  # an overflow empties the tank
             # only round-off can make e negative (the step was bounded by E_avail); record it

@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 
+from ifc_spg import native
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.hqp import level_violation, make_solver
 from ifc_spg.kinematics import Kinematics
@@ -135,7 +136,10 @@ class SetPointGenerator:
                 self._solver.lock_tolerance)
         self.kin = Kinematics(robot)
         self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max, dt)
-        self._accel = robot.a_max * self.dt
+        self._accel = np.ascontiguousarray(robot.a_max * self.dt, dtype=float)
+        self._q_min = np.ascontiguousarray(robot.q_min, dtype=float)
+        self._q_max = np.ascontiguousarray(robot.q_max, dtype=float)
+        self._native = native.module  # C kernels (ifc_spg.native), or None: numpy below
         self._zeros = np.zeros(n)
         self.q_v = None
         self.qdot_v = np.zeros(n)
@@ -192,6 +196,8 @@ class SetPointGenerator:
             raise ParameterError(f'q and qdot must have {self.n} entries (joints '
                                  f'{", ".join(self.robot.joint_names)}), got {q.shape} and '
                                  f'{qdot.shape}')
+        q = np.ascontiguousarray(q)
+        qdot = np.ascontiguousarray(qdot)
         if self.q_v is None:
             if not np.all(np.isfinite(q)):
                 raise ParameterError('the first measurement must be finite to start from it')
@@ -211,17 +217,24 @@ class SetPointGenerator:
         self.kin.update(q, qdot, q_v)
 
         box = self._limits.box(q_v)
-        if self.tanks is not None:
-            pb = self.tanks.bounds(q, q_v)
-            lower = np.maximum(box.lower, pb.lower)
-            upper = np.minimum(box.upper, pb.upper)
-            if not math.isfinite(lower @ self._zeros + upper @ self._zeros):  # NaN: see below
-                # an overflow in the passivity bounds (absurd measurements): stop that joint
-                lower[np.isnan(lower)] = 0.0
-                upper[np.isnan(upper)] = 0.0
-            box = VelocityBox(lower, upper)
+        pb = None if self.tanks is None else self.tanks.bounds(q, q_v)
         qd_prev = self.qdot_v
-        box = intersect_soft(box, VelocityBox(qd_prev - self._accel, qd_prev + self._accel))
+        if self._native is not None:
+            box = VelocityBox(*self._native.velocity_box(
+                box.lower, box.upper, None if pb is None else pb.lower,
+                None if pb is None else pb.upper, qd_prev, self._accel))
+        else:
+            if pb is not None:
+                lower = np.maximum(box.lower, pb.lower)
+                upper = np.minimum(box.upper, pb.upper)
+                if not math.isfinite(lower @ self._zeros + upper @ self._zeros):  # NaN
+                    # an overflow in the passivity bounds (absurd measurements): stop that
+                    # joint
+                    lower[np.isnan(lower)] = 0.0
+                    upper[np.isnan(upper)] = 0.0
+                box = VelocityBox(lower, upper)
+            box = intersect_soft(box, VelocityBox(qd_prev - self._accel,
+                                                  qd_prev + self._accel))
 
         top = []
         t_solve = time.perf_counter()
@@ -261,7 +274,10 @@ class SetPointGenerator:
         energy_step = None
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, qdot_v)
-        self.q_v = np.minimum(np.maximum(q_v + self.dt * qdot_v, robot.q_min), robot.q_max)
+        if self._native is not None:
+            self.q_v = self._native.integrate(q_v, self.dt, qdot_v, self._q_min, self._q_max)
+        else:
+            self.q_v = np.minimum(np.maximum(q_v + self.dt * qdot_v, self._q_min), self._q_max)
         self.qdot_v = qdot_v
         self.info = SpgInfo(
             status=status, solver=self._solver.name, slacks=slacks, levels=levels, box=box,

@@ -25,3 +25,13 @@ def dds_env(monkeypatch):
 def domain(dds_env):
     """This test's ROS domain id, on loopback (see ``dds_env``)."""
     return int(dds_env['ROS_DOMAIN_ID'])
+
+
+@pytest.fixture(params=['native', 'numpy'])
+def impl(request, monkeypatch):
+    """Run this test with the C kernels of the 2 ms path and with their numpy reference code
+    (objects pick the implementation when created; see ifc_spg.native)."""
+    from ifc_spg import native
+    if request.param == 'numpy':
+        monkeypatch.setattr(native, 'module', None)
+    return request.param

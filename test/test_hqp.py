@@ -53,7 +53,7 @@ CASES = cases(240, seed=1)
 
 
 @pytest.mark.parametrize('solver_cls', [DaqpCascade])
-def test_cascade_matches_reference(solver_cls):
+def test_cascade_matches_reference(solver_cls, impl):
     worst = 0.0
     for n, levels, box in CASES:
         solver = solver_cls(n, RHO)
@@ -65,7 +65,7 @@ def test_cascade_matches_reference(solver_cls):
         assert err < 1e-6, (n, err)
         for s, r in zip(res.slacks, ref_slacks):
             assert np.abs(s - r).max() < 1e-6
-    print(f'largest |qdot - reference| over {len(CASES)} stacks: {worst:.2e}')
+    print(f'{impl}: largest |qdot - reference| over {len(CASES)} stacks: {worst:.2e}')
 
 
 def test_proxsuite_cascade_close_to_reference():
@@ -194,7 +194,7 @@ def test_unknown_solver_names_the_choices():
         make_solver('daqpp', 7)
 
 
-def test_warm_started_solves_match_the_reference():
+def test_warm_started_solves_match_the_reference(impl):
     """One solver over a slowly varying stack (as from tick to tick): each level's DAQP model
     starts from its last working set, and must still give the reference solution."""
     rng = np.random.default_rng(3)
@@ -219,7 +219,7 @@ def test_warm_started_solves_match_the_reference():
                 # DAQP's tolerance (1e-6) applies to unit rows: 1e-6 |row| in task units
                 tol = 1e-6 * (1.0 + np.linalg.norm(lv.A, axis=1))
                 assert np.all(np.abs(s - r) < tol), (np.abs(s - r), tol)
-    print(f'largest |qdot - reference| over warm-started solves: {worst:.2e}')
+    print(f'{impl}: largest |qdot - reference| over warm-started solves: {worst:.2e}')
 
 
 def _degenerate_icub_levels():
@@ -233,13 +233,21 @@ def _degenerate_icub_levels():
 
 def test_degenerate_level_is_solved_with_bands_widened_to_the_solver_tolerance():
     levels, box = _degenerate_icub_levels()
-    solver = DaqpCascade(17)
+    # The tick was captured with the numpy row arithmetic; the C kernels round differently
+    # and miss this vertex (solved without a retry, checked below), so take the numpy path.
+    def numpy_solver():
+        solver = DaqpCascade(17)
+        solver._native = None
+        return solver
+
+    solver = numpy_solver()
     res = solver.solve(levels, box)
     assert res.status == 'ok' and solver.relaxed_retries >= 1
+    assert DaqpCascade(17).solve(levels, box).status == 'ok'
     assert np.all(res.qdot_v >= box.lower) and np.all(res.qdot_v <= box.upper)
     # no higher level gives up more than the widening (1e-6 per unit row) to a lower one
     for j in range(len(levels) - 1):
-        upto = DaqpCascade(17).solve(levels[:j + 1], box)
+        upto = numpy_solver().solve(levels[:j + 1], box)
         assert upto.status == 'ok'
         lv = levels[j]
         moved = np.abs(lv.A @ res.qdot_v - lv.A @ upto.qdot_v)

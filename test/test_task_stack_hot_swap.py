@@ -8,6 +8,7 @@ leaves the running one untouched.
 import numpy as np
 import pytest
 
+from ifc_spg import native
 from ifc_spg import spg as spg_module
 from ifc_spg.limits import intersect_soft
 from ifc_spg.model import RobotModel
@@ -61,6 +62,11 @@ def run(pspm, switches, ticks=900, monkeypatch=None):
     spg = SetPointGenerator(robot, stacks['circle'], dt=DT, pspm=pspm)
     hard_boxes = []
     if monkeypatch is not None:  # record the hard box (joint limits and PSPM) of each tick
+        # (through the numpy code, whose intersect_soft can be wrapped; the C kernel is
+        # tested equal to it in test_native.py)
+        monkeypatch.setattr(native, 'module', None)
+        spg = SetPointGenerator(robot, stacks['circle'], dt=DT, pspm=pspm)
+
         def recording(hard, soft):
             hard_boxes.append(hard)
             return intersect_soft(hard, soft)

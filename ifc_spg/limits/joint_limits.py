@@ -24,6 +24,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ifc_spg import native
+
 __all__ = ['JointVelocityLimits', 'VelocityBox', 'joint_velocity_bounds', 'intersect_soft',
            'stopping_velocity']
 
@@ -109,12 +111,17 @@ class JointVelocityLimits:
         for b in free:
             b.setflags(write=False)
         self._free_box = VelocityBox(*free)
+        self._native = native.module  # C kernel (ifc_spg.native), or None: numpy below
 
     def box(self, q_v):
         """The :class:`VelocityBox` at the virtual configuration ``q_v`` (as the function).
 
         The returned arrays may be read-only (shared between ticks far from the limits).
         """
+        if self._native is not None:
+            box = self._native.limits_box(q_v, self._q_min, self._q_max, self._d_free,
+                                          self._k_scale, self._half_c, self._inv_dt, self._v)
+            return self._free_box if box is None else VelocityBox(*box)
         n = self.n
         d = self._d  # d = [q_v - q_min; q_max - q_v]
         np.subtract(q_v, self._q_min, out=d[:n])

@@ -1,0 +1,515 @@
+/* The SPG tick's per-joint and per-row arithmetic in C (ifc_spg._native).
+ *
+ * Each function is a loop over a few joints or task rows that numpy would spread over
+ * 5-15 calls of ~0.5-1 us each. The numpy versions in ifc_spg stay the reference: the
+ * tests compare the two on random inputs, and ifc_spg uses them wherever this module was
+ * not built (ifc_spg.native). Semantics follow numpy's exactly, NaN included (maximum and
+ * minimum propagate NaN); see each function's numpy counterpart named in its docstring.
+ *
+ * Arrays are float64. Inputs may be any layout (converted if needed); outputs must be
+ * C-contiguous writable float64 arrays of the stated size.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#include <math.h>
+
+static inline double np_max(double a, double b) {
+    if (isnan(a)) return a;
+    if (isnan(b)) return b;
+    return a >= b ? a : b;
+}
+
+static inline double np_min(double a, double b) {
+    if (isnan(a)) return a;
+    if (isnan(b)) return b;
+    return a <= b ? a : b;
+}
+
+/* A float64 C-contiguous view (or copy) of obj with ndim dimensions; new reference. */
+static PyArrayObject *in_array(PyObject *obj, int ndim, const char *name) {
+    PyArrayObject *a = (PyArrayObject *)PyArray_FROMANY(
+        obj, NPY_DOUBLE, ndim, ndim, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED);
+    if (a == NULL) {
+        PyErr_Format(PyExc_TypeError, "%s must be a %d-D float array", name, ndim);
+    }
+    return a;
+}
+
+/* Check that obj is a writable C-contiguous float64 array of `size` elements. */
+static double *out_data(PyObject *obj, npy_intp size, const char *name) {
+    if (!PyArray_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "%s must be a numpy array", name);
+        return NULL;
+    }
+    PyArrayObject *a = (PyArrayObject *)obj;
+    if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(a) ||
+        !PyArray_ISWRITEABLE(a) || PyArray_SIZE(a) != size) {
+        PyErr_Format(PyExc_ValueError,
+                     "%s must be a writable C-contiguous float64 array of %zd elements",
+                     name, (Py_ssize_t)size);
+        return NULL;
+    }
+    return (double *)PyArray_DATA(a);
+}
+
+/* Like out_data, for read-only inputs that callers keep contiguous (no conversion). */
+static const double *in_data(PyObject *obj, npy_intp size, const char *name) {
+    if (!PyArray_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "%s must be a numpy array", name);
+        return NULL;
+    }
+    PyArrayObject *a = (PyArrayObject *)obj;
+    if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(a) ||
+        PyArray_SIZE(a) < size) {
+        PyErr_Format(PyExc_ValueError,
+                     "%s must be a C-contiguous float64 array of at least %zd elements",
+                     name, (Py_ssize_t)size);
+        return NULL;
+    }
+    return (const double *)PyArray_DATA(a);
+}
+
+static PyArrayObject *new_vector(npy_intp n) {
+    return (PyArrayObject *)PyArray_SimpleNew(1, &n, NPY_DOUBLE);
+}
+
+/* ---- the cascade (ifc_spg.hqp.DaqpCascade) ----------------------------------------- */
+
+PyDoc_STRVAR(stack_rows_doc,
+"stack_rows(levels, A, lower, upper, norm, A_unit, band, lock_tolerance)\n\n"
+"Stack the levels' rows and bounds into A (R, n), lower, upper (R,); then per row\n"
+"norm = max(|row|_2, 1e-300), A_unit = row / norm and\n"
+"band = lock_tolerance (1 + |row|_1) / norm. Levels are (name, A, lower, upper, ...).");
+
+static PyObject *stack_rows(PyObject *self, PyObject *args) {
+    PyObject *levels, *A_o, *lo_o, *hi_o, *norm_o, *unit_o, *band_o;
+    double tol;
+    if (!PyArg_ParseTuple(args, "OOOOOOOd", &levels, &A_o, &lo_o, &hi_o, &norm_o, &unit_o,
+                          &band_o, &tol))
+        return NULL;
+    if (!PyArray_Check(A_o) || PyArray_NDIM((PyArrayObject *)A_o) != 2) {
+        PyErr_SetString(PyExc_ValueError, "A must be a 2-D array");
+        return NULL;
+    }
+    npy_intp R = PyArray_DIM((PyArrayObject *)A_o, 0), n = PyArray_DIM((PyArrayObject *)A_o, 1);
+    double *A = out_data(A_o, R * n, "A"), *lo = out_data(lo_o, R, "lower"),
+           *hi = out_data(hi_o, R, "upper"), *norm = out_data(norm_o, R, "norm"),
+           *unit = out_data(unit_o, R * n, "A_unit"), *band = out_data(band_o, R, "band");
+    if (!A || !lo || !hi || !norm || !unit || !band) return NULL;
+    PyObject *seq = PySequence_Fast(levels, "levels must be a sequence");
+    if (seq == NULL) return NULL;
+    Py_ssize_t count = PySequence_Fast_GET_SIZE(seq);
+    npy_intp row = 0;
+    for (Py_ssize_t k = 0; k < count; k++) {
+        PyObject *lev = PySequence_Fast_GET_ITEM(seq, k);
+        if (!PyTuple_Check(lev) || PyTuple_GET_SIZE(lev) < 4) {
+            PyErr_SetString(PyExc_TypeError, "each level must be a Level (name, A, lower, upper, ...)");
+            Py_DECREF(seq);
+            return NULL;
+        }
+        PyArrayObject *a = in_array(PyTuple_GET_ITEM(lev, 1), 2, "level.A");
+        PyArrayObject *l = a ? in_array(PyTuple_GET_ITEM(lev, 2), 1, "level.lower") : NULL;
+        PyArrayObject *u = l ? in_array(PyTuple_GET_ITEM(lev, 3), 1, "level.upper") : NULL;
+        if (u == NULL) {
+            Py_XDECREF(a);
+            Py_XDECREF(l);
+            Py_DECREF(seq);
+            return NULL;
+        }
+        npy_intp m = PyArray_DIM(a, 0);
+        if (PyArray_DIM(a, 1) != n || PyArray_DIM(l, 0) != m || PyArray_DIM(u, 0) != m ||
+            row + m > R) {
+            PyErr_Format(PyExc_ValueError,
+                         "level %zd: A is %zdx%zd with %zd/%zd bounds; expected %zd columns and "
+                         "%zd rows in all", k, (Py_ssize_t)m, (Py_ssize_t)PyArray_DIM(a, 1),
+                         (Py_ssize_t)PyArray_DIM(l, 0), (Py_ssize_t)PyArray_DIM(u, 0),
+                         (Py_ssize_t)n, (Py_ssize_t)R);
+            Py_DECREF(a);
+            Py_DECREF(l);
+            Py_DECREF(u);
+            Py_DECREF(seq);
+            return NULL;
+        }
+        const double *ad = (const double *)PyArray_DATA(a);
+        const double *ld = (const double *)PyArray_DATA(l);
+        const double *ud = (const double *)PyArray_DATA(u);
+        for (npy_intp i = 0; i < m; i++) {
+            double *dst = A + (row + i) * n, *udst = unit + (row + i) * n;
+            const double *src = ad + i * n;
+            double s2 = 0.0, s1 = 0.0;
+            for (npy_intp j = 0; j < n; j++) {
+                double v = src[j];
+                dst[j] = v;
+                s2 += v * v;
+                s1 += fabs(v);
+            }
+            double nr = np_max(sqrt(s2), 1e-300);
+            for (npy_intp j = 0; j < n; j++) udst[j] = src[j] / nr;
+            norm[row + i] = nr;
+            band[row + i] = tol * (1.0 + s1) / nr;
+            lo[row + i] = ld[i];
+            hi[row + i] = ud[i];
+        }
+        row += m;
+        Py_DECREF(a);
+        Py_DECREF(l);
+        Py_DECREF(u);
+    }
+    Py_DECREF(seq);
+    if (row != R) {
+        PyErr_Format(PyExc_ValueError, "the levels have %zd rows, the workspace %zd",
+                     (Py_ssize_t)row, (Py_ssize_t)R);
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(normal_form_doc,
+"normal_form(A, beta, rho, H, f)\n\n"
+"The cost of an equality level without slacks: H = rho I + A^T A, f = -A^T beta\n"
+"(A (m, n) and beta (m,) contiguous; H (n, n) and f (n,) are written).");
+
+static PyObject *normal_form(PyObject *self, PyObject *args) {
+    PyObject *A_o, *b_o, *H_o, *f_o;
+    double rho;
+    if (!PyArg_ParseTuple(args, "OOdOO", &A_o, &b_o, &rho, &H_o, &f_o)) return NULL;
+    if (!PyArray_Check(A_o) || PyArray_NDIM((PyArrayObject *)A_o) != 2) {
+        PyErr_SetString(PyExc_ValueError, "A must be a 2-D array");
+        return NULL;
+    }
+    npy_intp m = PyArray_DIM((PyArrayObject *)A_o, 0), n = PyArray_DIM((PyArrayObject *)A_o, 1);
+    const double *A = in_data(A_o, m * n, "A"), *beta = in_data(b_o, m, "beta");
+    double *H = out_data(H_o, n * n, "H"), *f = out_data(f_o, n, "f");
+    if (!A || !beta || !H || !f) return NULL;
+    for (npy_intp j = 0; j < n; j++) {
+        for (npy_intp k = j; k < n; k++) {
+            double s = 0.0;
+            for (npy_intp i = 0; i < m; i++) s += A[i * n + j] * A[i * n + k];
+            H[j * n + k] = s;
+            H[k * n + j] = s;
+        }
+        H[j * n + j] += rho;
+        double s = 0.0;
+        for (npy_intp i = 0; i < m; i++) s += A[i * n + j] * beta[i];
+        f[j] = -s;
+    }
+    Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(accept_doc,
+"accept(x, bl, bu, A_unit, norm, beta, band, lock_lo, lock_hi) -> (qdot, slack)\n\n"
+"Take an equality level's solution: qdot = x clipped into [bl[:n], bu[:n]],\n"
+"a = A_unit qdot (unit-row coordinates), slack = a norm - beta, and unless lock_lo is\n"
+"None the lock band lock_lo = a - band, lock_hi = a + band (m rows each).");
+
+static PyObject *accept(PyObject *self, PyObject *args) {
+    PyObject *x_o, *bl_o, *bu_o, *U_o, *nr_o, *b_o, *band_o, *llo_o, *lhi_o;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOO", &x_o, &bl_o, &bu_o, &U_o, &nr_o, &b_o, &band_o,
+                          &llo_o, &lhi_o))
+        return NULL;
+    if (!PyArray_Check(x_o) || !PyArray_Check(U_o) ||
+        PyArray_NDIM((PyArrayObject *)U_o) != 2) {
+        PyErr_SetString(PyExc_ValueError, "x must be an array and A_unit a 2-D array");
+        return NULL;
+    }
+    npy_intp m = PyArray_DIM((PyArrayObject *)U_o, 0), n = PyArray_DIM((PyArrayObject *)U_o, 1);
+    const double *x = in_data(x_o, n, "x"), *bl = in_data(bl_o, n, "bl"),
+                 *bu = in_data(bu_o, n, "bu"), *U = in_data(U_o, m * n, "A_unit"),
+                 *nr = in_data(nr_o, m, "norm"), *beta = in_data(b_o, m, "beta"),
+                 *band = in_data(band_o, m, "band");
+    if (!x || !bl || !bu || !U || !nr || !beta || !band) return NULL;
+    double *llo = NULL, *lhi = NULL;
+    if (llo_o != Py_None) {
+        llo = out_data(llo_o, m, "lock_lo");
+        lhi = llo ? out_data(lhi_o, m, "lock_hi") : NULL;
+        if (!lhi) return NULL;
+    }
+    PyArrayObject *q = new_vector(n), *s = q ? new_vector(m) : NULL;
+    if (s == NULL) {
+        Py_XDECREF(q);
+        return NULL;
+    }
+    double *qd = (double *)PyArray_DATA(q), *sd = (double *)PyArray_DATA(s);
+    for (npy_intp j = 0; j < n; j++) qd[j] = np_min(np_max(x[j], bl[j]), bu[j]);
+    for (npy_intp i = 0; i < m; i++) {
+        double a = 0.0;
+        for (npy_intp j = 0; j < n; j++) a += U[i * n + j] * qd[j];
+        sd[i] = a * nr[i] - beta[i];
+        if (llo) {
+            llo[i] = a - band[i];
+            lhi[i] = a + band[i];
+        }
+    }
+    return Py_BuildValue("(NN)", q, s);
+}
+
+PyDoc_STRVAR(lock_if_satisfied_doc,
+"lock_if_satisfied(A, qdot, lower, upper, norm, band, lock_lo, lock_hi) -> bool\n\n"
+"If lower <= A qdot <= upper holds on every row (NaN fails), lock the level at its own\n"
+"bounds in unit-row coordinates, lock_lo = lower / norm - band and\n"
+"lock_hi = upper / norm + band, and return True; otherwise write nothing, return False.");
+
+static PyObject *lock_if_satisfied(PyObject *self, PyObject *args) {
+    PyObject *A_o, *q_o, *lo_o, *hi_o, *nr_o, *band_o, *llo_o, *lhi_o;
+    if (!PyArg_ParseTuple(args, "OOOOOOOO", &A_o, &q_o, &lo_o, &hi_o, &nr_o, &band_o, &llo_o,
+                          &lhi_o))
+        return NULL;
+    if (!PyArray_Check(A_o) || PyArray_NDIM((PyArrayObject *)A_o) != 2) {
+        PyErr_SetString(PyExc_ValueError, "A must be a 2-D array");
+        return NULL;
+    }
+    npy_intp m = PyArray_DIM((PyArrayObject *)A_o, 0), n = PyArray_DIM((PyArrayObject *)A_o, 1);
+    const double *A = in_data(A_o, m * n, "A"), *q = in_data(q_o, n, "qdot"),
+                 *lo = in_data(lo_o, m, "lower"), *hi = in_data(hi_o, m, "upper"),
+                 *nr = in_data(nr_o, m, "norm"), *band = in_data(band_o, m, "band");
+    double *llo = out_data(llo_o, m, "lock_lo"), *lhi = out_data(lhi_o, m, "lock_hi");
+    if (!A || !q || !lo || !hi || !nr || !band || !llo || !lhi) return NULL;
+    for (npy_intp i = 0; i < m; i++) {
+        double a = 0.0;
+        for (npy_intp j = 0; j < n; j++) a += A[i * n + j] * q[j];
+        if (!(lo[i] - a <= 0.0 && a - hi[i] <= 0.0)) Py_RETURN_FALSE;
+    }
+    for (npy_intp i = 0; i < m; i++) {
+        llo[i] = lo[i] / nr[i] - band[i];
+        lhi[i] = hi[i] / nr[i] + band[i];
+    }
+    Py_RETURN_TRUE;
+}
+
+/* ---- joint limits (ifc_spg.limits.joint_limits) ------------------------------------- */
+
+PyDoc_STRVAR(limits_box_doc,
+"limits_box(q_v, q_min, q_max, d_free, k_scale, half_c, inv_dt, v) -> (lower, upper) or None\n\n"
+"JointVelocityLimits.box: None where every distance d = [q_v - q_min; q_max - q_v] is at\n"
+"least d_free (the constant free box applies), else the stopping-velocity box (2n-vectors\n"
+"d_free, k_scale, half_c, v).");
+
+static PyObject *limits_box(PyObject *self, PyObject *args) {
+    PyObject *qv_o, *mn_o, *mx_o, *df_o, *ks_o, *hc_o, *v_o;
+    double inv_dt;
+    if (!PyArg_ParseTuple(args, "OOOOOOdO", &qv_o, &mn_o, &mx_o, &df_o, &ks_o, &hc_o, &inv_dt,
+                          &v_o))
+        return NULL;
+    if (!PyArray_Check(qv_o)) {
+        PyErr_SetString(PyExc_TypeError, "q_v must be a numpy array");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)qv_o);
+    const double *qv = in_data(qv_o, n, "q_v"), *mn = in_data(mn_o, n, "q_min"),
+                 *mx = in_data(mx_o, n, "q_max"), *df = in_data(df_o, 2 * n, "d_free"),
+                 *ks = in_data(ks_o, 2 * n, "k_scale"), *hc = in_data(hc_o, 2 * n, "half_c"),
+                 *v = in_data(v_o, 2 * n, "v");
+    if (!qv || !mn || !mx || !df || !ks || !hc || !v) return NULL;
+    int free = 1;
+    for (npy_intp j = 0; j < n && free; j++)
+        free = (qv[j] - mn[j] >= df[j]) && (mx[j] - qv[j] >= df[n + j]);
+    if (free) Py_RETURN_NONE;
+    PyArrayObject *lo = new_vector(n), *hi = lo ? new_vector(n) : NULL;
+    if (hi == NULL) {
+        Py_XDECREF(lo);
+        return NULL;
+    }
+    double *l = (double *)PyArray_DATA(lo), *h = (double *)PyArray_DATA(hi);
+    for (npy_intp i = 0; i < 2 * n; i++) {
+        double d = i < n ? qv[i] - mn[i] : mx[i - n] - qv[i - n];
+        d = np_max(d, 0.0);
+        double k = floor(sqrt(d * ks[i] + 0.25) - 0.5);
+        double k1 = k + 1.0;
+        double stop = np_min((d * inv_dt + k * k1 * hc[i]) / k1, v[i]);
+        if (i < n) l[i] = -stop; else h[i - n] = stop;
+    }
+    return Py_BuildValue("(NN)", lo, hi);
+}
+
+PyDoc_STRVAR(velocity_box_doc,
+"velocity_box(lower, upper, pb_lower, pb_upper, qdot_prev, accel) -> (lower, upper)\n\n"
+"The tick's box on qdot_v: the joint-limit box intersected with the passivity box (None:\n"
+"no PSPM; a NaN bound becomes 0, stopping that joint), then softly with the acceleration\n"
+"box [qdot_prev - accel, qdot_prev + accel] (limits.intersect_soft).");
+
+static PyObject *velocity_box(PyObject *self, PyObject *args) {
+    PyObject *lo_o, *hi_o, *plo_o, *phi_o, *qp_o, *acc_o;
+    if (!PyArg_ParseTuple(args, "OOOOOO", &lo_o, &hi_o, &plo_o, &phi_o, &qp_o, &acc_o))
+        return NULL;
+    if (!PyArray_Check(qp_o)) {
+        PyErr_SetString(PyExc_TypeError, "qdot_prev must be a numpy array");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)qp_o);
+    const double *lo = in_data(lo_o, n, "lower"), *hi = in_data(hi_o, n, "upper"),
+                 *qp = in_data(qp_o, n, "qdot_prev"), *acc = in_data(acc_o, n, "accel");
+    const double *plo = NULL, *phi = NULL;
+    if (!lo || !hi || !qp || !acc) return NULL;
+    if (plo_o != Py_None) {
+        plo = in_data(plo_o, n, "pb_lower");
+        phi = plo ? in_data(phi_o, n, "pb_upper") : NULL;
+        if (!phi) return NULL;
+    }
+    PyArrayObject *L = new_vector(n), *U = L ? new_vector(n) : NULL;
+    if (U == NULL) {
+        Py_XDECREF(L);
+        return NULL;
+    }
+    double *l = (double *)PyArray_DATA(L), *u = (double *)PyArray_DATA(U);
+    for (npy_intp j = 0; j < n; j++) {
+        double a = lo[j], b = hi[j];
+        if (plo) {
+            a = np_max(a, plo[j]);
+            b = np_min(b, phi[j]);
+            if (isnan(a)) a = 0.0;
+            if (isnan(b)) b = 0.0;
+        }
+        l[j] = np_min(np_max(qp[j] - acc[j], a), b);
+        u[j] = np_max(np_min(qp[j] + acc[j], b), a);
+    }
+    return Py_BuildValue("(NN)", L, U);
+}
+
+PyDoc_STRVAR(integrate_doc,
+"integrate(q_v, dt, qdot_v, q_min, q_max) -> q_v'\n\n"
+"min(max(q_v + dt qdot_v, q_min), q_max) as a new array.");
+
+static PyObject *integrate(PyObject *self, PyObject *args) {
+    PyObject *qv_o, *qd_o, *mn_o, *mx_o;
+    double dt;
+    if (!PyArg_ParseTuple(args, "OdOOO", &qv_o, &dt, &qd_o, &mn_o, &mx_o)) return NULL;
+    if (!PyArray_Check(qv_o)) {
+        PyErr_SetString(PyExc_TypeError, "q_v must be a numpy array");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)qv_o);
+    const double *qv = in_data(qv_o, n, "q_v"), *qd = in_data(qd_o, n, "qdot_v"),
+                 *mn = in_data(mn_o, n, "q_min"), *mx = in_data(mx_o, n, "q_max");
+    if (!qv || !qd || !mn || !mx) return NULL;
+    PyArrayObject *out = new_vector(n);
+    if (out == NULL) return NULL;
+    double *o = (double *)PyArray_DATA(out);
+    for (npy_intp j = 0; j < n; j++) o[j] = np_min(np_max(qv[j] + dt * qd[j], mn[j]), mx[j]);
+    return (PyObject *)out;
+}
+
+/* ---- PSPM (ifc_spg.pspm.EnergyTanks) ------------------------------------------------- */
+
+PyDoc_STRVAR(pspm_bounds_doc,
+"pspm_bounds(q, q_v, q_prev, energy, shuffle, D_over_dt, two_over_K, inv_dt, modulated)\n"
+"    -> (lower, upper, dissipated_min, avail)\n\n"
+"EnergyTanks.bounds: E_Dmin = D/dT (q - q_prev)^2, E_avail = E_r + E_Dmin (+ shuffle unless\n"
+"None), r = sqrt(2 E_avail / K + dq^2) with dq = q_v - q, upper = (r - dq)/dT,\n"
+"lower = -(r + dq)/dT, unbounded where modulated is 0; q_prev <- q. modulated is a float\n"
+"array (1 or 0).");
+
+static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
+    PyObject *q_o, *qv_o, *qp_o, *e_o, *sh_o, *dd_o, *tk_o, *mod_o;
+    double inv_dt;
+    if (!PyArg_ParseTuple(args, "OOOOOOOdO", &q_o, &qv_o, &qp_o, &e_o, &sh_o, &dd_o, &tk_o,
+                          &inv_dt, &mod_o))
+        return NULL;
+    if (!PyArray_Check(q_o)) {
+        PyErr_SetString(PyExc_TypeError, "q must be a numpy array");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)q_o);
+    const double *q = in_data(q_o, n, "q"), *qv = in_data(qv_o, n, "q_v"),
+                 *e = in_data(e_o, n, "energy"), *dd = in_data(dd_o, n, "D_over_dt"),
+                 *tk = in_data(tk_o, n, "two_over_K"), *mod = in_data(mod_o, n, "modulated");
+    double *qp = out_data(qp_o, n, "q_prev");
+    const double *sh = NULL;
+    if (!q || !qv || !e || !dd || !tk || !mod || !qp) return NULL;
+    if (sh_o != Py_None && !(sh = in_data(sh_o, n, "shuffle"))) return NULL;
+    PyArrayObject *L = new_vector(n), *U = L ? new_vector(n) : NULL,
+                  *D = U ? new_vector(n) : NULL, *A = D ? new_vector(n) : NULL;
+    if (A == NULL) {
+        Py_XDECREF(L);
+        Py_XDECREF(U);
+        Py_XDECREF(D);
+        return NULL;
+    }
+    double *l = (double *)PyArray_DATA(L), *u = (double *)PyArray_DATA(U),
+           *dm = (double *)PyArray_DATA(D), *av = (double *)PyArray_DATA(A);
+    for (npy_intp j = 0; j < n; j++) {
+        double step = q[j] - qp[j];
+        step = step * step * dd[j];
+        dm[j] = step;
+        qp[j] = q[j];
+        double avail = e[j] + step;
+        if (sh) avail += sh[j];
+        av[j] = avail;
+        double dq = qv[j] - q[j];
+        double r = sqrt(avail * tk[j] + dq * dq);
+        if (mod[j] != 0.0) {
+            u[j] = (r - dq) * inv_dt;
+            l[j] = (r + dq) * -inv_dt;
+        } else {
+            u[j] = INFINITY;
+            l[j] = -INFINITY;
+        }
+    }
+    return Py_BuildValue("(NNNN)", L, U, D, A);
+}
+
+PyDoc_STRVAR(pspm_update_doc,
+"pspm_update(q, q_v, qdot_v, avail, half_K, dt, max_energy, modulated, energy)\n"
+"    -> (energy', dEk, min(energy'))\n\n"
+"EnergyTanks.update before its NaN / round-off repair: dEk = K/2 ((dq + dt qdot_v)^2 - dq^2),\n"
+"energy' = min(avail - dEk, max_energy), the old energy where modulated is 0; the minimum\n"
+"is NaN if any entry is.");
+
+static PyObject *pspm_update(PyObject *self, PyObject *args) {
+    PyObject *q_o, *qv_o, *qd_o, *av_o, *hk_o, *mod_o, *e_o;
+    double dt, emax;
+    if (!PyArg_ParseTuple(args, "OOOOOddOO", &q_o, &qv_o, &qd_o, &av_o, &hk_o, &dt, &emax,
+                          &mod_o, &e_o))
+        return NULL;
+    if (!PyArray_Check(q_o)) {
+        PyErr_SetString(PyExc_TypeError, "q must be a numpy array");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)q_o);
+    const double *q = in_data(q_o, n, "q"), *qv = in_data(qv_o, n, "q_v"),
+                 *qd = in_data(qd_o, n, "qdot_v"), *av = in_data(av_o, n, "avail"),
+                 *hk = in_data(hk_o, n, "half_K"), *mod = in_data(mod_o, n, "modulated"),
+                 *e0 = in_data(e_o, n, "energy");
+    if (!q || !qv || !qd || !av || !hk || !mod || !e0) return NULL;
+    PyArrayObject *E = new_vector(n), *K = E ? new_vector(n) : NULL;
+    if (K == NULL) {
+        Py_XDECREF(E);
+        return NULL;
+    }
+    double *e = (double *)PyArray_DATA(E), *dk = (double *)PyArray_DATA(K);
+    double emin = INFINITY;
+    for (npy_intp j = 0; j < n; j++) {
+        double dq = qv[j] - q[j];
+        double nw = qd[j] * dt + dq;
+        double d = (nw * nw - dq * dq) * hk[j];
+        dk[j] = d;
+        e[j] = mod[j] != 0.0 ? np_min(av[j] - d, emax) : e0[j];
+        emin = np_min(emin, e[j]);
+    }
+    return Py_BuildValue("(NNd)", E, K, emin);
+}
+
+static PyMethodDef methods[] = {
+    {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
+    {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
+    {"accept", accept, METH_VARARGS, accept_doc},
+    {"lock_if_satisfied", lock_if_satisfied, METH_VARARGS, lock_if_satisfied_doc},
+    {"limits_box", limits_box, METH_VARARGS, limits_box_doc},
+    {"velocity_box", velocity_box, METH_VARARGS, velocity_box_doc},
+    {"integrate", integrate, METH_VARARGS, integrate_doc},
+    {"pspm_bounds", pspm_bounds, METH_VARARGS, pspm_bounds_doc},
+    {"pspm_update", pspm_update, METH_VARARGS, pspm_update_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_native",
+    "The SPG tick's per-joint and per-row arithmetic in C (numpy versions: the reference).",
+    -1, methods,
+};
+
+PyMODINIT_FUNC PyInit__native(void) {
+    import_array();
+    return PyModule_Create(&module);
+}
