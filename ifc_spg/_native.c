@@ -278,6 +278,192 @@ static PyObject *lock_if_satisfied(PyObject *self, PyObject *args) {
     Py_RETURN_TRUE;
 }
 
+PyDoc_STRVAR(slack_setup_doc,
+"slack_setup(A_unit, A, start, end, ws_bl, ws_bu, lower, upper, C, bl, bu)\n\n"
+"The rows and bounds of an inequality level's slack QP over w = [qdot_v; s]: the first\n"
+"n columns of C (end, n + m) get the higher levels' unit rows A_unit[:start] and this\n"
+"level's rows A[start:end]; bl/bu (n + m + end) get the box ws_bl/ws_bu[:n], the locks\n"
+"ws_bl/ws_bu[n:n + start] and the level's lower/upper[start:end]. The slack columns\n"
+"and entries n..n+m of bl/bu are left as they are.");
+
+static PyObject *slack_setup(PyObject *self, PyObject *args) {
+    PyObject *U_o, *A_o, *wbl_o, *wbu_o, *lo_o, *hi_o, *C_o, *bl_o, *bu_o;
+    Py_ssize_t start, end;
+    if (!PyArg_ParseTuple(args, "OOnnOOOOOOO", &U_o, &A_o, &start, &end, &wbl_o, &wbu_o,
+                          &lo_o, &hi_o, &C_o, &bl_o, &bu_o))
+        return NULL;
+    if (!PyArray_Check(U_o) || PyArray_NDIM((PyArrayObject *)U_o) != 2 ||
+        !PyArray_Check(C_o) || PyArray_NDIM((PyArrayObject *)C_o) != 2) {
+        PyErr_SetString(PyExc_ValueError, "A_unit and C must be 2-D arrays");
+        return NULL;
+    }
+    npy_intp n = PyArray_DIM((PyArrayObject *)U_o, 1), m = end - start;
+    npy_intp R = PyArray_DIM((PyArrayObject *)U_o, 0);
+    if (start < 0 || m < 1 || end > R || PyArray_DIM((PyArrayObject *)C_o, 0) != end ||
+        PyArray_DIM((PyArrayObject *)C_o, 1) != n + m) {
+        PyErr_Format(PyExc_ValueError, "rows %zd:%zd of %zd do not fit C (%zd x %zd)",
+                     start, end, (Py_ssize_t)R, (Py_ssize_t)PyArray_DIM((PyArrayObject *)C_o, 0),
+                     (Py_ssize_t)PyArray_DIM((PyArrayObject *)C_o, 1));
+        return NULL;
+    }
+    const double *U = in_data(U_o, R * n, "A_unit"), *A = in_data(A_o, R * n, "A"),
+                 *wbl = in_data(wbl_o, n + start, "ws_bl"),
+                 *wbu = in_data(wbu_o, n + start, "ws_bu"), *lo = in_data(lo_o, end, "lower"),
+                 *hi = in_data(hi_o, end, "upper");
+    double *C = out_data(C_o, end * (n + m), "C"), *bl = out_data(bl_o, n + m + end, "bl"),
+           *bu = out_data(bu_o, n + m + end, "bu");
+    if (!U || !A || !wbl || !wbu || !lo || !hi || !C || !bl || !bu) return NULL;
+    for (npy_intp i = 0; i < end; i++) {
+        const double *src = i < start ? U + i * n : A + i * n;
+        for (npy_intp j = 0; j < n; j++) C[i * (n + m) + j] = src[j];
+    }
+    for (npy_intp j = 0; j < n; j++) {
+        bl[j] = wbl[j];
+        bu[j] = wbu[j];
+    }
+    for (npy_intp i = 0; i < start; i++) {
+        bl[n + m + i] = wbl[n + i];
+        bu[n + m + i] = wbu[n + i];
+    }
+    for (npy_intp i = start; i < end; i++) {
+        bl[n + m + i] = lo[i];
+        bu[n + m + i] = hi[i];
+    }
+    Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(accept_slack_doc,
+"accept_slack(w, bl, bu, A_unit, norm, lower, upper, band, lock_lo, lock_hi) -> (qdot, s)\n\n"
+"Take a slack QP's solution w = [x; s]: qdot = x clipped into [bl[:n], bu[:n]],\n"
+"a = (A_unit qdot) norm, and the lock [lower + s, upper + s] widened to contain a (a\n"
+"itself on equal rows), in unit-row coordinates, widened by band.");
+
+static PyObject *accept_slack(PyObject *self, PyObject *args) {
+    PyObject *w_o, *bl_o, *bu_o, *U_o, *nr_o, *lo_o, *hi_o, *band_o, *llo_o, *lhi_o;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOO", &w_o, &bl_o, &bu_o, &U_o, &nr_o, &lo_o, &hi_o,
+                          &band_o, &llo_o, &lhi_o))
+        return NULL;
+    if (!PyArray_Check(U_o) || PyArray_NDIM((PyArrayObject *)U_o) != 2) {
+        PyErr_SetString(PyExc_ValueError, "A_unit must be a 2-D array");
+        return NULL;
+    }
+    npy_intp m = PyArray_DIM((PyArrayObject *)U_o, 0), n = PyArray_DIM((PyArrayObject *)U_o, 1);
+    const double *w = in_data(w_o, n + m, "w"), *bl = in_data(bl_o, n, "bl"),
+                 *bu = in_data(bu_o, n, "bu"), *U = in_data(U_o, m * n, "A_unit"),
+                 *nr = in_data(nr_o, m, "norm"), *lo = in_data(lo_o, m, "lower"),
+                 *hi = in_data(hi_o, m, "upper"), *band = in_data(band_o, m, "band");
+    double *llo = out_data(llo_o, m, "lock_lo"), *lhi = out_data(lhi_o, m, "lock_hi");
+    if (!w || !bl || !bu || !U || !nr || !lo || !hi || !band || !llo || !lhi) return NULL;
+    PyArrayObject *q = new_vector(n), *S = q ? new_vector(m) : NULL;
+    if (S == NULL) {
+        Py_XDECREF(q);
+        return NULL;
+    }
+    double *qd = (double *)PyArray_DATA(q), *sd = (double *)PyArray_DATA(S);
+    for (npy_intp j = 0; j < n; j++) qd[j] = np_min(np_max(w[j], bl[j]), bu[j]);
+    for (npy_intp i = 0; i < m; i++) {
+        double a = 0.0;
+        for (npy_intp j = 0; j < n; j++) a += U[i * n + j] * qd[j];
+        a *= nr[i];
+        double s = w[n + i];
+        sd[i] = s;
+        double l, h;
+        if (lo[i] == hi[i]) {
+            l = h = a;
+        } else {
+            l = np_min(lo[i] + s, a);
+            h = np_max(hi[i] + s, a);
+        }
+        llo[i] = l / nr[i] - band[i];
+        lhi[i] = h / nr[i] + band[i];
+    }
+    return Py_BuildValue("(NN)", q, S);
+}
+
+/* ---- the torque-limit level (ifc_spg.limits.torque_limits) --------------------------- */
+
+PyDoc_STRVAR(torque_limit_doc,
+"torque_limit(q, qdot, q_v, idx, K, gain, gain_tau, K_over, band, lower, upper)\n"
+"    -> (beta_m, beta_M, s, lower', upper')\n\n"
+"TorqueLimitLevel.apply on the joints idx (an intp array; None: all): the level's bounds\n"
+"K (qdot - gain (q_v - q)) -+ gain_tau (unbounded where not finite), its closed-form\n"
+"solution projected onto the box, the slack s (NaN -> 0) and the box narrowed by the lock.");
+
+static PyObject *torque_limit(PyObject *self, PyObject *args) {
+    PyObject *q_o, *qd_o, *qv_o, *idx_o, *K_o, *gt_o, *ko_o, *band_o, *lo_o, *hi_o;
+    double gain;
+    if (!PyArg_ParseTuple(args, "OOOOOdOOOOO", &q_o, &qd_o, &qv_o, &idx_o, &K_o, &gain, &gt_o,
+                          &ko_o, &band_o, &lo_o, &hi_o))
+        return NULL;
+    if (!PyArray_Check(q_o) || !PyArray_Check(K_o)) {
+        PyErr_SetString(PyExc_TypeError, "q and K must be numpy arrays");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)q_o), k = PyArray_SIZE((PyArrayObject *)K_o);
+    const npy_intp *idx = NULL;
+    if (idx_o != Py_None) {
+        PyArrayObject *ia = (PyArrayObject *)idx_o;
+        if (!PyArray_Check(idx_o) || PyArray_TYPE(ia) != NPY_INTP ||
+            !PyArray_IS_C_CONTIGUOUS(ia) || PyArray_SIZE(ia) != k) {
+            PyErr_SetString(PyExc_ValueError, "idx must be a contiguous intp array, one per K");
+            return NULL;
+        }
+        idx = (const npy_intp *)PyArray_DATA(ia);
+        for (npy_intp j = 0; j < k; j++) {
+            if (idx[j] < 0 || idx[j] >= n) {
+                PyErr_SetString(PyExc_ValueError, "idx out of range");
+                return NULL;
+            }
+        }
+    } else if (k != n) {
+        PyErr_SetString(PyExc_ValueError, "K must have one entry per joint when idx is None");
+        return NULL;
+    }
+    const double *q = in_data(q_o, n, "q"), *qd = in_data(qd_o, n, "qdot"),
+                 *qv = in_data(qv_o, n, "q_v"), *K = in_data(K_o, k, "K"),
+                 *gt = in_data(gt_o, k, "gain_tau"), *ko = in_data(ko_o, k, "K_over"),
+                 *band = in_data(band_o, k, "band"), *lo = in_data(lo_o, n, "lower"),
+                 *hi = in_data(hi_o, n, "upper");
+    if (!q || !qd || !qv || !K || !gt || !ko || !band || !lo || !hi) return NULL;
+    PyArrayObject *BL = new_vector(k), *BU = BL ? new_vector(k) : NULL,
+                  *S = BU ? new_vector(k) : NULL, *L = S ? new_vector(n) : NULL,
+                  *U = L ? new_vector(n) : NULL;
+    if (U == NULL) {
+        Py_XDECREF(BL);
+        Py_XDECREF(BU);
+        Py_XDECREF(S);
+        Py_XDECREF(L);
+        return NULL;
+    }
+    double *bl = (double *)PyArray_DATA(BL), *bu = (double *)PyArray_DATA(BU),
+           *s = (double *)PyArray_DATA(S), *l = (double *)PyArray_DATA(L),
+           *u = (double *)PyArray_DATA(U);
+    for (npy_intp j = 0; j < n; j++) {
+        l[j] = lo[j];
+        u[j] = hi[j];
+    }
+    for (npy_intp t = 0; t < k; t++) {
+        npy_intp j = idx ? idx[t] : t;
+        double comp = (qd[j] - gain * (qv[j] - q[j])) * K[t];
+        double b_lo = comp - gt[t], b_hi = comp + gt[t];
+        if (!isfinite(comp)) {
+            b_lo = -INFINITY;
+            b_hi = INFINITY;
+        }
+        bl[t] = b_lo;
+        bu[t] = b_hi;
+        double x = np_min(np_max(0.0, b_lo), b_hi) * ko[t];
+        x = np_min(np_max(x, lo[j]), hi[j]);
+        double kx = K[t] * x;
+        double st = kx - np_min(np_max(kx, b_lo), b_hi);
+        if (isnan(st)) st = 0.0;
+        s[t] = st;
+        l[j] = np_max(lo[j], np_min((b_lo + st) / K[t], x) - band[t]);
+        u[j] = np_min(hi[j], np_max((b_hi + st) / K[t], x) + band[t]);
+    }
+    return Py_BuildValue("(NNNNN)", BL, BU, S, L, U);
+}
+
 /* ---- joint limits (ifc_spg.limits.joint_limits) ------------------------------------- */
 
 PyDoc_STRVAR(limits_box_doc,
@@ -495,6 +681,9 @@ static PyMethodDef methods[] = {
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
     {"accept", accept, METH_VARARGS, accept_doc},
     {"lock_if_satisfied", lock_if_satisfied, METH_VARARGS, lock_if_satisfied_doc},
+    {"slack_setup", slack_setup, METH_VARARGS, slack_setup_doc},
+    {"accept_slack", accept_slack, METH_VARARGS, accept_slack_doc},
+    {"torque_limit", torque_limit, METH_VARARGS, torque_limit_doc},
     {"limits_box", limits_box, METH_VARARGS, limits_box_doc},
     {"velocity_box", velocity_box, METH_VARARGS, velocity_box_doc},
     {"integrate", integrate, METH_VARARGS, integrate_doc},
@@ -506,7 +695,7 @@ static PyMethodDef methods[] = {
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_native",
     "The SPG tick's per-joint and per-row arithmetic in C (numpy versions: the reference).",
-    -1, methods,
+    -1, methods, NULL, NULL, NULL, NULL,
 };
 
 PyMODINIT_FUNC PyInit__native(void) {

@@ -275,17 +275,20 @@ class DaqpCascade(CascadeSolver):
                 if qdot is None:
                     qdot = np.minimum(np.maximum(0.0, bl[:n]), bu[:n])
                 return CascadeResult(qdot, slacks, 'hold' if i == 0 else 'fallback', i)
-            x = w[:n]
-            qdot, a_unit = _accept(ws, x, start, end)
-            a = a_unit * norm[sl]
-            s = w[n:]
-            slacks.append(s)
             # lock: [lower + s*, upper + s*] (A qdot* for equality rows), widened by the band
-            eq = orig_lo[sl] == orig_hi[sl]
-            lo = np.where(eq, a, np.minimum(orig_lo[sl] + s, a))
-            hi = np.where(eq, a, np.maximum(orig_hi[sl] + s, a))
-            lo_rows[sl] = lo / norm[sl] - band[sl]
-            hi_rows[sl] = hi / norm[sl] + band[sl]
+            if nat is not None:
+                qdot, s = nat.accept_slack(w, bl, bu, ws.A_unit[sl], norm[sl], orig_lo[sl],
+                                           orig_hi[sl], band[sl], lo_rows[sl], hi_rows[sl])
+            else:
+                qdot, a_unit = _accept(ws, w[:n], start, end)
+                a = a_unit * norm[sl]
+                s = w[n:]
+                eq = orig_lo[sl] == orig_hi[sl]
+                lo = np.where(eq, a, np.minimum(orig_lo[sl] + s, a))
+                hi = np.where(eq, a, np.maximum(orig_hi[sl] + s, a))
+                lo_rows[sl] = lo / norm[sl] - band[sl]
+                hi_rows[sl] = hi / norm[sl] + band[sl]
+            slacks.append(s)
             start = end
         return CascadeResult(qdot, slacks, 'ok', -1)
 
@@ -296,15 +299,19 @@ class DaqpCascade(CascadeSolver):
         if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
             return self._solve_with_slacks(ws, start, end)  # equal rows: flagged, cold
         C, bu, bl, cold, model = ws.slack_level(i, start, end, self.rho)
-        m = end - start
-        C[:start, :n] = ws.A_unit[:start]
-        C[start:, :n] = ws.A[start:end]
-        bu[:n] = ws.bu[:n]
-        bl[:n] = ws.bl[:n]
-        bu[n + m:n + m + start] = ws.hi_rows[:start]
-        bl[n + m:n + m + start] = ws.lo_rows[:start]
-        bu[n + m + start:] = ws.orig_hi[start:end]
-        bl[n + m + start:] = ws.orig_lo[start:end]
+        if self._native is not None:
+            self._native.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo,
+                                     ws.orig_hi, C, bl, bu)
+        else:
+            m = end - start
+            C[:start, :n] = ws.A_unit[:start]
+            C[start:, :n] = ws.A[start:end]
+            bu[:n] = ws.bu[:n]
+            bl[:n] = ws.bl[:n]
+            bu[n + m:n + m + start] = ws.hi_rows[:start]
+            bl[n + m:n + m + start] = ws.lo_rows[:start]
+            bu[n + m + start:] = ws.orig_hi[start:end]
+            bl[n + m + start:] = ws.orig_lo[start:end]
         model.update(A=C, blower=bl)
         x, _, flag, _ = self._solve_model(model)
         if flag != 1:

@@ -113,6 +113,86 @@ def test_normal_form_accept_and_lock_match_numpy():
             np.testing.assert_allclose(ws.hi_rows[sl], want[1], rtol=1e-13)
 
 
+@needs_native
+def test_slack_level_setup_and_accept_match_numpy():
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        n = int(rng.choice([7, 17]))
+        levels = random_levels(rng, n)
+        R = sum(lv.A.shape[0] for lv in levels)
+        ws = _Workspace(n, R, 0.01, {})
+        _stack_rows(levels, [lv.A.shape[0] for lv in levels], ws, 1e-9)
+        ws.bl[:] = -rng.uniform(0.01, 1, n + R)
+        ws.bu[:] = rng.uniform(0.01, 1, n + R)
+        start = int(rng.integers(0, R))
+        end = start + int(rng.integers(1, R - start + 1))
+        m, sl = end - start, slice(start, end)
+        ws.orig_hi[sl][rng.random(m) < 0.3] = ws.orig_lo[sl][rng.random(m) < 0.3] = 0.25
+        # the slack QP's rows and bounds (numpy: as in DaqpCascade._solve_slack_level)
+        C_ref, bl_ref, bu_ref = _slack_model_arrays(ws, start, end)
+        C, bu, bl, _, _ = ws.slack_level(0, start, end, 0.01)
+        nat.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo, ws.orig_hi,
+                        C, bl, bu)
+        np.testing.assert_array_equal(C, C_ref)
+        np.testing.assert_array_equal(bl, bl_ref)
+        np.testing.assert_array_equal(bu, bu_ref)
+        # accepting its solution: clip, slack, the lock [lower + s, upper + s] around A qdot
+        w = rng.normal(size=n + m)
+        q_ref, a_unit = _accept(ws, w[:n], start, end)
+        a = a_unit * ws.norm[sl]
+        eq = ws.orig_lo[sl] == ws.orig_hi[sl]
+        lo = np.where(eq, a, np.minimum(ws.orig_lo[sl] + w[n:], a)) / ws.norm[sl] - ws.band[sl]
+        hi = np.where(eq, a, np.maximum(ws.orig_hi[sl] + w[n:], a)) / ws.norm[sl] + ws.band[sl]
+        q, s = nat.accept_slack(w, ws.bl, ws.bu, ws.A_unit[sl], ws.norm[sl], ws.orig_lo[sl],
+                                ws.orig_hi[sl], ws.band[sl], ws.lo_rows[sl], ws.hi_rows[sl])
+        np.testing.assert_array_equal(q, q_ref)
+        np.testing.assert_array_equal(s, w[n:])
+        np.testing.assert_allclose(ws.lo_rows[sl], lo, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(ws.hi_rows[sl], hi, rtol=1e-12, atol=1e-15)
+
+
+def _slack_model_arrays(ws, start, end):
+    n, m = ws.n, end - start
+    C = np.zeros((end, n + m))
+    C[start:, n:] = -np.eye(m)
+    C[:start, :n] = ws.A_unit[:start]
+    C[start:, :n] = ws.A[start:end]
+    bl = np.concatenate([ws.bl[:n], np.full(m, -np.inf), ws.lo_rows[:start],
+                         ws.orig_lo[start:end]])
+    bu = np.concatenate([ws.bu[:n], np.full(m, np.inf), ws.hi_rows[:start],
+                         ws.orig_hi[start:end]])
+    return C, bl, bu
+
+
+@needs_native
+@pytest.mark.parametrize('stiff', [False, True])
+def test_torque_limit_level_matches_numpy(monkeypatch, stiff):
+    from ifc_spg.limits.torque_limits import TorqueLimitLevel
+    rng = np.random.default_rng(13)
+    K = rng.uniform(50, 1000, 7)
+    if stiff:
+        K[[1, 5]] = 0.0  # position-controlled joints: no torque limit
+    tau_max = rng.uniform(20, 200, 7)
+    fast, slow = _both(monkeypatch, lambda: TorqueLimitLevel(K, tau_max, 0.002, 0.01, 1e-9))
+    assert fast._native is not None and slow._native is None
+    for i in range(3000):
+        q = rng.normal(size=7)
+        q_v = q + rng.normal(scale=rng.choice([1e-3, 0.1, 1.0]), size=7)
+        qdot = rng.normal(size=7)
+        if i % 100 == 0:
+            q[int(rng.integers(7))] = 1e305  # absurd: the level leaves that joint alone
+        box = VelocityBox(-rng.uniform(0, 2, 7), rng.uniform(0, 2, 7))
+        with np.errstate(all='ignore'):
+            want = slow.apply(q, qdot, q_v, box)
+        got = fast.apply(q, qdot, q_v, box)
+        for name, a, b in (('lower', got[0].lower, want[0].lower),
+                           ('upper', got[0].upper, want[0].upper), ('slack', got[1], want[1]),
+                           ('box.lower', got[2].lower, want[2].lower),
+                           ('box.upper', got[2].upper, want[2].upper)):
+            np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-300, err_msg=name)
+        np.testing.assert_array_equal(got[0].A, want[0].A)
+
+
 def _both(monkeypatch, make):
     """``make()`` with the kernels and with the numpy code."""
     fast = make()

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ifc_spg import native
 from ifc_spg.limits.joint_limits import VelocityBox
 from ifc_spg.tasks.task import Level
 
@@ -53,9 +54,16 @@ class TorqueLimitLevel:
         self._zeros = np.zeros(self.idx.size)
         # every joint compliant (the usual case): slices instead of index arrays (no copies)
         self._sel = slice(None) if self.idx.size == K.size else self.idx
+        self._native = native.module  # C kernel (ifc_spg.native), or None: numpy below
+        self._native_idx = None if self.idx.size == K.size else self.idx.astype(np.intp)
 
     def apply(self, q, qdot, q_v, box):
         """Solve the level; return ``(level, slack, box)`` with the box narrowed by the lock."""
+        if self._native is not None:
+            lo_b, hi_b, s, lower, upper = self._native.torque_limit(
+                q, qdot, q_v, self._native_idx, self.K, self.gain, self._gain_tau,
+                self._K_over, self.band, box.lower, box.upper)
+            return Level(self.name, self.A, lo_b, hi_b, False), s, VelocityBox(lower, upper)
         i, K = self._sel, self.K
         comp = qdot[i] - self.gain * (q_v[i] - q[i])
         comp *= K                                           # K qdot - Lambda tau_s
