@@ -278,14 +278,14 @@ TARGETS = {'lbr_table_4_1': (300.0, 1000.0), 'icub_table_3_7': (600.0, None)}
 def format_report(res):
     lines = [f"SPG full tick, closed loop (plant not timed); tick arithmetic: "
              f"{res.get('implementation', '?')}",
-             f"{'stack':<16}{'solver':<11}{'levels':>6}{'ticks':>7}{'p50 us':>10}{'p99 us':>10}"
-             f"{'max us':>10}  {'target':<19}status"]
+             f"{'stack':<16}{'solver':<11}{'levels':>6}{'ticks':>7}{'p50 us':>10} {'p99 us':>10}"
+             f" {'max us':>10}  {'target':<19}status"]
     for r in res['stacks']:
         p99t, maxt = TARGETS.get(r['stack'], (None, None))
         ok = (p99t is None or r['p99_us'] <= p99t) and (maxt is None or r['max_us'] <= maxt)
         target = f'p99<={p99t:.0f}' + (f',max<={maxt:.0f}' if maxt else '')
         lines.append(f"{r['stack']:<16}{r['solver']:<11}{r['levels']:>6}{r['ticks']:>7}"
-                     f"{r['p50_us']:>10.1f}{r['p99_us']:>10.1f}{r['max_us']:>10.1f}  "
+                     f"{r['p50_us']:>10.1f} {r['p99_us']:>10.1f} {r['max_us']:>10.1f}  "
                      f"{target:<19}{'met' if ok else 'MISSED'} {r['status']}")
     for r in res['stacks']:
         if 'baseline' in r:
