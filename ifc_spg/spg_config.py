@@ -14,6 +14,7 @@ in a params file they are nested mappings under ``ros__parameters``.
 """
 
 from dataclasses import dataclass, fields
+import math
 import os
 from typing import NamedTuple
 
@@ -42,6 +43,9 @@ class SpgConfig:
         pspm_max_energy: E_r,max per joint in [J].
         pspm_shuffle: dE_shuffle per tick in [J].
         pspm_shuffle_budget: b^2, total shuffled energy per joint in [J].
+        stiffness: Joint stiffness K of the robot's impedance controller in [Nm/rad], one
+            value per joint or one for all; () keeps the robot configuration's.
+        damping: Joint damping D in [Nms/rad], likewise.
         watchdog_timeout: No joint state for longer than this [s] stops commanding; the
             next state restarts from the measured q. 0 disables the watchdog.
         status_decimation: Publish ``spg/status`` every N-th tick.
@@ -64,6 +68,8 @@ class SpgConfig:
     pspm_max_energy: float = 2.0
     pspm_shuffle: float = 0.0
     pspm_shuffle_budget: float = 0.0
+    stiffness: tuple = ()
+    damping: tuple = ()
     watchdog_timeout: float = 0.05
     status_decimation: int = 10
     diagnostics_period: float = 1.0
@@ -78,11 +84,19 @@ class SpgConfig:
         for p in PARAMETERS:
             value = getattr(self, p.field)
             default = _DEFAULTS[p.field]
+            if isinstance(default, tuple) and isinstance(value, list):  # e.g. from JSON
+                value = tuple(value)
+                object.__setattr__(self, p.field, value)
             if type(value) is not type(default) and not (
                     isinstance(default, float) and type(value) is int):
                 raise ParameterError(f"parameter '{p.name}': {value!r} is a "
                                      f'{type(value).__name__}, expected a '
                                      f'{type(default).__name__} ({p.description})')
+            if isinstance(default, tuple):
+                if not all(type(v) in (int, float) and math.isfinite(v) for v in value):
+                    raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
+                                         f'finite numbers ({p.description})')
+                continue
             if p.range is not None and not (p.range[0] <= value <= p.range[1]):
                 raise ParameterError(f"parameter '{p.name}': {value!r} is outside "
                                      f'[{p.range[0]}, {p.range[1]}] ({p.description})')
@@ -140,6 +154,12 @@ PARAMETERS = (
           (0.0, 1e3)),
     Param('pspm.shuffle_budget', 'pspm_shuffle_budget',
           'Total shuffled energy per joint b^2 in [J]', (0.0, 1e6)),
+    Param('impedance.stiffness', 'stiffness',
+          "Joint stiffness K of the robot's impedance controller in [Nm/rad], per joint or one "
+          "for all (default: the robot configuration's)"),
+    Param('impedance.damping', 'damping',
+          "Joint damping D of the robot's impedance controller in [Nms/rad], per joint or one "
+          "for all (default: the robot configuration's)"),
     Param('watchdog.timeout', 'watchdog_timeout',
           'No joint state for longer than this [s] stops commanding (0: off)', (0.0, 60.0)),
     Param('status.decimation', 'status_decimation', 'Publish spg/status every N-th tick',
@@ -177,6 +197,8 @@ def config_from_parameters(values):
         field = _BY_NAME[name].field
         if isinstance(_DEFAULTS[field], float) and type(value) is int:
             value = float(value)
+        elif isinstance(_DEFAULTS[field], tuple):  # per-joint values: a list or one number
+            value = tuple(value) if isinstance(value, (list, tuple)) else (value,)
         kwargs[field] = value
     return SpgConfig(**kwargs)
 
@@ -218,6 +240,8 @@ def declare_parameters(node):
     values = {}
     for p in PARAMETERS:
         default = _DEFAULTS[p.field]
+        if isinstance(default, tuple):  # per joint: declared with the robot's own values
+            default = _robot_gains(values['robot'], p.field)
         try:
             values[p.name] = node.declare_parameter(p.name, default,
                                                     _descriptor(ros, p, default)).value
@@ -225,6 +249,8 @@ def declare_parameters(node):
             raise
         except Exception as exc:  # rclpy's InvalidParameterTypeException and friends
             raise ParameterError(f"parameter '{p.name}': {exc}") from None
+        if isinstance(_DEFAULTS[p.field], tuple) and list(values[p.name]) == default:
+            values[p.name] = ()  # not overridden: the robot configuration's own
     unknown = [name for name in _overrides(node) if name not in _BY_NAME and
                not any(name == f or name.startswith(f) for f in _FOREIGN_OK)]
     if unknown:
@@ -232,6 +258,15 @@ def declare_parameters(node):
                              f'{did_you_mean(unknown[0], _BY_NAME)}; valid: '
                              f"{', '.join(_BY_NAME)}")
     return config_from_parameters(values)
+
+
+def _robot_gains(robot, field):
+    """The robot configuration's K or D as a list of floats (declared as the default, so
+    ``ros2 param get`` shows what the SPG uses)."""
+    from ifc_spg.model import RobotModel
+
+    SpgConfig(robot=robot)  # an unknown robot: the error names the choices
+    return [float(v) for v in getattr(RobotModel.from_config(robot), field)]
 
 
 def config_file(robot):

@@ -41,13 +41,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg.errors import IfcSpgError
+from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.model import RobotModel
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.spg_config import SpgConfig
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
-           'parse_task_stack', 'robot_params', 'status_json']
+           'parse_task_stack', 'robot_gains', 'robot_params', 'status_json']
 
 REJECT_REASONS = ('wrong_count', 'unknown_name', 'duplicate_name', 'non_finite',
                   'stamp_backwards', 'duplicate_stamp')
@@ -164,6 +164,26 @@ def status_json(status):
     return json.dumps(_finite(status), allow_nan=False, separators=(',', ':'))
 
 
+def robot_gains(robot, config):
+    """``robot`` with the IFC gains of ``config`` (``impedance.stiffness`` / ``damping``).
+
+    Raises:
+        ParameterError: Gains for a Cartesian-admittance robot, a wrong count, K <= 0 or
+            D < 0 (the message names the parameter, the joints and the values).
+    """
+    from ifc_spg.model import JOINT_IMPEDANCE
+    from ifc_spg.runner import robot_with_gains
+
+    if not config.stiffness and not config.damping:
+        return robot
+    if robot.ifc != JOINT_IMPEDANCE:
+        raise ParameterError(f"parameters impedance.stiffness/damping set the joint impedance; "
+                             f"robot '{robot.name}' is under {robot.ifc.replace('_', ' ')} "
+                             '(its gains come with the robot configuration)')
+    return robot_with_gains(robot, stiffness=list(config.stiffness) or None,
+                            damping=list(config.damping) or None, where='parameter impedance.')
+
+
 class SpgRunner:
     """The SPG node body: validated ticks, hot-swapped stacks, watchdog, status.
 
@@ -176,7 +196,7 @@ class SpgRunner:
 
     def __init__(self, config=None, robot=None, clock=time.monotonic, parse_stack=None):
         self.config = config = config or SpgConfig()
-        self.robot = robot or RobotModel.from_config(config.robot)
+        self.robot = robot or robot_gains(RobotModel.from_config(config.robot), config)
         self.spg = SetPointGenerator(self.robot, None, dt=config.dt, pspm=config.pspm_config(),
                                      solver=config.solver, rho=config.rho,
                                      torque_limits=config.torque_limits)

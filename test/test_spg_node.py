@@ -195,6 +195,11 @@ def test_watchdog_stops_commanding_and_resumes_from_the_measured_q(domain):
     ('status.decimation:=0', "'status.decimation': value 0 is outside its range"),
     ('solver:=qp', "'solver': 'qp' is not one of"),
     ('pspm.initial_enrgy:=1.0', "did you mean 'pspm.initial_energy'"),
+    ('impedance.stiffness:=500.0', 'expected PARAMETER_DOUBLE_ARRAY (write a list, e.g. [500.0])'),
+    ('impedance.stiffness:=[500,500]', '(write 1.0, not 1, for a double)'),
+    ('impedance.stiffness:=[500.0,500.0]', 'impedance.stiffness must be > 0 (scalar or 7 values'
+                                           ' for A1, A2'),
+    ('impedance.damping:=[-1.0]', 'impedance.damping must be >= 0'),
 ])
 def test_bad_parameters_exit_2_naming_them(domain, capsys, param, message):
     assert main(['spg_node', '--ros-args', '-p', param]) == 2
@@ -242,3 +247,27 @@ def test_config_files_load_into_the_node(domain, robot):
         assert getattr(spg.config, by_name[name]) == value, name
         assert node.describe_parameter(name).description
     assert RobotModel.from_config(robot).n == len(spg.runner.joint_names)
+
+
+def test_impedance_parameters_set_the_gains_the_spg_computes_with(domain):
+    """impedance.stiffness / damping: the K, D of the robot's impedance controller (FRI).
+    Not given, the node declares the robot configuration's own, for ``ros2 param get``."""
+    spg, _ = _start([])
+    default = RobotModel.from_config('lbr_iiwa14')
+    assert spg.config.stiffness == () and spg.config.damping == ()
+    assert spg.node.get_parameter('impedance.stiffness').value == list(default.stiffness)
+    np.testing.assert_array_equal(spg.runner.robot.stiffness, default.stiffness)
+    dds.shutdown()
+    K = [800.0, 800.0, 600.0, 600.0, 300.0, 200.0, 100.0]
+    spg, fake = _start([f'impedance.stiffness:={K}', 'impedance.damping:=[12.5]'])
+    np.testing.assert_array_equal(spg.runner.robot.stiffness, K)
+    np.testing.assert_array_equal(spg.runner.robot.damping, np.full(7, 12.5))
+    # the torque-limit level |K (q_v - q)| <= tau_max and the energy tanks use them
+    np.testing.assert_array_equal(spg.runner.spg._torque_limit.K, K)
+    np.testing.assert_array_equal(spg.runner.spg.tanks.K, K)
+    np.testing.assert_array_equal(spg.runner.spg.tanks.D, np.full(7, 12.5))
+    # and the status (hence every bag) records what the SPG used
+    fake.tick(list(default.joint_names), default.q_home, np.zeros(7), 0)
+    assert fake.spin_until(lambda: any('robot_params' in st for st in fake.status))
+    params = next(st['robot_params'] for st in fake.status if 'robot_params' in st)
+    assert params['stiffness'] == K and params['damping'] == [12.5] * 7

@@ -119,9 +119,15 @@ def check_parameter_value(name, value, descriptor, expected_type=None):
     ptype = ParameterType.of(value)
     if expected_type not in (None, ParameterType.PARAMETER_NOT_SET) and \
             ptype != expected_type and not descriptor.dynamic_typing:
-        hint = ' (write 1.0, not 1, for a double)' if \
-            expected_type == ParameterType.PARAMETER_DOUBLE and ptype == \
-            ParameterType.PARAMETER_INTEGER else ''
+        T = ParameterType
+        hint = ''
+        if (expected_type, ptype) in ((T.PARAMETER_DOUBLE, T.PARAMETER_INTEGER),
+                                      (T.PARAMETER_DOUBLE_ARRAY, T.PARAMETER_INTEGER_ARRAY)):
+            hint = ' (write 1.0, not 1, for a double)'
+        elif expected_type >= T.PARAMETER_BYTE_ARRAY and ptype in (
+                T.PARAMETER_BOOL, T.PARAMETER_INTEGER, T.PARAMETER_DOUBLE, T.PARAMETER_STRING):
+            hint = f' (write a list, e.g. [{value!r}])'
+
         raise ParameterError(f"parameter '{name}': value {value!r} has type {ptype.name}, "
                              f'expected {ParameterType(expected_type).name}{hint}')
     for rng, _kind, tol in ((descriptor.floating_point_range, float, 1e-9),
