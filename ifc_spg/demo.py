@@ -4,10 +4,10 @@
 
 Runs ``config/scenarios/demo_lbr.yaml`` offline in lockstep (sim_bridge LBR FRI joint
 impedance + the SPG in one process): a KUKA LBR iiwa 14 starts 1 cm above a table,
-approaches it and presses with 8 N, then draws a 5 cm circle on the surface while keeping
-the force (Table 3.2-like). Writes ``DIR/bag`` (rosbag2 MCAP), ``DIR/metrics.json`` and
-``DIR/plots/index.html`` (default ``DIR`` = ``out/demo``, replaced if it holds an old demo)
-and prints a short summary.
+approaches it at 1 cm/s (guarded) and presses with 8 N, then draws a 5 cm circle on the
+surface while keeping the force (Table 3.2-like). Writes ``DIR/bag`` (rosbag2 MCAP),
+``DIR/metrics.json`` and ``DIR/plots/index.html`` (default ``DIR`` = ``out/demo``, replaced
+if it holds an old demo) and prints a short summary.
 """
 
 import argparse

@@ -7,12 +7,12 @@ from ifc_spg.demo import main
 
 def test_demo_short(tmp_path, capsys):
     out = tmp_path / 'demo'
-    assert main(['--duration', '2.5', '-o', str(out), '-q']) == 0
+    assert main(['--duration', '4.0', '-o', str(out), '-q']) == 0
     text = capsys.readouterr().out
     assert str(out / 'bag') in text and 'index.html' in text and 'tick time p50' in text
     m = json.loads((out / 'metrics.json').read_text())
-    assert m['ticks'] == 1250 and m['limit_violations'] == 0 and m['missed_ticks'] == 0
-    # pressing on the table after the approach (t = 2 s): virtual force at 8 N
+    assert m['ticks'] == 2000 and m['limit_violations'] == 0 and m['missed_ticks'] == 0
+    # pressing on the table after the approach (t = 3.5 s): virtual force at 8 N
     # 0.5 s into the circle: the modelled and the measured force are within 2 N of 8 N
     assert m['final_task_errors']['contact_force']['virtual'] < 2.0
     assert m['final_task_errors']['contact_force']['physical'] < 2.0

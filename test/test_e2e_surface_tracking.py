@@ -32,14 +32,16 @@ from ifc_spg.ros.testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp
 pytestmark = pytest.mark.dds
 
 DT = 0.002
-SIM_SECONDS = 10.0
-SWITCH_AT = 1.5        # [s] sim time at which the test starts the surface-tracking publisher
+SIM_SECONDS = 12.0
+SWITCH_AT = 3.5        # [s] sim time at which the test starts the surface-tracking publisher
 TARGET_N = 8.0         # [N] pressing force (the tool pushes down: base fz = -8 N)
 RADIUS, FREQ = 0.05, 0.2
-# Settling: the press stack starts 1 cm above the table, touches it at 0.33 s (impact peak
-# ~67 N) and every sample is within +-1 N from 1.07 s on (offline demo and live run alike,
-# lockstep is deterministic): settling time 0.74 s after contact, 1.1 s after the start.
-SETTLE_PRESS = 1.1     # [s] after the press stack started
+# Settling: the press stack starts 1 cm above the table and approaches at 1 cm/s (a guarded
+# move: z above a ramp), touches it at 1.09 s (first-contact peak 9.0 N; 67 N without the
+# guard), and every sample is within +-1 N of 8 N from 2.82 s on (offline demo and live run
+# alike, lockstep is deterministic): the force builds at the ramp's pace after contact.
+SETTLE_PRESS = 2.9     # [s] after the press stack started
+IMPACT_MAX_N = 12.0    # [N] the largest contact force before the circle starts
 SETTLE_CIRCLE = 1.0    # [s] after the circle stack started
 RECORDED = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
             'sim/contact_wrench']  # the iiwa under FRI has no wrist F/T sensor
@@ -222,6 +224,9 @@ def test_contact_force_settles_at_8_newton(recorded):
     assert len(t) >= 0.95 * SIM_SECONDS / DT
     press = (t >= since['approach'] + SETTLE_PRESS) & (t < since['surface_tracking'])
     assert press.sum() > 100
+    # the guarded approach: the first contact is gentle (no impact far above the target)
+    first = np.max(np.abs(f[t < since['surface_tracking']]))
+    assert first <= IMPACT_MAX_N, first
     # pressing (before the circle): every sample within +-1 N of 8 N
     err_press = f[press] + TARGET_N
     assert np.max(np.abs(err_press)) <= 1.0, np.max(np.abs(err_press))
