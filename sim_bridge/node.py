@@ -56,6 +56,8 @@ class BridgeParams:
     duration: float = 0.0
     push_duration: float = 0.5
     ft_raw: bool = False
+    stiffness: tuple = ()
+    damping: tuple = ()
 
 
 _DESCRIPTIONS = {
@@ -71,7 +73,13 @@ _DESCRIPTIONS = {
     'duration': 'Stop after this much simulated time in [s] (0: run forever)',
     'push_duration': 'Default duration of sim/apply_wrench pushes in [s]',
     'ft_raw': 'Publish raw F/T readings (sensor frame) instead of compensated ones',
+    'stiffness': 'Joint impedance stiffness K of the emulated controller in [Nm/rad], per '
+                 "joint or one for all (empty: the robot configuration's; set spg_node's "
+                 'impedance.stiffness alike)',
+    'damping': 'Joint impedance damping D in [Nms/rad], per joint or one for all (empty: the '
+               "robot configuration's)",
 }
+_DOUBLE_ARRAYS = ('q0', 'stiffness', 'damping')  # declared [0.0]: typed, read as "not set"
 
 
 def declare(node):
@@ -81,12 +89,13 @@ def declare(node):
     values = {}
     for name, default in BridgeParams.__dataclass_fields__.items():
         default = default.default
-        if name == 'q0':
+        if name in _DOUBLE_ARRAYS:
             default = [0.0]  # typed as a double array; [] would be untyped
         desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
         values[name] = node.declare_parameter(name, default, desc).value
-    q0 = tuple(float(x) for x in (values['q0'] or ()))
-    values['q0'] = () if q0 == (0.0,) else q0
+    for name in _DOUBLE_ARRAYS:
+        value = tuple(float(x) for x in (values[name] or ()))
+        values[name] = () if value == (0.0,) else value
     return validate(BridgeParams(**values))
 
 
@@ -164,7 +173,8 @@ class SimBridge:
         self.sim = Simulation(SimConfig(
             robot=p.robot, interface=p.interface or None, scene=p.scene,
             scene_options=json.loads(p.scene_options or '{}'), q0=p.q0 or None,
-            timestep=p.timestep, command_period=1.0 / p.rate))
+            timestep=p.timestep, command_period=1.0 / p.rate,
+            stiffness=list(p.stiffness) or None, damping=list(p.damping) or None))
         self.steps_per_tick = round(1.0 / p.rate / p.timestep)
         self._spin = spin or (lambda t: ros.spin_once(node, timeout_sec=t))
         self.pub_joints = node.create_publisher(msg.JointState, 'joint_states', 10)

@@ -94,7 +94,7 @@ def _per_joint(value, n, what, names):
     if value is None:
         return None
     a = np.asarray(value, dtype=float)
-    a = np.full(n, float(a)) if a.ndim == 0 else a.reshape(-1)
+    a = np.full(n, float(a.reshape(-1)[0])) if a.size == 1 else a.reshape(-1)
     if a.shape != (n,) or not np.all(np.isfinite(a)) or np.any(a < 0):
         raise ParameterError(f'{what} must be one number or {n} numbers >= 0 (joints '
                              f'{", ".join(names)}), got {value!r}')

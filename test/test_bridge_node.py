@@ -122,3 +122,37 @@ def test_main_help_and_bad_parameter_exit_code(domain, capsys):
     assert 'lockstep' in capsys.readouterr().out
     assert main(['sim_bridge', '--ros-args', '-p', 'scene:=tabel']) == 2
     assert "did you mean 'table'" in capsys.readouterr().err
+
+
+
+def _impedance_torque(bridge, dq, qd):
+    """The emulated controller's actuator torque at q_v = q + dq, q_v's rate 0, qdot = qd."""
+    sim = bridge.sim
+    sim.reset()
+    q = sim.read_state().q
+    sim.data.qvel[sim.dof_index] = qd
+    sim.write_command(q + dq)
+    sim.step(1)
+    return sim.data.actuator_force[sim.actuator_ids].copy()
+
+
+def test_stiffness_and_damping_parameters_set_the_emulated_impedance(domain):
+    """The bridge's stiffness / damping parameters reach the physics: the torque of the
+    emulated FRI joint impedance is K (q_v - q) - D qdot (one 1 ms step after the
+    command, so q and qdot have barely moved)."""
+    K = np.array([300.0, 300.0, 250.0, 250.0, 120.0, 80.0, 40.0])
+    dq, qd = np.full(7, 1e-3), np.linspace(-0.2, 0.2, 7)
+    bridge, _, _ = _bridge([f'stiffness:={K.tolist()}', 'damping:=[7.5]', 'mode:=lockstep'])
+    tau = _impedance_torque(bridge, dq, qd)
+    bridge.close()
+    dds.shutdown()
+    np.testing.assert_allclose(tau, K * dq - 7.5 * qd, rtol=0.05, atol=0.02)
+    bridge, _, _ = _bridge(['mode:=lockstep'])  # not given: the robot configuration's
+    robot = bridge.sim.robot
+    tau = _impedance_torque(bridge, dq, qd)
+    bridge.close()
+    dds.shutdown()
+    np.testing.assert_allclose(tau, robot.stiffness * dq - robot.damping * qd, rtol=0.05,
+                               atol=0.02)
+    with pytest.raises(ParameterError, match='stiffness must be one number or 7 numbers'):
+        _bridge(['stiffness:=[1.0, 2.0]'])
