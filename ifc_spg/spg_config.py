@@ -142,7 +142,8 @@ PARAMETERS = (
     Param('robot', 'robot', 'Robot configuration: ' + ', '.join(_ROBOTS)),
     Param('dt', 'dt', 'SPG period dT in [s] (joint-state period of the interface)',
           (1e-4, 0.1)),
-    Param('solver', 'solver', 'Cascade solver: ' + ', '.join(SOLVERS)),
+    Param('solver', 'solver', 'Cascade solver: ' + ', '.join(SOLVERS) + ' (daqp on a robot; '
+          'proxsuite and the nullspace baseline are for comparisons)'),
     Param('rho', 'rho', 'Regularization rho of qdot_v in each level (4.45)', (1e-8, 10.0)),
     Param('torque_limits', 'torque_limits',
           'Implicit top-level joint torque limit task |K (q_v - q)| <= tau_max (4.3)'),

@@ -271,3 +271,12 @@ def test_impedance_parameters_set_the_gains_the_spg_computes_with(domain):
     assert fake.spin_until(lambda: any('robot_params' in st for st in fake.status))
     params = next(st['robot_params'] for st in fake.status if 'robot_params' in st)
     assert params['stiffness'] == K and params['damping'] == [12.5] * 7
+
+
+def test_proxsuite_is_started_with_a_warning(domain, capsys):
+    _start(['solver:=proxsuite'])
+    err = capsys.readouterr().err
+    assert '[WARN]' in err and 'use daqp on a robot' in err
+    dds.shutdown()
+    _start([])
+    assert 'use daqp on a robot' not in capsys.readouterr().err
