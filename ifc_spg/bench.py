@@ -9,6 +9,9 @@ joint-impedance plant (the plant is not timed). Stacks:
   posture) plus the implicit torque-limit level;
 - ``icub_table_3_7``: iCub upper body, the 7-level stack of Table 3.7 (wiping with the
   left hand while the right hand holds a cup);
+- ``native_ratio``: the LBR and iCub stacks with the C kernels of the tick
+  (``ifc_spg._native``) and with their numpy reference code, two closed loops in one
+  process, interleaved tick by tick;
 - ``pink_ratio``: a 2-level strict stack (pose, posture) on the iiwa, next to pink's
   weighted solve of the same two tasks (``pink.solve_ik`` with DAQP), same process,
   interleaved tick by tick so that machine load affects both alike.
@@ -182,6 +185,42 @@ def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_tic
     return rows
 
 
+def bench_native_ratio(name, robot, make_stack, ticks):
+    """The tick with the C kernels vs their numpy code: two closed loops, interleaved."""
+    from ifc_spg import native
+    from ifc_spg.spg import SetPointGenerator
+    from ifc_spg.testing import JointImpedancePlant
+    if native.module is None:
+        return None
+    module = native.module
+    fast = SetPointGenerator(robot, make_stack(robot))
+    native.module = None
+    try:
+        slow = SetPointGenerator(robot, make_stack(robot))
+    finally:
+        native.module = module
+    loops = []
+    for spg in (fast, slow):
+        _closed_loop(spg, robot, 200, False)  # warm-up
+        plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
+        loops.append([spg, plant, (plant.q, plant.qdot, 0.0), np.empty(ticks)])
+    gc.collect()
+    gc.disable()
+    try:
+        for i in range(ticks):
+            for k in (0, 1) if i % 2 == 0 else (1, 0):  # alternate who goes first
+                loop = loops[k]
+                spg, plant, state, times = loop
+                q_v = spg.step(*state)
+                times[i] = spg.info.tick_time
+                loop[2] = plant.step(q_v)
+    finally:
+        gc.enable()
+    a, b = _stats(loops[0][3]), _stats(loops[1][3])
+    return {'stack': name, 'native': a, 'numpy': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
+            'ratio_p99': a['p99_us'] / b['p99_us']}
+
+
 def bench_pink(ticks):
     """Our 2-level strict stack vs pink's weighted solve, interleaved in one loop."""
     import pink
@@ -266,6 +305,14 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
             print(f'  {name} ...', file=sys.stderr)
         out['stacks'] += bench_stack(name, robot, make, solvers, ticks, progress, slow_ticks,
                                      slow_budget)
+    out['native'] = []
+    for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),
+                              ('icub_table_3_7', icub, icub_stack)):
+        if progress:
+            print(f'  native_ratio {name} ...', file=sys.stderr)
+        row = bench_native_ratio(name, robot, make, ticks)
+        if row is not None:
+            out['native'].append(row)
     if progress:
         print('  pink_ratio ...', file=sys.stderr)
     out['pink'] = bench_pink(ticks)
@@ -294,6 +341,14 @@ def format_report(res):
                          f"baseline next to it (fixed work, p50 {b['p50_us']:.0f} us): p99 "
                          f"{b['p99_us']:.0f} us, max {b['max_us']:.0f} us, {b['over_1ms']} "
                          f"over 1 ms")
+    if res.get('native'):
+        lines += ['', 'C kernels vs their numpy reference code (ifc_spg.native), two closed loops '
+                  'interleaved:']
+        for r in res['native']:
+            a, b = r['native'], r['numpy']
+            lines.append(f"  {r['stack']:<16}C p50 {a['p50_us']:.1f} / p99 {a['p99_us']:.1f} us,"
+                         f" numpy {b['p50_us']:.1f} / {b['p99_us']:.1f} us: ratio "
+                         f"{r['ratio_p50']:.2f} / {r['ratio_p99']:.2f}")
     p = res['pink']
     lines += ['', '2-level strict stack (pose + posture) vs pink weighted solve (daqp), '
               'interleaved:',

@@ -12,5 +12,8 @@ def test_bench_runs_every_row_and_reports_the_machine_baseline():
         assert 0 < r['p50_us'] <= r['p99_us'] <= r['max_us']
         assert r['baseline']['ticks'] == 40 and r['baseline']['p50_us'] > 0
     assert res['pink']['ours']['ticks'] == res['pink']['pink']['ticks'] == 40
+    assert [r['stack'] for r in res['native']] == ['lbr_table_4_1', 'icub_table_3_7']
+    assert all(r['native']['ticks'] == r['numpy']['ticks'] == 40 for r in res['native'])
     report = format_report(res)
     assert 'machine baseline' in report and res['implementation'] in report
+    assert 'C kernels vs their numpy reference code' in report
