@@ -71,8 +71,28 @@ static const double *in_data(PyObject *obj, npy_intp size, const char *name) {
     return (const double *)PyArray_DATA(a);
 }
 
-static PyArrayObject *new_vector(npy_intp n) {
-    return (PyArrayObject *)PyArray_SimpleNew(1, &n, NPY_DOUBLE);
+/* count new float64 vectors of the given sizes into out (all, or none and NULL). */
+static int new_vectors(PyArrayObject **out, const npy_intp *sizes, int count) {
+    for (int k = 0; k < count; k++) {
+        npy_intp size = sizes[k];
+        out[k] = (PyArrayObject *)PyArray_SimpleNew(1, &size, NPY_DOUBLE);
+        if (out[k] == NULL) {
+            while (k-- > 0) Py_DECREF(out[k]);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static inline double *data_of(PyArrayObject *a) { return (double *)PyArray_DATA(a); }
+
+/* The number of elements of the numpy array obj, or -1 with a TypeError. */
+static npy_intp array_size(PyObject *obj, const char *name) {
+    if (!PyArray_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "%s must be a numpy array", name);
+        return -1;
+    }
+    return PyArray_SIZE((PyArrayObject *)obj);
 }
 
 /* ---- the cascade (ifc_spg.hqp.DaqpCascade) ----------------------------------------- */
@@ -226,12 +246,10 @@ static PyObject *accept(PyObject *self, PyObject *args) {
         lhi = llo ? out_data(lhi_o, m, "lock_hi") : NULL;
         if (!lhi) return NULL;
     }
-    PyArrayObject *q = new_vector(n), *s = q ? new_vector(m) : NULL;
-    if (s == NULL) {
-        Py_XDECREF(q);
-        return NULL;
-    }
-    double *qd = (double *)PyArray_DATA(q), *sd = (double *)PyArray_DATA(s);
+    PyArrayObject *v[2];
+    const npy_intp sizes[2] = {n, m};
+    if (!new_vectors(v, sizes, 2)) return NULL;
+    double *qd = data_of(v[0]), *sd = data_of(v[1]);
     for (npy_intp j = 0; j < n; j++) qd[j] = np_min(np_max(x[j], bl[j]), bu[j]);
     for (npy_intp i = 0; i < m; i++) {
         double a = 0.0;
@@ -242,7 +260,7 @@ static PyObject *accept(PyObject *self, PyObject *args) {
             lhi[i] = a + band[i];
         }
     }
-    return Py_BuildValue("(NN)", q, s);
+    return Py_BuildValue("(NN)", v[0], v[1]);
 }
 
 PyDoc_STRVAR(lock_if_satisfied_doc,
@@ -354,12 +372,10 @@ static PyObject *accept_slack(PyObject *self, PyObject *args) {
                  *hi = in_data(hi_o, m, "upper"), *band = in_data(band_o, m, "band");
     double *llo = out_data(llo_o, m, "lock_lo"), *lhi = out_data(lhi_o, m, "lock_hi");
     if (!w || !bl || !bu || !U || !nr || !lo || !hi || !band || !llo || !lhi) return NULL;
-    PyArrayObject *q = new_vector(n), *S = q ? new_vector(m) : NULL;
-    if (S == NULL) {
-        Py_XDECREF(q);
-        return NULL;
-    }
-    double *qd = (double *)PyArray_DATA(q), *sd = (double *)PyArray_DATA(S);
+    PyArrayObject *v[2];
+    const npy_intp sizes[2] = {n, m};
+    if (!new_vectors(v, sizes, 2)) return NULL;
+    double *qd = data_of(v[0]), *sd = data_of(v[1]);
     for (npy_intp j = 0; j < n; j++) qd[j] = np_min(np_max(w[j], bl[j]), bu[j]);
     for (npy_intp i = 0; i < m; i++) {
         double a = 0.0;
@@ -377,7 +393,7 @@ static PyObject *accept_slack(PyObject *self, PyObject *args) {
         llo[i] = l / nr[i] - band[i];
         lhi[i] = h / nr[i] + band[i];
     }
-    return Py_BuildValue("(NN)", q, S);
+    return Py_BuildValue("(NN)", v[0], v[1]);
 }
 
 /* ---- the torque-limit level (ifc_spg.limits.torque_limits) --------------------------- */
@@ -425,19 +441,11 @@ static PyObject *torque_limit(PyObject *self, PyObject *args) {
                  *band = in_data(band_o, k, "band"), *lo = in_data(lo_o, n, "lower"),
                  *hi = in_data(hi_o, n, "upper");
     if (!q || !qd || !qv || !K || !gt || !ko || !band || !lo || !hi) return NULL;
-    PyArrayObject *BL = new_vector(k), *BU = BL ? new_vector(k) : NULL,
-                  *S = BU ? new_vector(k) : NULL, *L = S ? new_vector(n) : NULL,
-                  *U = L ? new_vector(n) : NULL;
-    if (U == NULL) {
-        Py_XDECREF(BL);
-        Py_XDECREF(BU);
-        Py_XDECREF(S);
-        Py_XDECREF(L);
-        return NULL;
-    }
-    double *bl = (double *)PyArray_DATA(BL), *bu = (double *)PyArray_DATA(BU),
-           *s = (double *)PyArray_DATA(S), *l = (double *)PyArray_DATA(L),
-           *u = (double *)PyArray_DATA(U);
+    PyArrayObject *v[5];
+    const npy_intp sizes[5] = {k, k, k, n, n};
+    if (!new_vectors(v, sizes, 5)) return NULL;
+    double *bl = data_of(v[0]), *bu = data_of(v[1]), *s = data_of(v[2]), *l = data_of(v[3]),
+           *u = data_of(v[4]);
     for (npy_intp j = 0; j < n; j++) {
         l[j] = lo[j];
         u[j] = hi[j];
@@ -461,7 +469,7 @@ static PyObject *torque_limit(PyObject *self, PyObject *args) {
         l[j] = np_max(lo[j], np_min((b_lo + st) / K[t], x) - band[t]);
         u[j] = np_min(hi[j], np_max((b_hi + st) / K[t], x) + band[t]);
     }
-    return Py_BuildValue("(NNNNN)", BL, BU, S, L, U);
+    return Py_BuildValue("(NNNNN)", v[0], v[1], v[2], v[3], v[4]);
 }
 
 /* ---- joint limits (ifc_spg.limits.joint_limits) ------------------------------------- */
@@ -478,35 +486,30 @@ static PyObject *limits_box(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OOOOOOdO", &qv_o, &mn_o, &mx_o, &df_o, &ks_o, &hc_o, &inv_dt,
                           &v_o))
         return NULL;
-    if (!PyArray_Check(qv_o)) {
-        PyErr_SetString(PyExc_TypeError, "q_v must be a numpy array");
-        return NULL;
-    }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)qv_o);
+    npy_intp n = array_size(qv_o, "q_v");
+    if (n < 0) return NULL;
     const double *qv = in_data(qv_o, n, "q_v"), *mn = in_data(mn_o, n, "q_min"),
                  *mx = in_data(mx_o, n, "q_max"), *df = in_data(df_o, 2 * n, "d_free"),
                  *ks = in_data(ks_o, 2 * n, "k_scale"), *hc = in_data(hc_o, 2 * n, "half_c"),
-                 *v = in_data(v_o, 2 * n, "v");
-    if (!qv || !mn || !mx || !df || !ks || !hc || !v) return NULL;
+                 *vmax = in_data(v_o, 2 * n, "v");
+    if (!qv || !mn || !mx || !df || !ks || !hc || !vmax) return NULL;
     int free = 1;
     for (npy_intp j = 0; j < n && free; j++)
         free = (qv[j] - mn[j] >= df[j]) && (mx[j] - qv[j] >= df[n + j]);
     if (free) Py_RETURN_NONE;
-    PyArrayObject *lo = new_vector(n), *hi = lo ? new_vector(n) : NULL;
-    if (hi == NULL) {
-        Py_XDECREF(lo);
-        return NULL;
-    }
-    double *l = (double *)PyArray_DATA(lo), *h = (double *)PyArray_DATA(hi);
+    PyArrayObject *out[2];
+    const npy_intp sizes[2] = {n, n};
+    if (!new_vectors(out, sizes, 2)) return NULL;
+    double *l = data_of(out[0]), *h = data_of(out[1]);
     for (npy_intp i = 0; i < 2 * n; i++) {
         double d = i < n ? qv[i] - mn[i] : mx[i - n] - qv[i - n];
         d = np_max(d, 0.0);
         double k = floor(sqrt(d * ks[i] + 0.25) - 0.5);
         double k1 = k + 1.0;
-        double stop = np_min((d * inv_dt + k * k1 * hc[i]) / k1, v[i]);
+        double stop = np_min((d * inv_dt + k * k1 * hc[i]) / k1, vmax[i]);
         if (i < n) l[i] = -stop; else h[i - n] = stop;
     }
-    return Py_BuildValue("(NN)", lo, hi);
+    return Py_BuildValue("(NN)", out[0], out[1]);
 }
 
 PyDoc_STRVAR(velocity_box_doc,
@@ -519,11 +522,8 @@ static PyObject *velocity_box(PyObject *self, PyObject *args) {
     PyObject *lo_o, *hi_o, *plo_o, *phi_o, *qp_o, *acc_o;
     if (!PyArg_ParseTuple(args, "OOOOOO", &lo_o, &hi_o, &plo_o, &phi_o, &qp_o, &acc_o))
         return NULL;
-    if (!PyArray_Check(qp_o)) {
-        PyErr_SetString(PyExc_TypeError, "qdot_prev must be a numpy array");
-        return NULL;
-    }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)qp_o);
+    npy_intp n = array_size(qp_o, "qdot_prev");
+    if (n < 0) return NULL;
     const double *lo = in_data(lo_o, n, "lower"), *hi = in_data(hi_o, n, "upper"),
                  *qp = in_data(qp_o, n, "qdot_prev"), *acc = in_data(acc_o, n, "accel");
     const double *plo = NULL, *phi = NULL;
@@ -533,12 +533,10 @@ static PyObject *velocity_box(PyObject *self, PyObject *args) {
         phi = plo ? in_data(phi_o, n, "pb_upper") : NULL;
         if (!phi) return NULL;
     }
-    PyArrayObject *L = new_vector(n), *U = L ? new_vector(n) : NULL;
-    if (U == NULL) {
-        Py_XDECREF(L);
-        return NULL;
-    }
-    double *l = (double *)PyArray_DATA(L), *u = (double *)PyArray_DATA(U);
+    PyArrayObject *v[2];
+    const npy_intp sizes[2] = {n, n};
+    if (!new_vectors(v, sizes, 2)) return NULL;
+    double *l = data_of(v[0]), *u = data_of(v[1]);
     for (npy_intp j = 0; j < n; j++) {
         double a = lo[j], b = hi[j];
         if (plo) {
@@ -550,7 +548,7 @@ static PyObject *velocity_box(PyObject *self, PyObject *args) {
         l[j] = np_min(np_max(qp[j] - acc[j], a), b);
         u[j] = np_max(np_min(qp[j] + acc[j], b), a);
     }
-    return Py_BuildValue("(NN)", L, U);
+    return Py_BuildValue("(NN)", v[0], v[1]);
 }
 
 PyDoc_STRVAR(integrate_doc,
@@ -561,17 +559,14 @@ static PyObject *integrate(PyObject *self, PyObject *args) {
     PyObject *qv_o, *qd_o, *mn_o, *mx_o;
     double dt;
     if (!PyArg_ParseTuple(args, "OdOOO", &qv_o, &dt, &qd_o, &mn_o, &mx_o)) return NULL;
-    if (!PyArray_Check(qv_o)) {
-        PyErr_SetString(PyExc_TypeError, "q_v must be a numpy array");
-        return NULL;
-    }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)qv_o);
+    npy_intp n = array_size(qv_o, "q_v");
+    if (n < 0) return NULL;
     const double *qv = in_data(qv_o, n, "q_v"), *qd = in_data(qd_o, n, "qdot_v"),
                  *mn = in_data(mn_o, n, "q_min"), *mx = in_data(mx_o, n, "q_max");
     if (!qv || !qd || !mn || !mx) return NULL;
-    PyArrayObject *out = new_vector(n);
-    if (out == NULL) return NULL;
-    double *o = (double *)PyArray_DATA(out);
+    PyArrayObject *out;
+    if (!new_vectors(&out, &n, 1)) return NULL;
+    double *o = data_of(out);
     for (npy_intp j = 0; j < n; j++) o[j] = np_min(np_max(qv[j] + dt * qd[j], mn[j]), mx[j]);
     return (PyObject *)out;
 }
@@ -592,11 +587,8 @@ static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OOOOOOOdO", &q_o, &qv_o, &qp_o, &e_o, &sh_o, &dd_o, &tk_o,
                           &inv_dt, &mod_o))
         return NULL;
-    if (!PyArray_Check(q_o)) {
-        PyErr_SetString(PyExc_TypeError, "q must be a numpy array");
-        return NULL;
-    }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)q_o);
+    npy_intp n = array_size(q_o, "q");
+    if (n < 0) return NULL;
     const double *q = in_data(q_o, n, "q"), *qv = in_data(qv_o, n, "q_v"),
                  *e = in_data(e_o, n, "energy"), *dd = in_data(dd_o, n, "D_over_dt"),
                  *tk = in_data(tk_o, n, "two_over_K"), *mod = in_data(mod_o, n, "modulated");
@@ -604,16 +596,10 @@ static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
     const double *sh = NULL;
     if (!q || !qv || !e || !dd || !tk || !mod || !qp) return NULL;
     if (sh_o != Py_None && !(sh = in_data(sh_o, n, "shuffle"))) return NULL;
-    PyArrayObject *L = new_vector(n), *U = L ? new_vector(n) : NULL,
-                  *D = U ? new_vector(n) : NULL, *A = D ? new_vector(n) : NULL;
-    if (A == NULL) {
-        Py_XDECREF(L);
-        Py_XDECREF(U);
-        Py_XDECREF(D);
-        return NULL;
-    }
-    double *l = (double *)PyArray_DATA(L), *u = (double *)PyArray_DATA(U),
-           *dm = (double *)PyArray_DATA(D), *av = (double *)PyArray_DATA(A);
+    PyArrayObject *v[4];
+    const npy_intp sizes[4] = {n, n, n, n};
+    if (!new_vectors(v, sizes, 4)) return NULL;
+    double *l = data_of(v[0]), *u = data_of(v[1]), *dm = data_of(v[2]), *av = data_of(v[3]);
     for (npy_intp j = 0; j < n; j++) {
         double step = q[j] - qp[j];
         step = step * step * dd[j];
@@ -632,7 +618,7 @@ static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
             l[j] = -INFINITY;
         }
     }
-    return Py_BuildValue("(NNNN)", L, U, D, A);
+    return Py_BuildValue("(NNNN)", v[0], v[1], v[2], v[3]);
 }
 
 PyDoc_STRVAR(pspm_update_doc,
@@ -648,22 +634,17 @@ static PyObject *pspm_update(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "OOOOOddOO", &q_o, &qv_o, &qd_o, &av_o, &hk_o, &dt, &emax,
                           &mod_o, &e_o))
         return NULL;
-    if (!PyArray_Check(q_o)) {
-        PyErr_SetString(PyExc_TypeError, "q must be a numpy array");
-        return NULL;
-    }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)q_o);
+    npy_intp n = array_size(q_o, "q");
+    if (n < 0) return NULL;
     const double *q = in_data(q_o, n, "q"), *qv = in_data(qv_o, n, "q_v"),
                  *qd = in_data(qd_o, n, "qdot_v"), *av = in_data(av_o, n, "avail"),
                  *hk = in_data(hk_o, n, "half_K"), *mod = in_data(mod_o, n, "modulated"),
                  *e0 = in_data(e_o, n, "energy");
     if (!q || !qv || !qd || !av || !hk || !mod || !e0) return NULL;
-    PyArrayObject *E = new_vector(n), *K = E ? new_vector(n) : NULL;
-    if (K == NULL) {
-        Py_XDECREF(E);
-        return NULL;
-    }
-    double *e = (double *)PyArray_DATA(E), *dk = (double *)PyArray_DATA(K);
+    PyArrayObject *v[2];
+    const npy_intp sizes[2] = {n, n};
+    if (!new_vectors(v, sizes, 2)) return NULL;
+    double *e = data_of(v[0]), *dk = data_of(v[1]);
     double emin = INFINITY;
     for (npy_intp j = 0; j < n; j++) {
         double dq = qv[j] - q[j];
@@ -673,7 +654,7 @@ static PyObject *pspm_update(PyObject *self, PyObject *args) {
         e[j] = mod[j] != 0.0 ? np_min(av[j] - d, emax) : e0[j];
         emin = np_min(emin, e[j]);
     }
-    return Py_BuildValue("(NNd)", E, K, emin);
+    return Py_BuildValue("(NNd)", v[0], v[1], emin);
 }
 
 static PyMethodDef methods[] = {

@@ -65,15 +65,21 @@ def test_stack_rows_matches_numpy(n):
                                        atol=1e-300)
 
 
+def random_workspace(rng):
+    """A workspace holding random levels (7 or 17 joints); returns ``(n, levels, R, ws)``."""
+    n = int(rng.choice([7, 17]))
+    levels = random_levels(rng, n)
+    R = sum(lv.A.shape[0] for lv in levels)
+    ws = _Workspace(n, R, 0.01, {})
+    _stack_rows(levels, [lv.A.shape[0] for lv in levels], ws, 1e-9)
+    return n, levels, R, ws
+
+
 @needs_native
 def test_normal_form_accept_and_lock_match_numpy():
     rng = np.random.default_rng(5)
     for _ in range(300):
-        n = int(rng.choice([7, 17]))
-        levels = random_levels(rng, n)
-        R = sum(lv.A.shape[0] for lv in levels)
-        ws = _Workspace(n, R, 0.01, {})
-        _stack_rows(levels, [lv.A.shape[0] for lv in levels], ws, 1e-9)
+        n, levels, R, ws = random_workspace(rng)
         ws.bl[:n] = -rng.uniform(0.01, 1, n)
         ws.bu[:n] = rng.uniform(0.01, 1, n)
         start = int(rng.integers(0, R - levels[-1].A.shape[0] + 1))
@@ -117,11 +123,7 @@ def test_normal_form_accept_and_lock_match_numpy():
 def test_slack_level_setup_and_accept_match_numpy():
     rng = np.random.default_rng(11)
     for _ in range(300):
-        n = int(rng.choice([7, 17]))
-        levels = random_levels(rng, n)
-        R = sum(lv.A.shape[0] for lv in levels)
-        ws = _Workspace(n, R, 0.01, {})
-        _stack_rows(levels, [lv.A.shape[0] for lv in levels], ws, 1e-9)
+        n, _, R, ws = random_workspace(rng)
         ws.bl[:] = -rng.uniform(0.01, 1, n + R)
         ws.bu[:] = rng.uniform(0.01, 1, n + R)
         start = int(rng.integers(0, R))
