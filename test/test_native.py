@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from ifc_spg import RobotModel, native
+from ifc_spg import _native as nat  # the kernels, whatever IFC_SPG_NATIVE selects
 from ifc_spg.bench import icub_stack, lbr_stack
 from ifc_spg.hqp import _accept, _lock_if_satisfied, _stack_rows, _Workspace
 from ifc_spg.limits import JointVelocityLimits, VelocityBox
@@ -19,16 +20,13 @@ from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks import Level
 from ifc_spg.testing import JointImpedancePlant
 
-nat = native.module
-needs_native = pytest.mark.skipif(nat is None, reason='covered by test_native_kernels_are_built')
-
 
 def test_native_kernels_are_built():
     """The install builds the kernels (./run setup); IFC_SPG_NATIVE=0 opts out explicitly."""
     if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
-        assert nat is None and 'IFC_SPG_NATIVE=0' in native.describe()
+        assert native.module is None and 'IFC_SPG_NATIVE=0' in native.describe()
     else:
-        assert nat is not None, native.describe()
+        assert native.module is nat, native.describe()
 
 
 def random_levels(rng, n):
@@ -48,7 +46,6 @@ def random_levels(rng, n):
     return levels
 
 
-@needs_native
 @pytest.mark.parametrize('n', [7, 17])
 def test_stack_rows_matches_numpy(n):
     rng = np.random.default_rng(n)
@@ -75,7 +72,6 @@ def random_workspace(rng):
     return n, levels, R, ws
 
 
-@needs_native
 def test_normal_form_accept_and_lock_match_numpy():
     rng = np.random.default_rng(5)
     for _ in range(300):
@@ -119,7 +115,6 @@ def test_normal_form_accept_and_lock_match_numpy():
             np.testing.assert_allclose(ws.hi_rows[sl], want[1], rtol=1e-13)
 
 
-@needs_native
 def test_slack_level_setup_and_accept_match_numpy():
     rng = np.random.default_rng(11)
     for _ in range(300):
@@ -166,7 +161,6 @@ def _slack_model_arrays(ws, start, end):
     return C, bl, bu
 
 
-@needs_native
 @pytest.mark.parametrize('stiff', [False, True])
 def test_torque_limit_level_matches_numpy(monkeypatch, stiff):
     from ifc_spg.limits.torque_limits import TorqueLimitLevel
@@ -197,6 +191,7 @@ def test_torque_limit_level_matches_numpy(monkeypatch, stiff):
 
 def _both(monkeypatch, make):
     """``make()`` with the kernels and with the numpy code."""
+    monkeypatch.setattr(native, 'module', nat)
     fast = make()
     monkeypatch.setattr(native, 'module', None)
     slow = make()
@@ -204,7 +199,6 @@ def _both(monkeypatch, make):
     return fast, slow
 
 
-@needs_native
 def test_joint_limit_box_matches_numpy(monkeypatch):
     robot = RobotModel.from_config('lbr_iiwa14')
     fast, slow = _both(monkeypatch, lambda: JointVelocityLimits(
@@ -222,7 +216,6 @@ def test_joint_limit_box_matches_numpy(monkeypatch):
         np.testing.assert_allclose(a.upper, b.upper, rtol=1e-14, atol=0)
 
 
-@needs_native
 def test_velocity_box_and_integration_match_numpy():
     from ifc_spg.limits import intersect_soft
     rng = np.random.default_rng(3)
@@ -252,7 +245,6 @@ def test_velocity_box_and_integration_match_numpy():
                                       np.minimum(np.maximum(q_v + 0.002 * qd, q_min), q_max))
 
 
-@needs_native
 @pytest.mark.filterwarnings('ignore:overflow:RuntimeWarning')  # numpy on the absurd step
 @pytest.mark.parametrize('shuffle', [0.0, 1e-4])
 def test_energy_tanks_match_numpy(monkeypatch, shuffle):
@@ -286,7 +278,6 @@ def test_energy_tanks_match_numpy(monkeypatch, shuffle):
     assert np.all(fast.energy >= 0)
 
 
-@needs_native
 @pytest.mark.parametrize('config,make', [('lbr_iiwa14', lbr_stack),
                                          ('icub_upper_body', icub_stack)])
 def test_closed_loop_with_kernels_matches_numpy(monkeypatch, config, make):
@@ -311,7 +302,6 @@ def test_closed_loop_with_kernels_matches_numpy(monkeypatch, config, make):
     assert worst < 1e-9
 
 
-@needs_native
 def test_bad_arguments_raise_instead_of_crashing():
     v = np.zeros(7)
     with pytest.raises(ValueError, match='q_prev'):
