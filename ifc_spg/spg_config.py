@@ -198,8 +198,8 @@ def config_from_parameters(values):
         field = _BY_NAME[name].field
         if isinstance(_DEFAULTS[field], float) and type(value) is int:
             value = float(value)
-        elif isinstance(_DEFAULTS[field], tuple):  # per-joint values: a list or one number
-            value = tuple(value) if isinstance(value, (list, tuple)) else (value,)
+        elif isinstance(_DEFAULTS[field], tuple) and not isinstance(value, (list, tuple)):
+            value = (value,)  # per-joint values: one number for all
         kwargs[field] = value
     return SpgConfig(**kwargs)
 
@@ -239,10 +239,12 @@ def declare_parameters(node):
     from ifc_spg import ros
 
     values = {}
+    gains = None
     for p in PARAMETERS:
         default = _DEFAULTS[p.field]
         if isinstance(default, tuple):  # per joint: declared with the robot's own values
-            default = _robot_gains(values['robot'], p.field)
+            gains = gains or robot_gains_of(values['robot'])
+            default = gains[p.field]
         try:
             values[p.name] = node.declare_parameter(p.name, default,
                                                     _descriptor(ros, p, default)).value
@@ -261,13 +263,15 @@ def declare_parameters(node):
     return config_from_parameters(values)
 
 
-def _robot_gains(robot, field):
-    """The robot configuration's K or D as a list of floats (declared as the default, so
-    ``ros2 param get`` shows what the SPG uses)."""
+def robot_gains_of(robot):
+    """``{'stiffness': K, 'damping': D}`` of the named robot configuration, as lists of
+    floats: the declared defaults of the gain parameters, so that ``ros2 param get`` shows
+    what the node computes with (spg_node, sim_bridge)."""
     from ifc_spg.model import RobotModel
 
     SpgConfig(robot=robot)  # an unknown robot: the error names the choices
-    return [float(v) for v in getattr(RobotModel.from_config(robot), field)]
+    model = RobotModel.from_config(robot)
+    return {key: [float(v) for v in getattr(model, key)] for key in ('stiffness', 'damping')}
 
 
 def config_file(robot):

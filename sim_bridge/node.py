@@ -74,28 +74,32 @@ _DESCRIPTIONS = {
     'push_duration': 'Default duration of sim/apply_wrench pushes in [s]',
     'ft_raw': 'Publish raw F/T readings (sensor frame) instead of compensated ones',
     'stiffness': 'Joint impedance stiffness K of the emulated controller in [Nm/rad], per '
-                 "joint or one for all (empty: the robot configuration's; set spg_node's "
+                 "joint or one for all (default: the robot configuration's; set spg_node's "
                  'impedance.stiffness alike)',
-    'damping': 'Joint impedance damping D in [Nms/rad], per joint or one for all (empty: the '
-               "robot configuration's)",
+    'damping': 'Joint impedance damping D in [Nms/rad], per joint or one for all (default: '
+               "the robot configuration's)",
 }
-_DOUBLE_ARRAYS = ('q0', 'stiffness', 'damping')  # declared [0.0]: typed, read as "not set"
 
 
 def declare(node):
     """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
     from ifc_spg import ros
+    from ifc_spg.spg_config import robot_gains_of
 
     values = {}
+    gains = None
     for name, default in BridgeParams.__dataclass_fields__.items():
         default = default.default
-        if name in _DOUBLE_ARRAYS:
+        if name == 'q0':
             default = [0.0]  # typed as a double array; [] would be untyped
+        elif name in ('stiffness', 'damping'):  # declared with the robot's own values
+            gains = gains or robot_gains_of(values['robot'])
+            default = gains[name]
         desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
         values[name] = node.declare_parameter(name, default, desc).value
-    for name in _DOUBLE_ARRAYS:
-        value = tuple(float(x) for x in (values[name] or ()))
-        values[name] = () if value == (0.0,) else value
+        if isinstance(default, list):  # not set (q0's placeholder, the robot's gains): ()
+            value = [float(x) for x in (values[name] or ())]
+            values[name] = () if value == default else tuple(value)
     return validate(BridgeParams(**values))
 
 

@@ -156,3 +156,15 @@ def test_stiffness_and_damping_parameters_set_the_emulated_impedance(domain):
                                atol=0.02)
     with pytest.raises(ParameterError, match='stiffness must be one number or 7 numbers'):
         _bridge(['stiffness:=[1.0, 2.0]'])
+
+
+def test_zero_damping_is_a_setting_not_the_default(domain):
+    """damping:=[0.0] asks for an undamped controller; only the robot's own gains (the
+    declared default) mean 'not set'."""
+    dq, qd = np.zeros(7), np.linspace(-0.2, 0.2, 7)
+    bridge, _, _ = _bridge(['damping:=[0.0]', 'mode:=lockstep'])
+    assert bridge.node.get_parameter('stiffness').value == list(bridge.sim.robot.stiffness)
+    tau = _impedance_torque(bridge, dq, qd)
+    bridge.close()
+    dds.shutdown()
+    np.testing.assert_allclose(tau, 0.0, atol=0.02)

@@ -127,7 +127,6 @@ def check_parameter_value(name, value, descriptor, expected_type=None):
         elif expected_type >= T.PARAMETER_BYTE_ARRAY and ptype in (
                 T.PARAMETER_BOOL, T.PARAMETER_INTEGER, T.PARAMETER_DOUBLE, T.PARAMETER_STRING):
             hint = f' (write a list, e.g. [{value!r}])'
-
         raise ParameterError(f"parameter '{name}': value {value!r} has type {ptype.name}, "
                              f'expected {ParameterType(expected_type).name}{hint}')
     for rng, _kind, tol in ((descriptor.floating_point_range, float, 1e-9),
