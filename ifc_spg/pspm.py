@@ -11,9 +11,25 @@ After the step the tank is E_r <- min(E_max, E_avail - 1/2 K ((dq + delta)^2 - d
 Shuffling stops once the shuffled energy reaches its budget b^2, so with
 c^2 = E_K(0) + E_r,init + sum(dE_shuffle) every joint satisfies -int tau qdot >= -c^2 (4.84).
 Stiff (position-controlled) joints have no spring and are not modulated.
+
+Power budget (issue 18): a stack that does work on its environment (sliding a tool, lifting
+a drawer) may ask for a refill rate P [W] up to the node's ceiling ``max_power`` (0 by
+default: strictly passive). Each tick, P dT is added to E_avail of the modulated joints,
+emptiest tank first (water-filling: the tanks below a common level are raised to it, never
+above E_max; with every tank full the refill is not taken), so the joints that spend
+energy get the budget as soon as they need it. Then, per joint j,
+-int tau_j qdot_j >= -(c_j^2 + R_j) with R_j the energy refilled into joint j, and
+sum_j R_j <= int P dt: the whole robot injects at most sum_j c_j^2 + P t (the energy the
+IFC damper surely dissipated, E_Dmin, is already on the left side: the port's tau includes
+the damper). Between refills each tank still holds at most E_max, so the energy available
+for a burst (a collision) stays bounded by n E_max whatever P and t.
+
+:class:`StallMonitor` watches for joints whose empty tank keeps clipping the solution (the
+stack asks for energy the budget does not give) and says how much power it asked for.
 """
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,7 +37,7 @@ from ifc_spg import native
 from ifc_spg.errors import ParameterError
 from ifc_spg.limits.joint_limits import VelocityBox
 
-__all__ = ['PspmConfig', 'EnergyTanks']
+__all__ = ['PspmConfig', 'EnergyTanks', 'StallMonitor', 'StallReport', 'stall_message']
 
 
 @dataclass(frozen=True)
@@ -33,18 +49,23 @@ class PspmConfig:
         max_energy: E_r,max, the ceiling.
         shuffle: dE_shuffle added per tick.
         shuffle_budget: b^2, total shuffled energy per joint after which shuffling stops.
+        max_power: Ceiling [W] of the refill rate a task stack may ask for
+            (``power_budget``); 0: strictly passive, a stack asking for any is rejected.
     """
 
     initial_energy: float = 0.5
     max_energy: float = 2.0
     shuffle: float = 0.0
     shuffle_budget: float = 0.0
+    max_power: float = 0.0
 
     def __post_init__(self):
-        for name in ('initial_energy', 'max_energy', 'shuffle', 'shuffle_budget'):
+        for name in ('initial_energy', 'max_energy', 'shuffle', 'shuffle_budget', 'max_power'):
             v = getattr(self, name)
+            unit = 'W' if name == 'max_power' else 'J'
             if not (np.isfinite(v) and v >= 0):
-                raise ParameterError(f'pspm.{name} must be a finite number >= 0 [J], got {v!r}')
+                raise ParameterError(f'pspm.{name} must be a finite number >= 0 [{unit}], '
+                                     f'got {v!r}')
         if self.initial_energy > self.max_energy:
             raise ParameterError(f'pspm.initial_energy ({self.initial_energy} J) must not exceed '
                                  f'pspm.max_energy ({self.max_energy} J)')
@@ -70,15 +91,19 @@ class EnergyTanks:
         n = self.K.size
         self.energy = np.full(n, config.initial_energy)
         self.shuffled = np.zeros(n)
+        self.refilled = np.zeros(n)
+        self.power = 0.0
         self.dissipated_min = np.zeros(n)
         self._avail = np.zeros(n)
         self._shuffle_now = np.zeros(n)
+        self._refill_now = np.zeros(n)
         self._q_prev = None
         self.deficit = 0.0
         # constants of the 2 ms path
         self._all = bool(self.mask.all())
         self._fixed = np.flatnonzero(~self.mask)  # joints without modulation (stiff)
         self._shuffling = config.shuffle > 0.0 and config.shuffle_budget > 0.0
+        self._extra = self._shuffling  # shuffle or refill added to E_avail this tick
         self._D_over_dt = self.D / self.dt
         self._inv_dt = 1.0 / self.dt
         self._minus_inv_dt = -self._inv_dt
@@ -92,7 +117,56 @@ class EnergyTanks:
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
         self.energy = np.full(self.K.size, self.config.initial_energy)
         self.shuffled = np.zeros(self.K.size)
+        self.refilled = np.zeros(self.K.size)
         self._q_prev = np.array(q, dtype=float)
+
+    def power_error(self, power):
+        """Why ``power`` [W] is not an allowed refill rate, or '' if it is (<= the ceiling)."""
+        ceiling = self.config.max_power
+        if power <= ceiling:
+            return ''
+        if ceiling == 0.0:
+            return (f'power_budget {power:g} W asks the energy tanks for a refill, but this node '
+                    'is strictly passive (spg_node parameter pspm.max_power = 0 W); a safety '
+                    f'engineer may allow it with -p pspm.max_power:={power:g} (or more), or '
+                    'remove power_budget from the stack')
+        return (f'power_budget {power:g} W exceeds the ceiling of {ceiling:g} W set by the '
+                f'spg_node parameter pspm.max_power; lower power_budget to <= {ceiling:g} or '
+                f'raise pspm.max_power to >= {power:g}')
+
+    def set_power(self, power):
+        """Refill the tanks at ``power`` [W] from the next tick on (0 <= power <= ceiling).
+
+        Raises:
+            ParameterError: ``power`` is negative, not finite or above ``max_power``.
+        """
+        power = float(power)
+        if not (np.isfinite(power) and power >= 0.0):
+            raise ParameterError(f'power_budget must be a finite number >= 0 [W], got {power!r}')
+        message = self.power_error(power)
+        if message:
+            raise ParameterError(message)
+        self.power = power
+        self._extra = self._shuffling or power > 0.0
+
+    def empty(self, tol=1e-9):
+        """Mask of the modulated joints whose tank is empty (<= ``tol`` [J]) after the tick."""
+        return (self.energy <= tol) & self.mask
+
+    def requested_power(self, q, q_v, qdot_v):
+        """Power [W] per joint the step ``qdot_v`` [rad/s] from ``q_v`` would take from the
+        tank this tick beyond what the IFC damper returned (E_Dmin): the spring energy it
+        adds, 1/2 K ((dq + dT qdot_v)^2 - dq^2), minus E_Dmin, over dT (0 for stiff joints)."""
+        dq = q_v - q
+        dE = self._half_K * ((dq + self.dt * qdot_v) ** 2 - dq * dq) - self.dissipated_min
+        return np.where(self.mask, dE * self._inv_dt, 0.0)
+
+    @property
+    def available(self):
+        """E_avail of this tick's bounds per joint in [J] (read-only view)."""
+        view = self._avail.view()
+        view.setflags(write=False)
+        return view
 
     def bounds(self, q, q_v):
         """Return the passivity :class:`VelocityBox` for this tick (contains 0).
@@ -104,7 +178,7 @@ class EnergyTanks:
         if self._q_prev is None:
             self._q_prev = np.array(q, dtype=float)
         if self._native is not None:
-            shuffle = self._shuffle() if self._shuffling else None
+            shuffle = self._added() if self._extra else None
             lower, upper, self.dissipated_min, self._avail = self._native.pspm_bounds(
                 q, q_v, self._q_prev, self.energy, shuffle, self._D_over_dt,
                 self._two_over_K, self._inv_dt, self._modulated)
@@ -114,8 +188,8 @@ class EnergyTanks:
         step *= self._D_over_dt
         self.dissipated_min = step
         self._q_prev[:] = q
-        if self._shuffling:
-            self._avail = self.energy + step + self._shuffle()
+        if self._extra:
+            self._avail = self.energy + step + self._added()
         else:
             self._avail = self.energy + step
         dq = q_v - q
@@ -132,11 +206,36 @@ class EnergyTanks:
             upper[self._fixed] = np.inf
         return VelocityBox(lower, upper)
 
-    def _shuffle(self):
-        """This tick's shuffled energy per joint (capped by what is left of the budget)."""
-        room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
-        self._shuffle_now = np.minimum(self.config.shuffle, room)
-        return self._shuffle_now
+    def _added(self):
+        """This tick's shuffled plus refilled energy per joint in [J]."""
+        if self._shuffling:
+            room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
+            self._shuffle_now = np.minimum(self.config.shuffle, room)
+            added = self._shuffle_now.copy()
+        else:
+            added = np.zeros(self.K.size)
+        if self.power > 0.0:
+            room = self._water_fill(self.power * self.dt)
+            self._refill_now = room
+            added += room
+        return added
+
+    def _water_fill(self, amount):
+        """Share ``amount`` [J] among the modulated tanks, emptiest first: the tanks below a
+        common level are raised to it (never above E_max); returns the refill per joint."""
+        e = self.energy
+        idx = np.flatnonzero(self.mask)
+        order = idx[np.argsort(e[idx], kind='stable')]
+        levels = e[order]
+        filled = np.cumsum(levels)
+        k = np.arange(1, levels.size + 1)
+        level = (amount + filled) / k              # the level if the k emptiest are raised
+        nxt = np.append(levels[1:], np.inf)
+        j = int(np.argmax(level <= nxt))           # the first k whose level fits below the next
+        level = min(float(level[j]), self.config.max_energy)
+        refill = np.zeros(e.size)
+        refill[order[:j + 1]] = np.maximum(level - levels[:j + 1], 0.0)
+        return refill
 
     def update(self, q, q_v, qdot_v):
         """Book the applied step into the tanks (Alg. C.5 lines 21-25).
@@ -174,4 +273,132 @@ class EnergyTanks:
         self.energy = e
         if self._shuffling:
             self.shuffled += np.where(self.mask, self._shuffle_now, 0.0)
+        if self.power > 0.0:
+            self.refilled += self._refill_now
         return dEk
+
+
+class StallReport(NamedTuple):
+    """Joints whose empty tank keeps clipping the stack's solution (see :class:`StallMonitor`).
+
+    Attributes:
+        joints: Indices of the stalled joints (model order).
+        requested_power: Power [W] the stack asked of each stalled joint's tank beyond what
+            the IFC damper returned (same order as ``joints``).
+        total_power: Sum of ``requested_power`` [W].
+        power_budget: The refill rate in effect [W].
+        max_power: The node's ceiling ``pspm.max_power`` [W].
+        since: Task time [s] at which the stall was first reported.
+    """
+
+    joints: tuple
+    requested_power: tuple
+    total_power: float
+    power_budget: float
+    max_power: float
+    since: float
+
+    def suggestion(self):
+        """The setting that would give the stack the power it asks for: twice the request,
+        or twice the budget in effect if that is more (the request is a lower bound; a stall
+        reported again under the new budget asks for twice that)."""
+        # the request is measured at the stalled state (the joint barely moves, so less than
+        # moving will take): ask for twice it, and at least twice the budget in effect
+        need = _round_up(2.0 * max(self.total_power, self.power_budget))
+        fix = f"declare 'power_budget: {need:g}' [W] in the task stack"
+        if need > self.max_power:
+            fix += f' and raise the spg_node parameter pspm.max_power to >= {need:g} W'
+        return fix
+
+
+def _round_up(x):
+    """``x`` rounded up to 2 significant digits (0.0123 -> 0.013, 1.23 -> 1.3)."""
+    if not x > 0:
+        return 0.0
+    scale = 10.0 ** (np.floor(np.log10(x)) - 1)
+    return float(np.ceil(x / scale - 1e-9) * scale)
+
+
+class StallMonitor:
+    """Detects a stall: an empty tank that clips the stack's solution for more than a moment.
+
+    Each tick :meth:`observe` gets the joints whose tank ended the tick empty (the step used
+    all the available energy). Their exponential average (time constant ``time_constant``)
+    above 1/2 — about 0.35 s of an empty tank — makes the joint a *candidate*; then, every
+    ``probe_every`` ticks, the SPG solves the cascade once more without the passivity bound
+    and :meth:`observe` gets the power [W] each joint's tank would have had to give for that
+    solution (beyond what the IFC damper returned). A candidate asking for more than
+    ``min_power`` [W] (averaged over probes) is stalled. The first stall of an episode (a
+    stack activation or a restart) is flagged in :attr:`new` for one tick, so callers log it
+    once.
+
+    Args:
+        n: Number of joints.
+        dt: SPG period in [s].
+        time_constant: Of the empty-tank average in [s].
+        probe_every: Ticks between the extra solves while a joint is a candidate.
+        min_power: Requested power [W] below which a candidate is not stalled.
+    """
+
+    def __init__(self, n, dt, time_constant=0.5, probe_every=25, min_power=1e-3):
+        self.n = int(n)
+        self._alpha = min(1.0, float(dt) / float(time_constant))
+        self.probe_every = int(probe_every)
+        self.min_power = float(min_power)
+        self.reset()
+
+    def reset(self):
+        """A new episode: forget the averages; the next stall is reported again."""
+        self._empty = np.zeros(self.n)
+        self._power = np.zeros(self.n)
+        self._ticks = 0
+        self.report = None
+        self.new = False
+        self._reported = False
+
+    @property
+    def wants_probe(self):
+        """True when this tick's caller should solve without the passivity bound."""
+        return self._ticks % self.probe_every == 0 and bool(np.any(self._empty > 0.5))
+
+    def observe(self, empty, requested_power=None, *, power_budget=0.0, max_power=0.0,
+                task_time=0.0):
+        """Book one tick.
+
+        Args:
+            empty: Bool mask of joints whose tank ended the tick empty.
+            requested_power: Per joint [W] the stack asked for beyond the damper's refill
+                (only on probe ticks, else None).
+            power_budget: The refill rate in effect [W]; max_power: the ceiling [W].
+            task_time: Task time of this tick [s].
+        """
+        self._ticks += 1
+        self._empty += self._alpha * (empty - self._empty)
+        candidate = self._empty > 0.5
+        if requested_power is not None:
+            p = np.where(candidate, np.maximum(requested_power, 0.0), 0.0)
+            self._power += 0.3 * (p - self._power)
+        self._power[~candidate] = 0.0
+        stalled = np.flatnonzero(candidate & (self._power > self.min_power))
+        self.new = False
+        if not stalled.size:
+            self.report = None
+            return
+        joints = tuple(int(j) for j in stalled)
+        power = tuple(float(self._power[j]) for j in stalled)
+        since = task_time if self.report is None else self.report.since
+        self.report = StallReport(joints, power, float(sum(power)), float(power_budget),
+                                  float(max_power), float(since))
+        if not self._reported:
+            self._reported = self.new = True
+
+
+def stall_message(report, joint_names):
+    """One line for the log and ``spg/status``: which joints, how much power, the fix."""
+    names = [joint_names[j] for j in report.joints]
+    each = ', '.join(f'{n} {p:.3g}' for n, p in zip(names, report.requested_power))
+    return (f"PSPM stall: the energy tanks of {', '.join(names)} are empty and clip the task "
+            f'stack since task time {report.since:.2f} s (the tasks slow down or stop); the '
+            f'stack asks for {report.total_power:.3g} W ({each} W) with a power budget of '
+            f'{report.power_budget:g} W (ceiling pspm.max_power {report.max_power:g} W); '
+            f'{report.suggestion()}')

@@ -30,7 +30,7 @@ from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
 from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.nullspace import NullspaceCascade
-from ifc_spg.pspm import EnergyTanks, PspmConfig
+from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, stall_message
 
 __all__ = ['SetPointGenerator', 'SpgInfo']
 
@@ -49,15 +49,22 @@ class SpgInfo:
         spring_energy_step: Change of spring energy 1/2 K dq^2 by this tick's step [J].
         solve_time: Cascade solve time in [s]; tick_time: whole tick in [s].
         task_time: Seconds since the stack became active.
-        message: Human-readable reason for a non-'ok' status.
+        message: Human-readable reason for a non-'ok' status, or the PSPM stall warning.
+        stall: :class:`~ifc_spg.pspm.StallReport` while an empty tank clips the stack's
+            solution (status stays 'ok'), else None; stall_new: True on the tick the first
+            stall of an episode is reported (log it once).
+        power_budget: Refill rate of the tanks in effect [W] (the stack's power_budget).
+        pspm: Dict (computed on demand) of power_budget, max_power [W], refilled [J] per
+            joint, and stall {joints, requested_power [W] per joint, total_power, since,
+            fix, message} or None; None without PSPM.
     """
 
     __slots__ = ('status', 'solver', 'slacks', 'tank_energy', 'spring_energy_step',
                  'solve_time', 'tick_time', 'task_time', 'qdot_v', 'message', 'failed_level',
-                 'levels', 'box')
+                 'levels', 'box', 'stall', 'stall_new', 'power_budget', 'tanks', 'joint_names')
     _FIELDS = ('status', 'solver', 'level_names', 'slacks', 'residuals', 'at_limit',
                'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
-               'qdot_v', 'message', 'failed_level')
+               'qdot_v', 'message', 'failed_level', 'pspm')
 
     def __init__(self, **kw):
         for k in self.__slots__:
@@ -67,6 +74,24 @@ class SpgInfo:
     def level_names(self):
         """Names of the levels (the torque limit first, if enabled)."""
         return [lv.name for lv in (self.levels or [])]
+
+    @property
+    def pspm(self):
+        """Power budget, refill and stall of the energy tanks (None without PSPM)."""
+        if self.tanks is None:
+            return None
+        stall = self.stall
+        names = self.joint_names or ()
+        return {
+            'power_budget': float(self.power_budget or 0.0),
+            'max_power': float(self.tanks.config.max_power),
+            'refilled': [float(x) for x in self.tanks.refilled],
+            'stall': None if stall is None else {
+                'joints': [names[j] for j in stall.joints],
+                'requested_power': {names[j]: p for j, p in zip(stall.joints,
+                                                                stall.requested_power)},
+                'total_power': stall.total_power, 'since': stall.since,
+                'fix': stall.suggestion(), 'message': stall_message(stall, names)}}
 
     @property
     def residuals(self):
@@ -129,6 +154,9 @@ class SetPointGenerator:
             modulated = ~robot.stiff_mask if robot.ifc == JOINT_IMPEDANCE \
                 else np.zeros(n, dtype=bool)
             self.tanks = EnergyTanks(robot.stiffness, robot.damping, modulated, dt, pspm)
+        self._stall = None if self.tanks is None else StallMonitor(n, dt)
+        self._probe_solver = None  # a second cascade for stall probes (created when needed)
+        self._solver_args = (solver, n, rho)
         self._torque_limit = None
         if torque_limits and robot.ifc == JOINT_IMPEDANCE and solver != 'nullspace':
             self._torque_limit = TorqueLimitLevel(
@@ -147,7 +175,8 @@ class SetPointGenerator:
         self._pending = None
         self._t0 = None
         self.stack = None
-        self.info = SpgInfo(status='idle', solver=self._solver.name)
+        self.info = SpgInfo(status='idle', solver=self._solver.name, tanks=self.tanks,
+                            power_budget=0.0, joint_names=tuple(robot.joint_names))
         if stack is not None:
             self.set_stack(stack)
 
@@ -156,15 +185,25 @@ class SetPointGenerator:
         """Replace the running stack at the next tick (hot swap, no jump in q_v).
 
         ``init`` values are captured when the new stack becomes active. Building the tasks
-        happens here, so an invalid stack raises and the running one stays untouched.
+        happens here, so an invalid stack raises and the running one stays untouched, as
+        does a stack whose ``power_budget`` [W] exceeds the ceiling ``max_power`` of the
+        PSPM configuration (a :class:`~ifc_spg.task_stack.TaskStackError` naming both
+        numbers and the parameter to raise). Without PSPM the budget has no effect.
         """
+        budget = float(getattr(stack, 'power_budget', None) or 0.0)
+        if self.tanks is not None:
+            problem = self.tanks.power_error(budget)
+            if problem:
+                from ifc_spg.task_stack import TaskStackError
+                raise TaskStackError(problem, path=('power_budget',),
+                                     source=getattr(stack, 'source', None))
         tasks = stack.build(self.robot) if hasattr(stack, 'build') else list(stack)
         if self._solver.name == 'nullspace':
             for task in tasks:
                 if not task.equality:
                     raise IfcSpgError(f"task '{task.name}' is an inequality; the nullspace "
                                       "baseline handles equality tasks only (use solver 'daqp')")
-        self._pending = (stack, tasks)
+        self._pending = (stack, tasks, budget)
 
     def reset(self, q):
         """Start from the measured configuration ``q``: q_v = q (clipped into the limits)."""
@@ -173,6 +212,7 @@ class SetPointGenerator:
         self.qdot_v = np.zeros(self.n)
         if self.tanks is not None:
             self.tanks.reset(q)
+            self._stall.reset()
         self._t0 = None
         for task in self.tasks:
             task._active_lower = task._active_upper = None
@@ -206,9 +246,12 @@ class SetPointGenerator:
         if not (math.isfinite(t) and math.isfinite(q @ self._zeros + qdot @ self._zeros)):
             return self._hold('bad_input', 'non-finite joint state or time stamp', t_start)
         if self._pending is not None:
-            self.stack, self.tasks = self._pending
+            self.stack, self.tasks, budget = self._pending
             self._pending = None
             self._t0 = None
+            if self.tanks is not None:
+                self.tanks.set_power(budget)
+                self._stall.reset()
         if self._t0 is None:
             self._t0 = float(t)
         task_time = float(t) - self._t0
@@ -216,7 +259,7 @@ class SetPointGenerator:
         q_v = self.q_v
         self.kin.update(q, qdot, q_v)
 
-        box = self._limits.box(q_v)
+        box = limits_box = self._limits.box(q_v)
         pb = None if self.tanks is None else self.tanks.bounds(q, q_v)
         qd_prev = self.qdot_v
         if self._native is not None:
@@ -272,8 +315,13 @@ class SetPointGenerator:
         solve_time = time.perf_counter() - t_solve
 
         energy_step = None
+        stall = None
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, qdot_v)
+            stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, levels[len(top):],
+                                      task_time)
+            if stall is not None and status == 'ok':
+                message = stall_message(stall, self.robot.joint_names)
         if self._native is not None:
             self.q_v = self._native.integrate(q_v, self.dt, qdot_v, self._q_min, self._q_max)
         else:
@@ -284,13 +332,44 @@ class SetPointGenerator:
             tank_energy=None if self.tanks is None else self.tanks.energy,
             spring_energy_step=energy_step, solve_time=solve_time,
             tick_time=time.perf_counter() - t_start, task_time=task_time, qdot_v=qdot_v,
-            message=message, failed_level=failed)
+            message=message, failed_level=failed, stall=stall,
+            stall_new=stall is not None and self._stall.new,
+            power_budget=0.0 if self.tanks is None else self.tanks.power, tanks=self.tanks,
+            joint_names=self.robot.joint_names)
         return self.q_v.copy()
+
+    def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time):
+        """Book this tick in the stall monitor; on its probe ticks, solve the cascade again
+        without the passivity bound to learn the power the stack asks for. Returns the
+        :class:`~ifc_spg.pspm.StallReport` or None."""
+        monitor, tanks = self._stall, self.tanks
+        requested = None
+        if monitor.wants_probe:
+            requested = np.zeros(self.n)
+            if task_levels and self._solver.name != 'nullspace':
+                if self._probe_solver is None:
+                    self._probe_solver = make_solver(*self._solver_args)
+                box = intersect_soft(VelocityBox(np.array(limits_box.lower, dtype=float),
+                                                 np.array(limits_box.upper, dtype=float)),
+                                     VelocityBox(qd_prev - self._accel, qd_prev + self._accel))
+                if self._torque_limit is not None:
+                    _, _, box = self._torque_limit.apply(q, qdot, q_v, box)
+                try:
+                    res = self._probe_solver.solve(task_levels, box)
+                    if math.isfinite(res.qdot_v @ self._zeros):
+                        requested = tanks.requested_power(q, q_v, np.asarray(res.qdot_v))
+                except Exception:  # a probe must never take the tick down
+                    pass
+        monitor.observe(tanks.empty(), requested, power_budget=tanks.power,
+                        max_power=tanks.config.max_power, task_time=task_time)
+        return monitor.report
 
     def _hold(self, status, message, t_start):
         self.qdot_v = np.zeros(self.n)
         self.info = SpgInfo(status=status, solver=self._solver.name, slacks=[], levels=[],
                             tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
                             solve_time=0.0, tick_time=time.perf_counter() - t_start,
-                            qdot_v=self.qdot_v, message=message, failed_level=-1)
+                            qdot_v=self.qdot_v, message=message, failed_level=-1,
+                            power_budget=0.0 if self.tanks is None else self.tanks.power,
+                            tanks=self.tanks, joint_names=self.robot.joint_names)
         return self.q_v.copy()

@@ -43,6 +43,8 @@ class SpgConfig:
         pspm_max_energy: E_r,max per joint in [J].
         pspm_shuffle: dE_shuffle per tick in [J].
         pspm_shuffle_budget: b^2, total shuffled energy per joint in [J].
+        pspm_max_power: Ceiling of the tanks' refill rate a task stack may ask for
+            (``power_budget``) in [W]; 0: strictly passive (such stacks are rejected).
         stiffness: Joint stiffness K of the robot's impedance controller in [Nm/rad], one
             value per joint or one for all; () keeps the robot configuration's.
         damping: Joint damping D in [Nms/rad], likewise.
@@ -68,6 +70,7 @@ class SpgConfig:
     pspm_max_energy: float = 2.0
     pspm_shuffle: float = 0.0
     pspm_shuffle_budget: float = 0.0
+    pspm_max_power: float = 0.0
     stiffness: tuple = ()
     damping: tuple = ()
     watchdog_timeout: float = 0.05
@@ -119,7 +122,8 @@ class SpgConfig:
         return PspmConfig(initial_energy=float(self.pspm_initial_energy),
                           max_energy=float(self.pspm_max_energy),
                           shuffle=float(self.pspm_shuffle),
-                          shuffle_budget=float(self.pspm_shuffle_budget))
+                          shuffle_budget=float(self.pspm_shuffle_budget),
+                          max_power=float(self.pspm_max_power))
 
 
 class Param(NamedTuple):
@@ -155,6 +159,9 @@ PARAMETERS = (
           (0.0, 1e3)),
     Param('pspm.shuffle_budget', 'pspm_shuffle_budget',
           'Total shuffled energy per joint b^2 in [J]', (0.0, 1e6)),
+    Param('pspm.max_power', 'pspm_max_power',
+          "Ceiling of the energy tanks' refill rate in [W] a task stack may ask for with "
+          'power_budget (set by a safety engineer; 0: strictly passive)', (0.0, 1e4)),
     Param('impedance.stiffness', 'stiffness',
           "Joint stiffness K of the robot's impedance controller in [Nm/rad], per joint or one "
           "for all (default: the robot configuration's)"),

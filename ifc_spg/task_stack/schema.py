@@ -13,6 +13,7 @@ import sys
 from ifc_spg.task_stack.spec import (
     BOUND_FIELDS,
     MAX_DIM,
+    MAX_POWER_BUDGET,
     MAX_TASKS,
     REQUIRED,
     SUBSPACE_FIELDS,
@@ -169,6 +170,12 @@ def schema():
             'robot': {'type': ['string', 'null'],
                       'description': 'Robot model the stack is written for (a hint).'},
             'description': {'type': ['string', 'null']},
+            'power_budget': {'type': ['number', 'null'], 'minimum': 0,
+                             'maximum': MAX_POWER_BUDGET,
+                             'description': 'Refill rate of the PSPM energy tanks in [W] the '
+                             'stack needs to do work on its environment (sliding a tool, '
+                             'lifting a drawer); at most the node parameter pspm.max_power. '
+                             'Absent or 0: strictly passive.'},
             'tasks': {'type': 'array', 'minItems': 1, 'maxItems': MAX_TASKS,
                       'items': {'$ref': '#/$defs/task'}},
         },

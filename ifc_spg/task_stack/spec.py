@@ -45,7 +45,9 @@ MAX_NAME = 128
 
 TASK_TYPES = ('joint_position', 'cartesian_pose', 'joint_torque', 'wrench',
               'constrained_manipulation')
-TOP_FIELDS = ('version', 'name', 'robot', 'description', 'tasks')
+TOP_FIELDS = ('version', 'name', 'robot', 'description', 'power_budget', 'tasks')
+#: Largest power_budget [W] a stack may declare (the node's pspm.max_power caps it further).
+MAX_POWER_BUDGET = 1e4
 BOUND_FIELDS = ('equal', 'lower', 'upper')
 _COMMON = ('name', 'type', 'description', 'equal', 'lower', 'upper', 'gain', 'feedforward',
            'velocity_gain', 'compensate_velocity')
@@ -348,6 +350,8 @@ class _Parser:
         desc = data.get('description')
         if desc is not None and not isinstance(desc, str):
             raise self.err(('description',), f'expected text, got {_show(desc)}')
+        budget = self.power_budget(data['power_budget']) if data.get('power_budget') \
+            is not None else None
         if 'tasks' not in data:
             raise self.err((), 'missing field tasks; list the tasks, highest priority first')
         tasks = data['tasks']
@@ -366,7 +370,19 @@ class _Parser:
                                ' names must be unique')
             seen[t.name] = t.index
         return {'version': VERSION, 'name': name, 'robot': robot, 'description': desc,
-                'tasks': specs}
+                'power_budget': budget, 'tasks': specs}
+
+    def power_budget(self, x):
+        path = ('power_budget',)
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise self.err(path, f'expected a power in watts (a number, e.g. power_budget: '
+                                 f'2.0), got {_show(x)}')
+        x = float(x)
+        if not (math.isfinite(x) and 0.0 <= x <= MAX_POWER_BUDGET):
+            raise self.err(path, f'{x:g} W is out of range: the refill rate of the energy '
+                                 f'tanks must be in [0, {MAX_POWER_BUDGET:g}] W (0 or no '
+                                 'power_budget: strictly passive)')
+        return x
 
     def task(self, path, x, index):
         self.mapping(path, x, 'a task')

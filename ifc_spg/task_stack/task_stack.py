@@ -32,6 +32,10 @@ class TaskStack:
         tasks: Tuple of :class:`~ifc_spg.task_stack.spec.TaskSpec`, highest priority first.
         robot: Name of the robot model the stack is written for (a hint), or None.
         description: Free text, or None.
+        power_budget: Refill rate of the PSPM energy tanks in [W] the stack asks for (its
+            author knows it does work on the environment: slides a tool, lifts a drawer);
+            None: strictly passive. The SPG rejects a stack asking for more than its
+            ``pspm.max_power``.
         version: Format version (1).
         source: Where the text came from (file name), or None.
     """
@@ -40,6 +44,7 @@ class TaskStack:
     tasks: tuple
     robot: str = None
     description: str = None
+    power_budget: float = None
     version: int = VERSION
     source: str = field(default=None, compare=False)
     _doc: Document = field(default=None, compare=False, repr=False)
@@ -54,7 +59,8 @@ class TaskStack:
     def _from_document(cls, doc):
         kw = parse_document(doc)
         return cls(name=kw['name'], tasks=kw['tasks'], robot=kw['robot'],
-                   description=kw['description'], version=kw['version'], source=doc.source,
+                   description=kw['description'], power_budget=kw['power_budget'],
+                   version=kw['version'], source=doc.source,
                    _doc=doc)
 
     @classmethod
@@ -116,6 +122,8 @@ class TaskStack:
             out['robot'] = self.robot
         if self.description is not None:
             out['description'] = self.description
+        if self.power_budget is not None:
+            out['power_budget'] = self.power_budget
         out['tasks'] = [task_to_data(t) for t in self.tasks]
         return out
 
