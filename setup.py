@@ -27,6 +27,11 @@ def native_extensions():
         return []
     return [Extension('ifc_spg._native', ['ifc_spg/_native.c'],
                       include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
+                      optional=True),
+            # the Popov-Vereshchagin sweeps (numpy fallback: ifc_spg/dynamics/native.py)
+            Extension('ifc_spg.dynamics._native_dynamics',
+                      ['ifc_spg/dynamics/_native_dynamics.c'],
+                      include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
                       optional=True)]
 
 

@@ -18,8 +18,10 @@ function g(μ) = min_q̈ Z is then the concave quadratic
     g(μ) = g(0) − q̈_Θ(0)ᵀ μ − ½ μᵀ G_ΘΘ μ,     G_ΘΘ = G_ΘΘᵀ ⪰ 0,
 
 so μ* solves the box-constrained QP min ½ μᵀ G_ΘΘ μ + q̈_Θ(0)ᵀ μ, −f ≤ μ ≤ f, solved
-exactly by proxsuite (or daqp). A joint sticks when |μ*_j| < f_j (then q̈_j = 0); at
-the bound it slips, with q̈_j of the sign opposite to μ*_j.
+exactly by the solver's kernel (``qp_solver='box'``, the default: the sweeps and an
+active-set box QP in one compiled call, :mod:`ifc_spg.dynamics.box_qp`), or by proxsuite
+or daqp. A joint sticks when |μ*_j| < f_j (then q̈_j = 0); at the bound it slips, with
+q̈_j of the sign opposite to μ*_j.
 
 Reference method (the report's): sample μ on a grid over the box, run the full solver
 for each sample, keep the sample with the largest acceleration energy.
@@ -35,7 +37,7 @@ from ifc_spg.errors import ParameterError, SolverError, did_you_mean
 
 __all__ = ['FrictionResult', 'SamplingResult', 'StaticFrictionSolver', 'QP_SOLVERS']
 
-QP_SOLVERS = ('proxsuite', 'daqp')
+QP_SOLVERS = ('box', 'proxsuite', 'daqp')
 
 
 @dataclass(frozen=True)
@@ -116,10 +118,12 @@ class StaticFrictionSolver:
         solver: A :class:`VereshchaginSolver`, or a pinocchio model to build one from.
         breakaway: Breakaway torques f_j ≥ 0 in [Nm] / [N], scalar or shape (n,).
         eps: Velocity threshold ε for "at rest" in [rad/s] / [m/s].
-        qp_solver: ``'proxsuite'`` or ``'daqp'``.
+        qp_solver: ``'box'`` (the kernel's exact active-set box QP, in the same call as the
+            sweeps; proxsuite takes over if its answer fails the KKT check), ``'proxsuite'``
+            or ``'daqp'``.
     """
 
-    def __init__(self, solver, breakaway, *, eps=1e-6, qp_solver='proxsuite'):
+    def __init__(self, solver, breakaway, *, eps=1e-6, qp_solver='box'):
         if not isinstance(solver, VereshchaginSolver):
             solver = VereshchaginSolver(solver)
         self.solver = solver
@@ -138,27 +142,44 @@ class StaticFrictionSolver:
                               f"{', '.join(QP_SOLVERS)}")
         self.qp_solver = qp_solver
         self._qp_cache = {}
+        self._solve = self._solve_box if qp_solver == 'box' else self._solve_qp
 
     def stationary(self, qd):
         """Return the mask of joints in Θ₀: |q̇_j| ≤ ε and f_j > 0."""
         return (np.abs(np.asarray(qd, dtype=float)) <= self.eps) & (self.breakaway > 0)
 
     # -- exact method ----------------------------------------------------------------------
-    def solve(self, q, qd, tau=None, **kwargs):
+    def solve(self, q, qd, tau=None, *, base_acceleration=None, external_wrenches=None,
+              A_N=None, b_N=None):
         """Exact static-friction solve: one solver pass plus one small box QP.
 
         Args:
             q: Configuration (pinocchio nq).
             qd: Joint velocities; joints with |qd_j| <= eps and f_j > 0 are at rest.
             tau: Feed-forward torques (friction is added to them).
-            **kwargs: ``base_acceleration``, ``external_wrenches``, ``A_N``, ``b_N``.
+            base_acceleration: As :meth:`VereshchaginSolver.solve`.
+            external_wrenches: As :meth:`VereshchaginSolver.solve`.
+            A_N: As :meth:`VereshchaginSolver.solve`.
+            b_N: As :meth:`VereshchaginSolver.solve`.
 
         Returns:
             FrictionResult.
         """
+        return self._solve(q, qd, tau, base_acceleration, external_wrenches, A_N, b_N)
+
+    def _solve_box(self, q, qd, tau, a0, fext, A, b):
+        res, mu, stationary, stick, qdd0, G, ok = self.solver.kernel.friction(
+            q, qd, tau, a0, fext, A, b, self.breakaway, self.eps)
+        if not ok:                    # the active set failed its KKT check: general QP
+            return self._solve_qp(q, qd, tau, a0, fext, A, b)
+        return FrictionResult(mu=mu, stationary=stationary, stick=stick, qdd=res.qdd,
+                              result=res, qdd0=qdd0, G=G, gauss=res.gauss)
+
+    def _solve_qp(self, q, qd, tau, a0, fext, A, b):
         joints = np.flatnonzero(self.stationary(qd))
-        base, Gfull, combine = self.solver.solve_with_sensitivity(q, qd, tau, joints=joints,
-                                                                  **kwargs)
+        base, Gfull, combine = self.solver.solve_with_sensitivity(
+            q, qd, tau, joints=joints, base_acceleration=a0, external_wrenches=fext, A_N=A,
+            b_N=b)
         k = joints.size
         q0 = base.qdd[joints]
         G = Gfull[joints]

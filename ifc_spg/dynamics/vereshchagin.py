@@ -45,13 +45,17 @@ Conventions:
 """
 
 from dataclasses import dataclass
+import functools
 
 import numpy as np
 
+from ifc_spg.dynamics import native
+from ifc_spg.dynamics.box_qp import box_qp
 from ifc_spg.dynamics.chain import chain_from_model
-from ifc_spg.errors import ParameterError
+from ifc_spg.errors import ParameterError, SolverError, did_you_mean
 
-__all__ = ['VereshchaginResult', 'VereshchaginSolver']
+__all__ = ['KERNELS', 'NumpyKernel', 'VereshchaginResult', 'VereshchaginSolver',
+           'check_inputs', 'default_kernel']
 
 
 @dataclass(frozen=True)
@@ -115,31 +119,91 @@ _SKEW3 = _skew_map(3)
 _CRM = _skew_map(6)
 
 
-class VereshchaginSolver:
-    """Popov-Vereshchagin hybrid dynamics solver for a serial chain.
+def check_inputs(chain, gravity0, q, qd, tau, a0, fext, A, b):
+    """Validate and convert the inputs of a solve (the boundary: messages name the fix).
 
     Args:
-        model: pinocchio ``Model`` (or :class:`ifc_spg.RobotModel`) of a fixed-base
-            serial chain of revolute / continuous / prismatic joints. Rotor inertias are
-            taken from ``model.armature``. The model is not modified.
-        tip_frame: Frame on the last segment where A_N acts (default: last joint frame).
-        rank_tol: 𝓛 counts as rank-deficient when its smallest eigenvalue magnitude is
-            below ``rank_tol`` times the largest.
-        damping: Relative damping δ of the damped least-squares inverse used when 𝓛 is
-            rank-deficient: ν = argmin ‖𝓛ν − r‖² + (δ λ_max)² ‖ν‖².
+        chain: The :class:`~ifc_spg.dynamics.chain.Chain`.
+        gravity0: Base acceleration used when ``a0`` is None, shape (6,).
+        q, qd, tau, a0, fext, A, b: As :meth:`VereshchaginSolver.solve` (``a0`` is
+            ``base_acceleration``, ``fext`` ``external_wrenches``, ``A``/``b`` ``A_N``/``b_N``).
+
+    Returns:
+        ``(th, qd, tau, a0, fext, A, b)`` as float arrays: joint angles (n,), qd (n,),
+        tau (n,), a0 (6,), fext (n, 6) or None, A (6, m), b (m,).
+
+    Raises:
+        ParameterError: An input has the wrong shape or is not finite.
+        ModelError: ``q`` does not have pinocchio's nq entries.
+    """
+    n = chain.n
+    th = chain.joint_angles(q)
+    qd = np.asarray(qd, dtype=float)
+    if qd.shape != (n,):
+        raise ParameterError(f'qd must have shape ({n},), got {qd.shape}')
+    if tau is None:
+        tau = np.zeros(n)
+    else:
+        tau = np.asarray(tau, dtype=float)
+        if tau.shape != (n,):
+            raise ParameterError(f'tau must have shape ({n},), got {tau.shape}')
+    if a0 is None:
+        a0 = gravity0
+    else:
+        a0 = np.asarray(a0, dtype=float)
+        if a0.shape != (6,):
+            raise ParameterError(f'base_acceleration must have shape (6,) [linear; '
+                                 f'angular], got {a0.shape}; gravity enters as -g, e.g. '
+                                 '[0, 0, 9.81, 0, 0, 0]')
+    if fext is not None:
+        fext = np.asarray(fext, dtype=float)
+        if fext.shape != (n, 6):
+            raise ParameterError(f'external_wrenches must have shape ({n}, 6) (one '
+                                 f'[force; moment] per segment), got {fext.shape}')
+    if A is None:
+        if b is not None and np.size(b):
+            raise ParameterError('b_N given without A_N')
+        A = np.zeros((6, 0))
+        b = np.zeros(0)
+    else:
+        A = np.asarray(A, dtype=float)
+        if A.ndim == 1:
+            A = A[:, None]
+        if A.ndim != 2 or A.shape[0] != 6 or A.shape[1] > 6:
+            raise ParameterError(f'A_N must have shape (6, m) with m <= 6 (one unit '
+                                 f'constraint wrench per column), got {A.shape}')
+        b = np.zeros(A.shape[1]) if b is None else np.asarray(b, dtype=float).reshape(-1)
+        if b.shape != (A.shape[1],):
+            raise ParameterError(f'b_N must have shape ({A.shape[1]},) to match the '
+                                 f'{A.shape[1]} columns of A_N, got {b.shape}')
+    for name, x in (('q', th), ('qd', qd), ('tau', tau), ('base_acceleration', a0),
+                    ('A_N', A), ('b_N', b)):
+        if not np.isfinite(x).all():
+            raise ParameterError(f'{name} must be finite, got {np.asarray(x).tolist()}')
+    if fext is not None and not np.isfinite(fext).all():
+        raise ParameterError('external_wrenches must be finite')
+    return th, qd, tau, a0, fext, A, b
+
+
+class NumpyKernel:
+    """The sweeps in numpy: the reference of the compiled kernel and its fallback.
+
+    One per solver (:class:`VereshchaginSolver` picks it with ``kernel='numpy'``); same
+    methods and results as :class:`ifc_spg.dynamics.native.NativeKernel`.
+
+    Args:
+        chain: The :class:`~ifc_spg.dynamics.chain.Chain`.
+        gravity0: Default base acceleration (6,) (−g).
+        rank_tol: See :class:`VereshchaginSolver`.
+        damping: See :class:`VereshchaginSolver`.
     """
 
-    def __init__(self, model, *, tip_frame=None, rank_tol=1e-9, damping=1e-6):
-        self.chain = chain_from_model(model, tip_frame)
-        self.model = self.chain.model
-        self.n = self.chain.n
-        if not rank_tol > 0 or not damping > 0:
-            raise ParameterError(f'rank_tol and damping must be > 0, got rank_tol={rank_tol}, '
-                                 f'damping={damping}')
-        self.rank_tol = float(rank_tol)
-        self.damping = float(damping)
-        c = self.chain
-        n = self.n
+    def __init__(self, chain, gravity0, rank_tol, damping):
+        self.chain = c = chain
+        self.n = n = chain.n
+        self.rank_tol = rank_tol
+        self.damping = damping
+        self._gravity0 = gravity0
         self._revf = c.revolute.astype(float)
         self._prisf = 1.0 - self._revf
         self._rev3 = c.revolute[:, None]
@@ -148,52 +212,18 @@ class VereshchaginSolver:
         self._T = np.zeros((n, 4, 4))
         self._eye3 = np.eye(3)
         self._mI = c.mass[:, None, None] * np.eye(3)
-        self._gravity0 = -np.asarray(self.model.gravity.vector, dtype=float)
-        self._zeros6 = np.zeros(6)
 
-    # -- public API ------------------------------------------------------------------------
-    def solve(self, q, qd, tau=None, *, base_acceleration=None, external_wrenches=None,
-              A_N=None, b_N=None, gauss=False):
-        """Solve the constrained hybrid dynamics problem once.
-
-        Args:
-            q: Configuration, pinocchio convention, shape (nq,) [rad] / [m].
-            qd: Joint velocities, shape (n,) [rad/s] / [m/s].
-            tau: Feed-forward joint torques, shape (n,) [Nm] / [N] (default 0).
-            base_acceleration: Ẍ_0, shape (6,) [m/s^2, rad/s^2]; default −model.gravity.
-            external_wrenches: Wrenches on the segments, shape (n, 6) [N, Nm] (see module
-                docstring for frames), or None.
-            A_N: Unit constraint wrenches on the last segment, shape (6, m), m ≤ 6.
-            b_N: Desired constraint accelerations ("acceleration energy"), shape (m,).
-            gauss: Also evaluate the acceleration energy Z(q̈).
-
-        Returns:
-            VereshchaginResult.
-
-        Raises:
-            ParameterError: An input has the wrong shape or is not finite.
-        """
-        th, qd, tau, a0, fext, A, b = self._check(q, qd, tau, base_acceleration,
-                                                  external_wrenches, A_N, b_N)
+    def solve(self, q, qd, tau, a0, fext, A, b, gauss):
+        """:meth:`VereshchaginSolver.solve` with positional arguments."""
+        th, qd, tau, a0, fext, A, b = check_inputs(self.chain, self._gravity0, q, qd, tau, a0,
+                                                   fext, A, b)
         out = self._sweeps(th, qd, tau[:, None], a0, fext, A, b)
         return self._result(out, np.ones(1), tau, A, b, gauss)
 
-    def solve_with_sensitivity(self, q, qd, tau=None, *, joints=(), base_acceleration=None,
-                               external_wrenches=None, A_N=None, b_N=None):
-        """One pass giving q̈(τ) and the response of q̈ to unit torques at ``joints``.
-
-        q̈ is affine in the joint torques, q̈(τ + Σ_j μ_j e_j) = q̈(τ) + G μ (report eq.
-        5.10, the characteristic equation); the sweeps carry the unit-torque columns along
-        with the actual right-hand side, so G costs no extra pass.
-
-        Returns:
-            ``(base, G, combine)`` where ``base`` is the :class:`VereshchaginResult` for
-            ``tau``, ``G`` has shape (n, len(joints)) with G[:, k] = ∂q̈/∂τ_joints[k], and
-            ``combine(mu, gauss=False)`` returns the full result for τ + Σ μ_k e_{joints[k]}
-            without another pass.
-        """
-        th, qd, tau, a0, fext, A, b = self._check(q, qd, tau, base_acceleration,
-                                                  external_wrenches, A_N, b_N)
+    def sensitivity(self, q, qd, tau, joints, a0, fext, A, b):
+        """``(base, G, combine)`` of :meth:`VereshchaginSolver.solve_with_sensitivity`."""
+        th, qd, tau, a0, fext, A, b = check_inputs(self.chain, self._gravity0, q, qd, tau, a0,
+                                                   fext, A, b)
         joints = np.asarray(joints, dtype=int).reshape(-1)
         k = joints.size
         T = np.zeros((self.n, 1 + k))
@@ -212,55 +242,32 @@ class VereshchaginSolver:
         return self._result(out, np.concatenate(([1.0], np.zeros(k))), tau, A, b, False), G, \
             combine
 
-    # -- input checks (boundary) -----------------------------------------------------------
-    def _check(self, q, qd, tau, a0, fext, A, b):
+    def friction(self, q, qd, tau, a0, fext, A, b, breakaway, eps):
+        """The exact static-friction solve (one pass, one box QP), see static_friction.py.
+
+        Returns:
+            ``(result, mu, stationary, stick, qdd0, G, ok)``: the result at μ* (with the
+            acceleration energy), μ* (n,), the joints at rest (|qd_j| ≤ eps, f_j > 0), the
+            ones that stick, q̈(0), G (k, k) symmetrized, and whether the box QP's answer
+            passed its KKT check.
+        """
+        qd_ok = check_inputs(self.chain, self._gravity0, q, qd, tau, a0, fext, A, b)[1]
+        joints = np.flatnonzero((np.abs(qd_ok) <= eps) & (breakaway > 0))
+        base, Gfull, combine = self.sensitivity(q, qd, tau, joints, a0, fext, A, b)
+        G = Gfull[joints]
+        G = 0.5 * (G + G.T)
+        f = breakaway[joints]
+        mu_s, ok = box_qp(G, base.qdd[joints], f)
+        res = combine(mu_s, gauss=True)
         n = self.n
-        th = self.chain.joint_angles(q)
-        qd = np.asarray(qd, dtype=float)
-        if qd.shape != (n,):
-            raise ParameterError(f'qd must have shape ({n},), got {qd.shape}')
-        if tau is None:
-            tau = np.zeros(n)
-        else:
-            tau = np.asarray(tau, dtype=float)
-            if tau.shape != (n,):
-                raise ParameterError(f'tau must have shape ({n},), got {tau.shape}')
-        if a0 is None:
-            a0 = self._gravity0
-        else:
-            a0 = np.asarray(a0, dtype=float)
-            if a0.shape != (6,):
-                raise ParameterError(f'base_acceleration must have shape (6,) [linear; '
-                                     f'angular], got {a0.shape}; gravity enters as -g, e.g. '
-                                     '[0, 0, 9.81, 0, 0, 0]')
-        if fext is not None:
-            fext = np.asarray(fext, dtype=float)
-            if fext.shape != (n, 6):
-                raise ParameterError(f'external_wrenches must have shape ({n}, 6) (one '
-                                     f'[force; moment] per segment), got {fext.shape}')
-        if A is None:
-            if b is not None and np.size(b):
-                raise ParameterError('b_N given without A_N')
-            A = np.zeros((6, 0))
-            b = np.zeros(0)
-        else:
-            A = np.asarray(A, dtype=float)
-            if A.ndim == 1:
-                A = A[:, None]
-            if A.ndim != 2 or A.shape[0] != 6 or A.shape[1] > 6:
-                raise ParameterError(f'A_N must have shape (6, m) with m <= 6 (one unit '
-                                     f'constraint wrench per column), got {A.shape}')
-            b = np.zeros(A.shape[1]) if b is None else np.asarray(b, dtype=float).reshape(-1)
-            if b.shape != (A.shape[1],):
-                raise ParameterError(f'b_N must have shape ({A.shape[1]},) to match the '
-                                     f'{A.shape[1]} columns of A_N, got {b.shape}')
-        for name, x in (('q', th), ('qd', qd), ('tau', tau), ('base_acceleration', a0),
-                        ('A_N', A), ('b_N', b)):
-            if not np.isfinite(x).all():
-                raise ParameterError(f'{name} must be finite, got {np.asarray(x).tolist()}')
-        if fext is not None and not np.isfinite(fext).all():
-            raise ParameterError('external_wrenches must be finite')
-        return th, qd, tau, a0, fext, A, b
+        mu = np.zeros(n)
+        mu[joints] = mu_s
+        stationary = np.zeros(n, dtype=bool)
+        stationary[joints] = True
+        stick = np.zeros(n, dtype=bool)
+        # strictly inside the box <=> zero acceleration (KKT); tolerance relative to f
+        stick[joints] = np.abs(mu_s) < f * (1.0 - 1e-7)
+        return res, mu, stationary, stick, base.qdd, G, ok
 
     # -- the three sweeps ------------------------------------------------------------------
     def _sweeps(self, th, qd, T, a0, fext, A, b):
@@ -406,3 +413,103 @@ class VereshchaginSolver:
             segment_accelerations=seg, tip_acceleration=tip,
             constraint_residual=A.T @ tip - b, singular=out['singular'], rank=out['rank'],
             coupling=out['L'], gauss=zval)
+
+
+KERNELS = ('native', 'numpy')
+
+
+def default_kernel():
+    """The kernel new solvers use: 'native' where the C module was built (and
+    ``IFC_SPG_NATIVE`` is not 0), else 'numpy' (see :func:`ifc_spg.dynamics.native.describe`)."""
+    return 'native' if native.module is not None else 'numpy'
+
+
+class VereshchaginSolver:
+    """Popov-Vereshchagin hybrid dynamics solver for a serial chain.
+
+    Args:
+        model: pinocchio ``Model`` (or :class:`ifc_spg.RobotModel`) of a fixed-base
+            serial chain of revolute / continuous / prismatic joints. Rotor inertias are
+            taken from ``model.armature``. The model is not modified.
+        tip_frame: Frame on the last segment where A_N acts (default: last joint frame).
+        rank_tol: 𝓛 counts as rank-deficient when its smallest eigenvalue magnitude is
+            below ``rank_tol`` times the largest.
+        damping: Relative damping δ of the damped least-squares inverse used when 𝓛 is
+            rank-deficient: ν = argmin ‖𝓛ν − r‖² + (δ λ_max)² ‖ν‖².
+        kernel: ``'native'`` (the sweeps in C, ``_native_dynamics.c``) or ``'numpy'``
+            (the reference); default :func:`default_kernel`. Both give the same results
+            (to round-off); the choice is made here, once.
+
+    Raises:
+        SolverError: Unknown ``kernel``, or ``'native'`` where it was not built.
+    """
+
+    def __init__(self, model, *, tip_frame=None, rank_tol=1e-9, damping=1e-6, kernel=None):
+        self.chain = chain_from_model(model, tip_frame)
+        self.model = self.chain.model
+        self.n = self.chain.n
+        if not rank_tol > 0 or not damping > 0:
+            raise ParameterError(f'rank_tol and damping must be > 0, got rank_tol={rank_tol}, '
+                                 f'damping={damping}')
+        self.rank_tol = float(rank_tol)
+        self.damping = float(damping)
+        gravity0 = -np.asarray(self.model.gravity.vector, dtype=float)
+        gravity0.setflags(write=False)
+        name = default_kernel() if kernel is None else kernel
+        if name not in KERNELS:
+            raise SolverError(f"unknown dynamics kernel '{name}'{did_you_mean(name, KERNELS)}"
+                              f"; available: {', '.join(KERNELS)}")
+        if name == 'native':
+            if native.NativeKernel is None:
+                raise SolverError("kernel='native' needs ifc_spg.dynamics._native_dynamics, "
+                                  "which was not built; reinstall with a C compiler "
+                                  "(./run setup) or use kernel='numpy'")
+            check = functools.partial(check_inputs, self.chain, gravity0)
+            self.kernel = native.NativeKernel(self.chain, gravity0, self.rank_tol,
+                                              self.damping, VereshchaginResult, check)
+        else:
+            self.kernel = NumpyKernel(self.chain, gravity0, self.rank_tol, self.damping)
+        self.kernel_name = name
+
+    # -- public API ------------------------------------------------------------------------
+    def solve(self, q, qd, tau=None, *, base_acceleration=None, external_wrenches=None,
+              A_N=None, b_N=None, gauss=False):
+        """Solve the constrained hybrid dynamics problem once.
+
+        Args:
+            q: Configuration, pinocchio convention, shape (nq,) [rad] / [m].
+            qd: Joint velocities, shape (n,) [rad/s] / [m/s].
+            tau: Feed-forward joint torques, shape (n,) [Nm] / [N] (default 0).
+            base_acceleration: Ẍ_0, shape (6,) [m/s^2, rad/s^2]; default −model.gravity.
+            external_wrenches: Wrenches on the segments, shape (n, 6) [N, Nm] (see module
+                docstring for frames), or None.
+            A_N: Unit constraint wrenches on the last segment, shape (6, m), m ≤ 6.
+            b_N: Desired constraint accelerations ("acceleration energy"), shape (m,).
+            gauss: Also evaluate the acceleration energy Z(q̈).
+
+        Returns:
+            VereshchaginResult.
+
+        Raises:
+            ParameterError: An input has the wrong shape or is not finite.
+            ModelError: ``q`` does not have pinocchio's nq entries.
+        """
+        return self.kernel.solve(q, qd, tau, base_acceleration, external_wrenches, A_N, b_N,
+                                 gauss)
+
+    def solve_with_sensitivity(self, q, qd, tau=None, *, joints=(), base_acceleration=None,
+                               external_wrenches=None, A_N=None, b_N=None):
+        """One pass giving q̈(τ) and the response of q̈ to unit torques at ``joints``.
+
+        q̈ is affine in the joint torques, q̈(τ + Σ_j μ_j e_j) = q̈(τ) + G μ (report eq.
+        5.10, the characteristic equation); the sweeps carry the unit-torque columns along
+        with the actual right-hand side, so G costs no extra pass.
+
+        Returns:
+            ``(base, G, combine)`` where ``base`` is the :class:`VereshchaginResult` for
+            ``tau``, ``G`` has shape (n, len(joints)) with G[:, k] = ∂q̈/∂τ_joints[k], and
+            ``combine(mu, gauss=False)`` returns the full result for τ + Σ μ_k e_{joints[k]}
+            without another pass.
+        """
+        return self.kernel.sensitivity(q, qd, tau, joints, base_acceleration,
+                                       external_wrenches, A_N, b_N)
