@@ -502,6 +502,7 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
                 env.header.stamp = stamp
                 writer.write_msg('/sim/env_joint_states', t_ns, env)
             # the SPG sees exactly what the bag holds
+            stalls = runner.pspm_stalls
             cmd = runner.handle_joint_state(js.name, js.position, js.velocity, t_ns)
             if cmd is None:
                 raise IfcSpgError(f'the SPG rejected the joint state at t = {s.t:.3f} s: '
@@ -517,8 +518,14 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
                                    np.asarray(js.velocity), cmd.position, task_time,
                                    s.contact_wrench, contact_chain)
             last_tasks = tasks
-            if k % config.status_decimation == 0 or k == n_ticks - 1:
-                doc = runner.status()
+            event = None
+            if runner.pspm_stalls != stalls:  # once per episode, as spg_node logs it
+                event = ('pspm_stall', runner.last_stall)
+                if not quiet:
+                    print(f'[{scenario.name}] t = {s.t:.3f} s: {runner.last_stall}',
+                          file=stream, flush=True)
+            if event or k % config.status_decimation == 0 or k == n_ticks - 1:
+                doc = runner.status(event)
                 if doc.get('stack'):
                     doc['stack'][STACK_SINCE_KEY] = since.get(runner.stack_id)
                 doc['tasks'] = tasks
@@ -673,6 +680,16 @@ def _report(sc, duration, wall, n_ticks, missed, warnings, last_tasks, m_force, 
         opt = metrics['task_error_rms']
         out['task_error_rms'] = {k: _rms(v) for k, v in m_taskerr.items()}
         out['task_error_rms_options'] = opt
+    tanks = runner.spg.tanks
+    if tanks is not None:
+        # energy the power budget put into the tanks (this session), and the stalls
+        out['pspm'] = {'power_budget_w': tanks.power, 'max_power_w': tanks.config.max_power,
+                       'refilled_j': float(tanks.refilled.sum()),
+                       'refilled_per_minute_j': float(tanks.refilled.sum()) * 60.0 /
+                       duration if duration > 0 else None,
+                       'stalls': runner.pspm_stalls,
+                       'stall': runner.spg.info.pspm['stall'],
+                       'last_stall_message': runner.last_stall or None}
     out['spg'] = {'rejected': dict(runner.rejected), 'errors': list(runner.errors)}
     del out['spg_status_counts']
     return out

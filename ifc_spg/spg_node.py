@@ -96,7 +96,7 @@ class SpgNode:
         """Tick: validate, step the SPG, publish the command (and status every N ticks)."""
         runner = self.runner
         rejected, trips = sum(runner.rejected.values()), runner.watchdog_trips
-        was_stale = runner.stale
+        was_stale, stalls = runner.stale, runner.pspm_stalls
         cmd = runner.handle_joint_state(message.name, message.position, message.velocity,
                                         _stamp_ns(message.header.stamp))
         if sum(runner.rejected.values()) != rejected:
@@ -124,6 +124,9 @@ class SpgNode:
                     'continuing without a restart')
             self.log.info(text)
             self.publish_status(('continued', text))
+        if runner.pspm_stalls != stalls:  # an empty tank clips the stack: once per episode
+            self.log.warning(runner.last_stall)
+            self.publish_status(('pspm_stall', runner.last_stall))
         if cmd.tick % self.config.status_decimation == 0:
             self.publish_status()
 

@@ -212,6 +212,8 @@ class SpgRunner:
         self.ticks = 0
         self.watchdog_trips = 0
         self.resumes = 0
+        self.pspm_stalls = 0            # PSPM stall episodes reported (one per episode)
+        self.last_stall = ''            # the last stall's message (log it when the count grows)
         self.stale = False              # watchdog tripped, not yet resumed
         self.started = False            # at least one tick since the start/restart
         self.stack_id = 0
@@ -338,6 +340,10 @@ class SpgRunner:
         info = self.spg.info
         if info.status in ('fallback', 'hold', 'bad_input'):
             self._error('spg', f'{info.status}: {info.message}')
+        if info.stall_new:  # the first stall of this episode (stack activation or restart)
+            self.pspm_stalls += 1
+            self.last_stall = info.message
+            self._error('pspm', info.message)
         self.ticks += 1
         self._tick_times.append(info.tick_time or 0.0)
         self._last_stamp, self._last_q = stamp_ns, q
@@ -420,7 +426,10 @@ class SpgRunner:
         tick), task_time [s]}, pending_stack, spg {status, message, solver}, levels [{name,
         residual (max violation of the level's velocity bounds), slack}], tank_energy [J],
         solve_time / tick_time [s], qdot_v [rad/s], rejected {reason: count}, watchdog
-        {timeout, trips, resumes}, errors (the last few), event {type, message} (when given)
+        {timeout, trips, resumes}, pspm {power_budget and max_power [W], refilled [J] per
+        joint, stall: None or {joints, requested_power [W] per joint, total_power [W], since
+        [s], fix, message}, stalls (episodes reported)} (None without PSPM), errors (the
+        last few), event {type, message} (when given)
         config (the :class:`SpgConfig` as a dict) and robot_params (:func:`robot_params`: the
         K, D and limits the SPG uses), both in the first document and every event.
 
@@ -456,6 +465,7 @@ class SpgRunner:
             'rejected': dict(self.rejected),
             'watchdog': {'timeout': self.config.watchdog_timeout,
                          'trips': self.watchdog_trips, 'resumes': self.resumes},
+            'pspm': self._pspm_status(info),
             'errors': list(self.errors),
         }
         if event is not None:
@@ -466,14 +476,33 @@ class SpgRunner:
             self._config_sent = True
         return doc
 
+    def _pspm_status(self, info):
+        doc = info.pspm
+        if doc is not None:
+            doc['stalls'] = self.pspm_stalls
+        return doc
+
     def diagnostics(self):
-        """A :class:`DiagItem` summarizing the node (for a ~1 Hz DiagnosticArray)."""
+        """A :class:`DiagItem` summarizing the node (for a ~1 Hz DiagnosticArray).
+
+        A PSPM stall (an empty tank clipping the stack) is a WARN naming the joints, the
+        power the stack asks for and the setting that would allow it."""
         values = {'ticks': str(self.ticks), 'state': self.state,
                   'stack': f'{self.stack_name} (id {self.stack_id})' if self.stack_id else '',
                   'spg_status': self.spg.info.status,
                   'watchdog_trips': str(self.watchdog_trips), 'resumes': str(self.resumes)}
         for reason, count in self.rejected.items():
             values[f'rejected.{reason}'] = str(count)
+        stall = self.spg.info.stall
+        if self.spg.tanks is not None:
+            values['pspm.power_budget_w'] = f'{self.spg.tanks.power:g}'
+            values['pspm.max_power_w'] = f'{self.spg.tanks.config.max_power:g}'
+            values['pspm.stalls'] = str(self.pspm_stalls)
+            if stall is not None:
+                names = self.joint_names
+                values['pspm.stalled_joints'] = ','.join(names[j] for j in stall.joints)
+                values['pspm.requested_power_w'] = f'{stall.total_power:.3g}'
+                values['pspm.fix'] = stall.suggestion()
         if self._period:
             period = float(np.median(self._period))
             values['period_median_s'] = f'{period:.6f}'
@@ -487,6 +516,8 @@ class SpgRunner:
             return DiagItem('STALE', 'spg_node', self._last_error_of('watchdog'), values)
         if self.spg.info.status in ('hold', 'bad_input'):
             return DiagItem('ERROR', 'spg_node', self.spg.info.message, values)
+        if stall is not None:
+            return DiagItem('WARN', 'spg_node', self.spg.info.message, values)
         if self.spg.info.status == 'fallback' or any(self.rejected.values()):
             return DiagItem('WARN', 'spg_node', self.last_error, values)
         if self._period and abs(float(np.median(self._period)) - self.config.dt) > \

@@ -243,3 +243,49 @@ def test_bounds_are_exact_and_contain_zero():
 def test_bad_config_is_rejected(kwargs):
     with pytest.raises(ParameterError, match='pspm'):
         PspmConfig(**kwargs)
+
+
+A1_SINE = '''version: 1
+name: a1_sine
+tasks:
+  - {name: a1, type: joint_position, joints: [A1], gain: 10.0,
+     equal: {trajectory: sine, amplitude: 0.3, frequency: 0.5}}
+  - {name: rest, type: joint_position, equal: init, gain: 5.0}
+'''
+
+
+def test_the_node_logic_reports_a_stall_on_status_and_diagnostics_once_per_episode():
+    from ifc_spg.spg_config import SpgConfig
+    from ifc_spg.spg_runner import SpgRunner, status_json
+
+    runner = SpgRunner(SpgConfig(robot='lbr_iiwa14', status_decimation=1))
+    too_much = runner.handle_task_stack(A1_SINE.replace('tasks:', 'power_budget: 3\ntasks:'),
+                                        source='a1.yaml')
+    assert not too_much.accepted
+    assert 'a1.yaml' in too_much.message and 'power_budget 3 W' in too_much.message
+    assert 'pspm.max_power' in too_much.message
+    assert runner.handle_task_stack(A1_SINE).accepted
+    plant = JointImpedancePlant(IIWA, IIWA.q_home, substeps=4)
+    q, qd, t = plant.q, plant.qdot, 0.0
+    levels, logged = [], 0
+    for i in range(1500):
+        before = runner.pspm_stalls
+        runner.handle_joint_state(IIWA.joint_names, q, qd, round(t * 1e9))
+        logged += runner.pspm_stalls != before
+        if i % 50 == 0:
+            levels.append(runner.diagnostics().level)
+        tau = np.zeros(7)
+        tau[0] = -2.0 * qd[0]
+        q, qd, t = plant.step(runner.spg.q_v, tau_ext=tau)
+    assert logged == 1 and runner.pspm_stalls == 1
+    assert levels[0] == 'OK' and levels[-1] == 'WARN'
+    status = runner.status()
+    stall = status['pspm']['stall']
+    assert stall['joints'] == ['A1'] and stall['total_power'] > 0.0
+    assert status['spg']['status'] == 'ok' and status['spg']['message'] == stall['message']
+    assert status['pspm']['power_budget'] == 0.0 and status['pspm']['stalls'] == 1
+    assert any(e['source'] == 'pspm' for e in status['errors'])
+    diag = runner.diagnostics()
+    assert diag.values['pspm.stalled_joints'] == 'A1'
+    assert 'power_budget' in diag.values['pspm.fix'] and 'pspm.max_power' in diag.message
+    status_json(status)  # strict JSON
