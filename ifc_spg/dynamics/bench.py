@@ -5,6 +5,11 @@
    same run: median, p99, max per call.
 3. Static friction, 3 stationary joints: exact QP method vs the report's sampling with
    21 samples per joint (9261 solver runs).
+4. KDL's C++ ``ChainHdSolver_Vereshchagin`` side by side (where liborocos-kdl-dev is
+   installed; the timing program is built at run time, see :mod:`ifc_spg.dynamics.kdl`):
+   the iiwa 14 and a 17-DoF chain, free and with 1 and 3 constraints; ours in C and in
+   numpy, KDL and pinocchio ABA, same states, same run; the ratio ours (C) / KDL and the
+   largest difference of KDL's q̈ from ours (same chain given to both).
 
 Run: ``ifc-spg dynamics bench [--quick] [--json FILE]`` or
 ``python -m ifc_spg.dynamics.bench``.
@@ -18,6 +23,7 @@ import time
 import numpy as np
 import pinocchio as pin
 
+from ifc_spg.dynamics import kdl, native
 from ifc_spg.dynamics.models import iiwa_like_model, random_chain_model
 from ifc_spg.dynamics.static_friction import StaticFrictionSolver
 from ifc_spg.dynamics.vereshchagin import VereshchaginSolver
@@ -87,7 +93,7 @@ def bench_iiwa(rng, calls, model=None, label='iiwa_like'):
     return res
 
 
-def bench_friction(rng, problems, samples=21):
+def bench_friction(rng, problems, samples=21, calls=500):
     """Exact QP vs sampling (``samples`` per joint) with 3 stationary joints."""
     rows = []
     for _ in range(problems):
@@ -99,17 +105,105 @@ def bench_friction(rng, problems, samples=21):
         qd[rng.choice(7, 3, replace=False)] = 0.0
         tau = rng.normal(size=7) * 5
         fs.solve(q, qd, tau)                       # warm-up (imports, QP object)
-        t_exact = _time_calls(lambda fs=fs, q=q, qd=qd, tau=tau: fs.solve(q, qd, tau), [()], 50)
+        t_exact = _time_calls(lambda fs=fs, q=q, qd=qd, tau=tau: fs.solve(q, qd, tau), [()],
+                              calls)
         t0 = time.perf_counter()
         ref = fs.solve_sampling(q, qd, tau, samples=samples)
         t_samp = time.perf_counter() - t0
         ex = fs.solve(q, qd, tau)
         rows.append({'exact_median_us': float(np.median(t_exact)),
+                     'exact': _stats(t_exact),
                      'sampling_s': t_samp, 'speedup': t_samp * 1e6 / float(np.median(t_exact)),
                      'gauss_exact': ex.gauss, 'gauss_sampling': ref.gauss,
                      'mu_exact': ex.mu.tolist(), 'mu_sampling': ref.mu.tolist()})
     return {'samples_per_joint': samples, 'runs_per_sampling': samples ** 3, 'problems': rows,
             'min_speedup': min(r['speedup'] for r in rows)}
+
+
+def _kdl_chains():
+    """The chains of the KDL comparison: (label, model, tip frame)."""
+    chains = []
+    try:
+        from ifc_spg.model import RobotModel
+        rm = RobotModel.from_config('lbr_iiwa14')
+        chains.append(('lbr_iiwa14', rm.model, rm.frames['tool']))
+    except Exception as exc:  # noqa: BLE001 - optional model from another module
+        print(f'  (RobotModel lbr_iiwa14 not available: {type(exc).__name__}: {exc}; '
+              'using the iiwa-like model)')
+        chains.append(('iiwa_like', iiwa_like_model(), 'tool'))
+    chains.append(('random17', random_chain_model(np.random.default_rng(17), 17), 'tip'))
+    return chains
+
+
+def bench_kdl(rng, calls):
+    """Ours (C, numpy), KDL and pinocchio ABA on the same chains and states (section 4)."""
+    ok, why = kdl.available()
+    exe = None
+    if ok:
+        try:
+            exe = kdl.build()
+        except RuntimeError as exc:
+            why = str(exc)
+    out = {'kdl': exe is not None, 'kdl_missing': None if exe else why, 'rows': []}
+    eye = np.eye(6)
+    for label, model, tip in _kdl_chains():
+        data = model.createData()
+        solvers = {'numpy': VereshchaginSolver(model, tip_frame=tip, kernel='numpy')}
+        if native.NativeKernel is not None:
+            solvers['c'] = VereshchaginSolver(model, tip_frame=tip, kernel='native')
+        chain = solvers['numpy'].chain
+        states = _states(rng, model, 50)
+        rep = max(1, calls // 50)
+        aba = _stats(_time_calls(lambda q, v, t: pin.aba(model, data, q, v, t), states, rep))
+        a0 = -np.asarray(model.gravity.vector, dtype=float)
+        for m, A in ((0, None), (1, eye[:, [2]]), (3, eye[:, :3])):
+            b = None if A is None else np.zeros(m)
+            row = {'chain': label, 'dof': model.nv, 'constraints': m, 'pinocchio_aba': aba}
+            for key, solver in solvers.items():
+                row[f'ours_{key}'] = _stats(_time_calls(
+                    lambda q, v, t, solver=solver, A=A, b=b: solver.solve(q, v, t, A_N=A, b_N=b),
+                    states, rep if key == 'c' else max(1, rep // 4)))
+            if exe is not None:
+                ours = np.array([solvers['numpy'].solve(q, v, t, A_N=A, b_N=b).qdd
+                                 for q, v, t in states])
+                qdd, t_kdl = kdl.run(exe, chain, [(chain.joint_angles(q), v, t)
+                                                  for q, v, t in states],
+                                     base_acceleration=a0, A_N=A, b_N=b, repeat=rep)
+                row['kdl'] = _stats(t_kdl)
+                row['kdl_max_qdd_diff'] = float(np.max(np.abs(qdd - ours)))
+                if 'ours_c' in row:
+                    row['ratio_c_vs_kdl'] = row['ours_c']['median_us'] / row['kdl']['median_us']
+            out['rows'].append(row)
+    return out
+
+
+def print_kdl(res):
+    """Print section 4: per chain and constraint count, median / p99 / max per call."""
+    print("KDL's C++ ChainHdSolver_Vereshchagin side by side (same chains, same states):")
+    if not res['kdl']:
+        print(f'  KDL: not run: {res["kdl_missing"]}')
+    cols = (('ours_c', 'ours (C)'), ('ours_numpy', 'ours (numpy)'), ('kdl', 'KDL (C++, -O2)'),
+            ('pinocchio_aba', 'pinocchio ABA'))
+    for r in res['rows']:
+        print(f'  {r["chain"]} ({r["dof"]} DoF), {r["constraints"]} constraints, per call [us]'
+              '     median      p99      max')
+        for key, name in cols:
+            if key in r:
+                s = r[key]
+                note = '   (free motion: ABA has no constraints)' if key == 'pinocchio_aba' \
+                    and r['constraints'] else ''
+                print(f'    {name:34s} {s["median_us"]:8.2f} {s["p99_us"]:8.2f} '
+                      f'{s["max_us"]:8.2f}{note}')
+        if 'ratio_c_vs_kdl' in r:
+            print(f'    median ratio ours (C) / KDL: {r["ratio_c_vs_kdl"]:.2f}x   '
+                  f'max |qdd - qdd_KDL| = {r["kdl_max_qdd_diff"]:.1e}')
+    print('  summary, median per call [us]:')
+    print('    chain         DoF  constr   ours C  ours numpy      KDL  pin. ABA  C/KDL')
+    for r in res['rows']:
+        med = {k: (f'{r[k]["median_us"]:8.2f}' if k in r else '       -') for k, _ in cols}
+        ratio = f'{r["ratio_c_vs_kdl"]:6.2f}x' if 'ratio_c_vs_kdl' in r else '      -'
+        print(f'    {r["chain"]:12s} {r["dof"]:4d} {r["constraints"]:7d} {med["ours_c"]}'
+              f'    {med["ours_numpy"]} {med["kdl"]}  {med["pinocchio_aba"]} {ratio}')
 
 
 def main(argv=None):
@@ -122,7 +216,9 @@ def main(argv=None):
     rng = np.random.default_rng(args.seed)
     calls = 200 if args.quick else 2000
     dofs = [2, 4, 8, 16, 32, 64] if args.quick else [2, 4, 6, 8, 12, 16, 24, 32, 40, 48, 56, 64]
-    out = {'numpy': np.__version__, 'pinocchio': pin.__version__}
+    out = {'numpy': np.__version__, 'pinocchio': pin.__version__,
+           'kernel': native.describe()}
+    print(f'dynamics kernel: {native.describe()}')
     out['scaling'] = sc = bench_scaling(rng, dofs, calls)
     print('time per call vs DoF (random chains, free motion):')
     for n, t in zip(sc['dof'], sc['median_us']):
@@ -142,12 +238,17 @@ def main(argv=None):
             s = r[key]
             print(f'  {key:28s} {s["median_us"]:8.1f} {s["p99_us"]:8.1f} {s["max_us"]:8.1f}')
         print(f'  median ratio solver / ABA: {r["ratio_median_free_vs_aba"]:.0f}x')
-    out['friction'] = fr = bench_friction(rng, 1 if args.quick else 3)
-    print('static friction, 3 stationary joints (iiwa-like):')
+    out['friction'] = fr = bench_friction(rng, 1 if args.quick else 3,
+                                          calls=100 if args.quick else 1000)
+    print('static friction, 3 stationary joints (iiwa-like), exact solve per call [us]:')
     for r in fr['problems']:
-        print(f'  exact {r["exact_median_us"]:.0f} us, sampling ({fr["runs_per_sampling"]} runs)'
-              f' {r["sampling_s"]:.2f} s -> {r["speedup"]:.0f}x faster; '
+        e = r['exact']
+        print(f'  exact median {e["median_us"]:.1f}, p99 {e["p99_us"]:.1f}, max '
+              f'{e["max_us"]:.1f}; sampling ({fr["runs_per_sampling"]} runs) '
+              f'{r["sampling_s"]:.2f} s -> {r["speedup"]:.0f}x faster; '
               f'Z exact {r["gauss_exact"]:.6g} >= Z sampling {r["gauss_sampling"]:.6g}')
+    out['kdl'] = bench_kdl(rng, calls if args.quick else 5 * calls)
+    print_kdl(out['kdl'])
     if args.json:
         with open(args.json, 'w', encoding='utf-8') as fh:
             json.dump(out, fh, indent=2)
