@@ -4,10 +4,18 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ifc_spg.dynamics import StaticFrictionSolver, VereshchaginSolver
+from ifc_spg.dynamics import StaticFrictionSolver, VereshchaginSolver, vereshchagin
 from ifc_spg.dynamics.models import random_chain_model
 from ifc_spg.dynamics.scenarios import external_joint_torques, report_problems
+from ifc_spg.dynamics.vereshchagin import KERNELS
 from ifc_spg.errors import ParameterError, SolverError
+
+
+@pytest.fixture(autouse=True, params=KERNELS)
+def kernel(request, monkeypatch):
+    """Every test here runs on both kernels (solvers built without ``kernel=`` get this one)."""
+    monkeypatch.setattr(vereshchagin, 'default_kernel', lambda: request.param)
+    return request.param
 
 
 def _joint_inertia(model):

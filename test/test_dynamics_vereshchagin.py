@@ -8,9 +8,17 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ifc_spg.dynamics import VereshchaginSolver
+from ifc_spg.dynamics import VereshchaginSolver, vereshchagin
 from ifc_spg.dynamics.models import iiwa_like_model, planar_arm, random_chain_model
+from ifc_spg.dynamics.vereshchagin import KERNELS
 from ifc_spg.errors import ModelError, ParameterError, UnknownFrame
+
+
+@pytest.fixture(autouse=True, params=KERNELS)
+def kernel(request, monkeypatch):
+    """Every test here runs on both kernels (solvers built without ``kernel=`` get this one)."""
+    monkeypatch.setattr(vereshchagin, 'default_kernel', lambda: request.param)
+    return request.param
 
 
 def _fext_local(model, data, q, wrenches):
