@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ifc_spg.dynamics import kdl, native, StaticFrictionSolver, VereshchaginSolver
+from ifc_spg.dynamics import StaticFrictionSolver, VereshchaginSolver, kdl, native
 from ifc_spg.dynamics import _native_dynamics as nat  # the build, whatever IFC_SPG_NATIVE says
 from ifc_spg.dynamics.box_qp import box_qp
 from ifc_spg.dynamics.models import iiwa_like_model, random_chain_model

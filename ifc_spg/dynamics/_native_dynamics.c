@@ -35,7 +35,7 @@ typedef struct {
     double *mem;
     double *T, *R, *p, *S, *Iw, *pb, *cb, *Cb, *Mx, *xs, *D, *Es, *K, *qddc, *nuc, *rhs;
     double *qdd, *nu, *mu, *taue, *acol, *th, *qdv;
-    double *gG, *gg, *gf, *gx, *ggrad, *gp, *gL;
+    double *gG, *gg, *gf, *ggrad, *gp, *gL;
     npy_intp *joints;
     int *state, *fi;
     double Aw[6 * MAXC], A[6 * MAXC], b[MAXC], ptip[3], a0[6], L[MAXC * MAXC];
@@ -226,7 +226,8 @@ static void release(Held *h) {
     h->nh = 0;
 }
 
-/* float64 C-contiguous view of o (converted when needed, kept in h), or NULL (no error). */
+/* float64 C-contiguous view of o (converted when needed as np.asarray(o, dtype=float) does,
+ * kept in h), or NULL (no error). */
 static PyArrayObject *as_f64(Held *h, PyObject *o) {
     if (PyArray_CheckExact(o)) {
         PyArrayObject *a = (PyArrayObject *)o;
@@ -234,7 +235,7 @@ static PyArrayObject *as_f64(Held *h, PyObject *o) {
             return a;
     }
     PyArrayObject *a = (PyArrayObject *)PyArray_FROMANY(
-        o, NPY_DOUBLE, 0, 0, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED);
+        o, NPY_DOUBLE, 0, 0, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED | NPY_ARRAY_FORCECAST);
     if (a == NULL) {
         PyErr_Clear();
         return NULL;
@@ -712,14 +713,13 @@ static PyObject *k_solve(Kernel *s, PyObject *const *args, Py_ssize_t nargs) {
     return build_result(s, NULL, gauss);
 }
 
-/* Torque columns [tau | e_j for j in joints]; joints (k,) validated here. */
-static int set_columns(Kernel *s, const npy_intp *joints, int k) {
+/* Torque columns [tau | e_j for j in joints] (joints already checked to be in range). */
+static void set_columns(Kernel *s, const npy_intp *joints, int k) {
     const int n = s->n, r = 1 + k;
     s->r = r;
     memset(s->T, 0, sizeof(double) * n * r);
     for (int i = 0; i < n; i++) s->T[(npy_intp)r * i] = s->taue[i];
     for (int c = 0; c < k; c++) s->T[(npy_intp)r * joints[c] + 1 + c] = 1.0;
-    return 1;
 }
 
 PyDoc_STRVAR(sensitivity_doc,
@@ -921,13 +921,13 @@ static PyObject *k_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
     npy_intp sizes[] = {N,     3 * N,  9 * N,  9 * N,  9 * N,  3 * N,  N,     3 * N,  9 * N,
                         N,     N * rm, 9 * N,  3 * N,  6 * N,  36 * N, 6 * N, 6 * N,  6 * N,
                         6 * km, N * km, N,     6 * MAXC * N, N * rm, N * rm, MAXC * rm,
-                        MAXC * rm, N, MAXC, N, N, 6 * rm, N, N, N * N, N, N, N, N, N, N * N};
+                        MAXC * rm, N, MAXC, N, N, 6 * rm, N, N, N * N, N, N, N, N, N * N};
     double **ptrs[] = {&s->rev,  &s->axis, &s->sk,   &s->sk2,  &s->Rp,   &s->pp,   &s->mass,
                        &s->com,  &s->Ic,   &s->arm,  &s->T,    &s->R,    &s->p,    &s->S,
                        &s->Iw,   &s->pb,   &s->cb,   &s->Cb,   &s->Mx,   &s->xs,   &s->D,
                        &s->Es,   &s->K,    &s->qddc, &s->nuc,  &s->rhs,  &s->qdd,  &s->nu,
                        &s->mu,   &s->taue, &s->acol, &s->th,   &s->qdv,  &s->gG,   &s->gg,
-                       &s->gf,   &s->gx,   &s->ggrad, &s->gp,  &s->gL};
+                       &s->gf,   &s->ggrad, &s->gp,  &s->gL};
     const int count = (int)(sizeof(sizes) / sizeof(sizes[0]));
     npy_intp total = 0;
     for (int j = 0; j < count; j++) total += sizes[j];
@@ -951,8 +951,7 @@ static PyObject *k_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
     for (int j = 0; j < 10; j++)
         if (!copy_in(o[j], *ptrs[j], sizes[j], names[j])) goto fail;
     {
-        double tmp_iq[1024], *tq = N <= 1024 ? tmp_iq : s->gG;
-        if (N > 1024) goto fail_size;
+        double *tq = s->gG; /* n x n workspace, free here */
         if (!copy_in(o[10], tq, N, "idx_q")) goto fail;
         for (int i = 0; i < n; i++) {
             s->iq[i] = (npy_intp)tq[i];
@@ -968,7 +967,7 @@ static PyObject *k_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
         goto fail;
     return (PyObject *)s;
 fail_size:
-    PyErr_SetString(PyExc_ValueError, "idx_q / unbounded do not fit nq (at most 1024 joints)");
+    PyErr_SetString(PyExc_ValueError, "idx_q / unbounded do not fit nq");
 fail:
     Py_DECREF(s);
     return NULL;

@@ -16,6 +16,7 @@ Run: ``ifc-spg dynamics bench [--quick] [--json FILE]`` or
 """
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -154,7 +155,7 @@ def bench_kdl(rng, calls):
         chain = solvers['numpy'].chain
         states = _states(rng, model, 50)
         rep = max(1, calls // 50)
-        aba = _stats(_time_calls(lambda q, v, t: pin.aba(model, data, q, v, t), states, rep))
+        aba = _stats(_time_calls(functools.partial(pin.aba, model, data), states, rep))
         a0 = -np.asarray(model.gravity.vector, dtype=float)
         for m, A in ((0, None), (1, eye[:, [2]]), (3, eye[:, :3])):
             b = None if A is None else np.zeros(m)

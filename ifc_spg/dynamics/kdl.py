@@ -42,6 +42,8 @@ def _find_include(rel):
 
 def available():
     """``(True, '')`` when KDL can be benchmarked here, else ``(False, why)``."""
+    if not os.path.isfile(_SOURCE):
+        return False, f'the timing program source {_SOURCE} is not installed'
     if _find_include(_HEADER) is None:
         return False, (f'KDL not found ({_HEADER} is in none of {", ".join(_INCLUDE_DIRS)}); '
                        'install it with: apt-get install liborocos-kdl-dev')
@@ -138,9 +140,9 @@ def run(exe, chain, states, *, base_acceleration, A_N=None, b_N=None, repeat=20)
     a0 = np.concatenate((R0.T @ (a0[:3] + np.cross(a0[3:], p0)), R0.T @ a0[3:]))
     A = np.vstack((R0.T @ A[:3], R0.T @ A[3:]))
     lines = [f'{len(segs)} {A.shape[1]} {len(states)} {int(repeat)}']
-    for kind, ax, rotor, R, p, m, c, I in segs:
+    for kind, ax, rotor, R, p, m, c, Ic in segs:
         lines.append(f'{kind} {_fmt(ax)} {rotor!r} {_fmt(R)} {_fmt(p)} {m!r} {_fmt(c)} '
-                     f'{_fmt([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])}')
+                     f'{_fmt([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]])}')
     lines.append(f'{_fmt(a0)} {_fmt(A)} {_fmt(b)}')
     for th, qd, tau in states:
         lines.append(f'{_fmt(th)} {_fmt(qd)} {_fmt(tau)}')
