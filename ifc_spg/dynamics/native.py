@@ -74,9 +74,6 @@ if _mod is not None:
                 tip_placement=chain.tip_placement, gravity0=gravity0, rank_tol=rank_tol,
                 damping=damping, result_type=result_type, check=check)
 
-        def __init__(self, *args, **kwargs):
-            pass
-
         def sensitivity(self, q, qd, tau, joints, a0, fext, A, b):
             """``(base, G, combine)``: see ``VereshchaginSolver.solve_with_sensitivity``.
 

@@ -18,6 +18,13 @@ rank-1 update per joint. The inward sweep carries several right-hand sides at on
 (columns of torques), so the response of q̈ to unit joint torques, ∂q̈/∂τ, comes out of
 the same pass (used by the static-friction extension).
 
+Two kernels run these sweeps, chosen once per solver (``kernel=``): :class:`NumpyKernel`
+here, the reference, and the same steps in C (``_native_dynamics.c``, wrapped by
+:class:`ifc_spg.dynamics.native.NativeKernel`), ~40x faster: one workspace per chain, no
+allocation per call but the result's arrays. The C kernel is the default where it was
+built; ``IFC_SPG_NATIVE=0`` selects numpy. Both give the same results to round-off
+(test/test_dynamics_native.py). ``ifc-spg dynamics bench`` times both next to KDL.
+
 Conventions:
     * Spatial vectors are [linear; angular]; wrenches [force; moment].
     * The constrained acceleration Ẍ_N is the *spatial* acceleration of the tip frame
