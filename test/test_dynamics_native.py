@@ -267,3 +267,22 @@ def test_kdl_reproduces_our_accelerations(which, tmp_path):
                          for q, s in zip(qs, states)])
         np.testing.assert_allclose(qdd, ours, rtol=1e-9, atol=1e-9)
         assert t.shape == (len(states),) and np.all(t > 0)
+
+
+def test_bench_kdl_section(monkeypatch, tmp_path, capsys):
+    """``ifc-spg dynamics bench`` section 4 (smoke): all rows; without KDL it says so."""
+    from ifc_spg.dynamics import bench
+    monkeypatch.setenv('XDG_CACHE_HOME', str(tmp_path))     # the KDL program's cache
+    res = bench.bench_kdl(np.random.default_rng(0), 50)
+    assert [(r['dof'], r['constraints']) for r in res['rows']] == [
+        (7, 0), (7, 1), (7, 3), (17, 0), (17, 1), (17, 3)]
+    for r in res['rows']:
+        assert r['ours_c']['median_us'] > 0 and r['ours_numpy']['median_us'] > 0
+        if _KDL_OK:
+            assert r['kdl_max_qdd_diff'] < 1e-9 and r['ratio_c_vs_kdl'] > 0
+    monkeypatch.setattr(kdl, 'available', lambda: (False, 'KDL not found (test)'))
+    res = bench.bench_kdl(np.random.default_rng(0), 50)
+    bench.print_kdl(res)
+    out = capsys.readouterr().out
+    assert 'KDL: not run: KDL not found (test)' in out
+    assert all('kdl' not in r and 'ours_c' in r for r in res['rows'])
