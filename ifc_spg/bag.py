@@ -318,6 +318,11 @@ class Recorder:
         self._pubs = BuiltinDataReader(node.context.participant, BuiltinTopicDcpsPublication)
         self._last_discovery = 0.0
 
+    @property
+    def recording(self):
+        """The topics subscribed to."""
+        return [t for t, s in self._subs.items() if s is not None]
+
     def _subscribe(self, topic, msgtype, qos):
         from ifc_spg.ros import dds, messages
 
@@ -374,6 +379,105 @@ class Recorder:
         return n
 
 
+def _rclpy_message_class(msgtype):
+    """The rclpy class of ROS type ``pkg/msg/T`` (rosidl_runtime_py is not among the Jazzy
+    wheels, so the generated module is imported by name)."""
+    import importlib
+
+    pkg, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+
+
+def _from_rclpy_qos(profile):
+    """Our QoSProfile of an rclpy QoSProfile (the offered profile of a discovered writer)."""
+    depth = int(profile.depth) or 10
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy(int(profile.reliability)),
+                      durability=DurabilityPolicy(int(profile.durability)))
+
+
+class RclpyRecorder:
+    """Records topics over rclpy into a bag: raw (serialized CDR) subscriptions, written with
+    their receive time, so the bytes are those on the wire (as ``ros2 bag record``).
+
+    Args:
+        node: An rclpy node (``ifc_spg.ros.Node`` with the rclpy backend).
+        writer: A :class:`BagWriter`.
+        topics: Topic names to record (relative or absolute); None: ``TOPICS``.
+        discover_all: Also record every other ROS topic that appears on the graph.
+    """
+
+    def __init__(self, node, writer, topics=None, discover_all=False):
+        from ifc_spg import ros
+
+        self.node, self.writer, self.discover_all = node, writer, discover_all
+        self._executor = ros.executor((node,))
+        self._subs, self._wanted, self._pending = {}, set(), []
+        for topic in (TOPICS if topics is None else topics):
+            name = _absolute(node, topic)
+            known = TOPICS.get(topic) or TOPICS.get(name.lstrip('/'))
+            self._wanted.add(name)
+            if known is not None:
+                self._subscribe(name, *known)
+        self._last_discovery = 0.0
+
+    def _subscribe(self, topic, msgtype, qos):
+        from ifc_spg import ros
+
+        try:
+            cls = _rclpy_message_class(msgtype)
+        except (ImportError, AttributeError, ValueError):
+            self.node.get_logger().warning(f"not recording '{topic}': no rclpy message class "
+                                           f"for '{msgtype}'")
+            self._subs[topic] = None
+            return
+        reader_qos = ros.QoSProfile(depth=1000, reliability=int(qos.reliability),
+                                    durability=int(qos.durability))
+        pending = self._pending
+        self._subs[topic] = self.node.create_subscription(
+            cls, topic, lambda data, t=topic: pending.append((t, time.time_ns(), data)),
+            reader_qos, raw=True)
+        self.writer.add_topic(topic, msgtype, qos)
+
+    @property
+    def recording(self):
+        """The topics subscribed to."""
+        return [t for t, s in self._subs.items() if s is not None]
+
+    def discover(self):
+        """Subscribe to newly discovered topics we want (typed and QoS'd by the graph)."""
+        for topic, types in self.node.get_topic_names_and_types():
+            if topic in self._subs or not types:
+                continue
+            if topic in self._wanted or (self.discover_all and topic not in (
+                    '/rosout', '/parameter_events')):
+                infos = self.node.get_publishers_info_by_topic(topic)
+                qos = _from_rclpy_qos(infos[0].qos_profile) if infos else QoSProfile(depth=10)
+                self._subscribe(topic, types[0], qos)
+
+    def drain(self):
+        """Write what arrived; the number of messages written."""
+        n = len(self._pending)
+        for topic, t, data in self._pending:
+            self.writer.write(topic, t, data)
+        self._pending.clear()
+        return n
+
+    def spin_once(self, timeout_s=0.1):
+        """Run the callbacks ready within ``timeout_s`` [s], write them, look for new topics."""
+        deadline = time.monotonic() + timeout_s
+        self._executor.spin_once(timeout_sec=timeout_s)
+        while time.monotonic() < deadline and len(self._pending) < 10000:
+            self._executor.spin_once(timeout_sec=0.0)
+            if not self._pending:
+                break
+        n = self.drain()
+        now = time.monotonic()
+        if now - self._last_discovery > 0.2:
+            self._last_discovery = now
+            self.discover()
+        return n
+
+
 def record(path, topics=None, discover_all=False, duration=None, args=None, quiet=False):
     """Record until SIGINT/SIGTERM or ``duration`` [s]; returns {topic: count}.
 
@@ -387,18 +491,15 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
     """
     from ifc_spg import ros
 
-    if ros.BACKEND != 'cyclonedds':
-        raise IfcSpgError('bag record uses the built-in DDS backend; with ROS 2 installed use '
-                          "'ros2 bag record -s mcap' (same bag format), or set "
-                          'IFC_SPG_ROS_BACKEND=cyclonedds')
     stop = _Stop()
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     ros.init(args=['ifc-spg', *(args or [])])
     node = ros.Node('bag_recorder')
     writer = BagWriter(path)
     try:
-        rec = Recorder(node, writer, topics, discover_all)
-        print(f'recording {", ".join(sorted(t for t, s in rec._subs.items() if s)) or "(none)"}'
+        rec = (Recorder if ros.BACKEND == 'cyclonedds' else RclpyRecorder)(
+            node, writer, topics, discover_all)
+        print(f'recording {", ".join(sorted(rec.recording)) or "(none)"}'
               f'{" + discovered topics" if discover_all or topics else ""} into {path}; '
               'stop with Ctrl-C', flush=True)
         start = time.monotonic()
@@ -448,8 +549,7 @@ def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0):
                 node.get_logger().warning(f"skipping '{topic}': no message class for {msgtype}")
                 continue
             if cls is None:
-                from rosidl_runtime_py.utilities import get_message
-                cls = get_message(msgtype)
+                cls = _rclpy_message_class(msgtype)
             default = TOPICS.get(topic.lstrip('/'), (None, QoSProfile(depth=10)))[1]
             qos = from_rosbags_qos(profiles, default)
             if ros.BACKEND != 'cyclonedds':

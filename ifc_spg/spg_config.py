@@ -13,6 +13,7 @@ ROS parameter names are grouped with dots (``pspm.initial_energy``, ``topics.com
 in a params file they are nested mappings under ``ros__parameters``.
 """
 
+import array
 from dataclasses import dataclass, fields
 import math
 import os
@@ -223,13 +224,44 @@ def _descriptor(ros, p, default):
     return desc
 
 
-def _overrides(node):
-    # The backend's table of -p / --params-file values for this node (rclpy keeps it in
-    # ``_parameter_overrides``); used only to refuse parameters nobody declared.
+def overrides(node):
+    """``{name: value}`` of the -p / --params-file values given to ``node``.
+
+    rclpy offers no public accessor for a node's parameter overrides, so this reads its
+    ``_parameter_overrides`` (rclpy 7, Jazzy); the built-in backend keeps them in
+    ``_overrides``. Used to refuse parameters nobody declares and to check a value with the
+    same messages on both backends before rclpy sees it.
+    """
     table = getattr(node, '_overrides', None)
-    if table is None:
-        table = getattr(node, '_parameter_overrides', None) or {}
-    return list(table)
+    if table is not None:
+        return dict(table)
+    table = getattr(node, '_parameter_overrides', None) or {}
+    out = {}
+    for name, param in table.items():
+        value = getattr(param, 'value', param)
+        out[name] = list(value) if isinstance(value, array.array) else value
+    return out
+
+
+def declare_checked(node, name, default, descriptor):
+    """``node.declare_parameter(name, default, descriptor).value``, with an override checked
+    first (type, range: :func:`~ifc_spg.ros.parameters.check_parameter_value`), so that a bad
+    value gives the same clear message on rclpy and on the built-in backend.
+
+    Raises:
+        ParameterError: A bad type or range.
+    """
+    from ifc_spg.ros.parameters import ParameterType, check_parameter_value
+
+    given = overrides(node)
+    if name in given:
+        check_parameter_value(name, given[name], descriptor, ParameterType.of(default))
+    try:
+        return node.declare_parameter(name, default, descriptor).value
+    except ParameterError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rclpy's InvalidParameter*Exception and friends
+        raise ParameterError(f"parameter '{name}': {exc}") from None
 
 
 def declare_parameters(node):
@@ -252,16 +284,10 @@ def declare_parameters(node):
         if isinstance(default, tuple):  # per joint: declared with the robot's own values
             gains = gains or robot_gains_of(values['robot'])
             default = gains[p.field]
-        try:
-            values[p.name] = node.declare_parameter(p.name, default,
-                                                    _descriptor(ros, p, default)).value
-        except ParameterError:
-            raise
-        except Exception as exc:  # rclpy's InvalidParameterTypeException and friends
-            raise ParameterError(f"parameter '{p.name}': {exc}") from None
+        values[p.name] = declare_checked(node, p.name, default, _descriptor(ros, p, default))
         if isinstance(_DEFAULTS[p.field], tuple) and list(values[p.name]) == default:
             values[p.name] = ()  # not overridden: the robot configuration's own
-    unknown = [name for name in _overrides(node) if name not in _BY_NAME and
+    unknown = [name for name in overrides(node) if name not in _BY_NAME and
                not any(name == f or name.startswith(f) for f in _FOREIGN_OK)]
     if unknown:
         raise ParameterError(f"unknown spg_node parameter '{unknown[0]}'"

@@ -70,7 +70,8 @@ class SpgNode:
         self.commands_sent = 0
         self.log.info(f"spg_node: robot '{c.robot}' ({self.runner.robot.n} joints), dt {c.dt} s,"
                       f" solver {c.solver}, pspm {'on' if c.pspm else 'off'}, watchdog "
-                      f'{c.watchdog_timeout * 1e3:g} ms; waiting for {c.joint_states_topic}')
+                      f'{c.watchdog_timeout * 1e3:g} ms; {ros.describe()}; waiting for '
+                      f'{c.joint_states_topic}')
         if c.solver == 'proxsuite':
             self.log.warning('solver proxsuite is for comparisons: on degenerate levels it '
                              'falls back to the higher levels on most ticks, and one tick can '

@@ -158,6 +158,7 @@ def main(argv=None):
     ros.init(args=argv)
     node = ros.Node('task_publisher')
     log = node.get_logger()
+    log.info(f'task_publisher: {ros.describe()}')
     try:
         pub = node.create_publisher(String, args.topic, ros.latched(1))
         def alive():

@@ -10,13 +10,16 @@ die() { echo "$(basename "$0"): $*" >&2; exit 1; }
 say() { echo "$(basename "$0"): $*" >&2; }
 
 # setup_env: the .venv's console scripts first on PATH; loopback DDS unless the caller set
-# CYCLONEDDS_URI; a random ROS_DOMAIN_ID in [1, 101] unless set (so parallel runs on one
-# machine do not talk to each other).
+# CYCLONEDDS_URI (built-in backend) or ROS_AUTOMATIC_DISCOVERY_RANGE (rclpy / Fast DDS); a
+# random ROS_DOMAIN_ID in [1, 101] unless set (so parallel runs on one machine do not talk to
+# each other). The backend is rclpy where it imports, else the built-in one
+# (IFC_SPG_ROS_BACKEND=cyclonedds forces it).
 setup_env() {
   if [[ -d "$IFC_SPG_ROOT/.venv/bin" ]]; then
     export PATH="$IFC_SPG_ROOT/.venv/bin:$PATH"
   fi
   export CYCLONEDDS_URI="${CYCLONEDDS_URI:-file://$IFC_SPG_ROOT/config/cyclonedds_loopback.xml}"
+  export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( RANDOM % 101 + 1 ))}"
   local exe
   for exe in "$@"; do

@@ -84,7 +84,7 @@ _DESCRIPTIONS = {
 def declare(node):
     """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
     from ifc_spg import ros
-    from ifc_spg.spg_config import robot_gains_of
+    from ifc_spg.spg_config import declare_checked, robot_gains_of
 
     values = {}
     gains = None
@@ -96,7 +96,7 @@ def declare(node):
             gains = gains or robot_gains_of(values['robot'])
             default = gains[name]
         desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
-        values[name] = node.declare_parameter(name, default, desc).value
+        values[name] = declare_checked(node, name, default, desc)
         if isinstance(default, list):  # not set (q0's placeholder, the robot's gains): ()
             value = [float(x) for x in (values[name] or ())]
             values[name] = () if value == default else tuple(value)
@@ -199,7 +199,8 @@ class SimBridge:
         self._reported_missed = 0
         node.get_logger().info(
             f"sim_bridge: robot '{self.sim.robot.name}', interface '{self.sim.interface}', "
-            f"scene '{p.scene}', mode '{p.mode}', {p.rate:g} Hz, physics {1 / p.timestep:g} Hz")
+            f"scene '{p.scene}', mode '{p.mode}', {p.rate:g} Hz, physics {1 / p.timestep:g} Hz"
+            f'; {ros.describe()}')
 
     # -- callbacks ------------------------------------------------------------------------
     def _on_command(self, message):

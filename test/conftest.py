@@ -14,11 +14,11 @@ from helpers import use_loopback  # noqa: E402 (needs the path above)
 def dds_env(monkeypatch):
     """This test on its own loopback DDS domain: the environment (also for child processes);
     the built-in DDS backend is shut down afterwards."""
-    from ifc_spg.ros import dds
+    from ifc_spg import ros
 
     env = use_loopback(monkeypatch)
     yield env
-    dds.shutdown()
+    ros.shutdown()
 
 
 @pytest.fixture

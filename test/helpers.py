@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 import sys
 
-from ifc_spg.ros import messages
+from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import LOOPBACK_KEYS, loopback_env
 from ifc_spg.task_stack import TaskStack
 
@@ -55,10 +55,10 @@ def record_spg_topics(node, depth=100):
         parsed from JSON.
     """
     states, commands, status = [], [], []
-    node.create_subscription(messages.JointState, 'joint_states', states.append, depth)
-    node.create_subscription(messages.JointState, 'command/joint_position', commands.append,
+    node.create_subscription(ros_msg.JointState, 'joint_states', states.append, depth)
+    node.create_subscription(ros_msg.JointState, 'command/joint_position', commands.append,
                              depth)
-    node.create_subscription(messages.String, 'spg/status',
+    node.create_subscription(ros_msg.String, 'spg/status',
                              lambda m: status.append(json.loads(m.data)), depth)
     return states, commands, status
 

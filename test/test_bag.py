@@ -144,7 +144,7 @@ def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     try:
         _wait_line(rec, 'recording')
         t0 = time.monotonic()
-        player = _start(['bag', 'play', str(src), '--rate', '0.5', '--delay', '1.0'], dds_env)
+        player = _start(['bag', 'play', str(src), '--rate', '0.5', '--delay', '2.0'], dds_env)
         assert player.wait(60) == 0, player.stderr.read()
         elapsed = time.monotonic() - t0
         time.sleep(0.3)
@@ -155,8 +155,8 @@ def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
             if p.poll() is None:
                 os.kill(p.pid, signal.SIGKILL)
                 p.wait()
-    # 0.198 s of bag at rate 0.5 lasts ~0.4 s after the 1 s discovery delay
-    assert elapsed > 1.0 + 0.198 / 0.5 - 0.05
+    # 0.198 s of bag at rate 0.5 lasts ~0.4 s after the 2 s discovery delay
+    assert elapsed > 2.0 + 0.198 / 0.5 - 0.05
     with BagReader(dst) as bag:
         assert bag.topics['/joint_states'][1] == 100
         assert bag.topics['/spg/task_stack'][1] == 1

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from ifc_spg.errors import ParameterError
-from ifc_spg.ros import dds, messages
-from ifc_spg.ros.qos import qos_profile_sensor_data
+from ifc_spg import ros
+from ifc_spg.ros import msg as ros_msg
 from sim_bridge.node import SimBridge, main, parse_push_frame
 from sim_bridge.simulation import Simulation
 
@@ -25,11 +25,11 @@ class EchoSpg:
     def __init__(self, node, q0, answer=lambda k: True):
         self.node, self.q0, self.answer = node, np.asarray(q0), answer
         self.states, self.contact, self.env = [], [], []
-        self.pub = node.create_publisher(messages.JointState, 'command/joint_position', 10)
-        node.create_subscription(messages.JointState, 'joint_states', self._on_state, 10)
-        node.create_subscription(messages.WrenchStamped, 'sim/contact_wrench',
-                                 self.contact.append, qos_profile_sensor_data)
-        node.create_subscription(messages.JointState, 'sim/env_joint_states', self.env.append,
+        self.pub = node.create_publisher(ros_msg.JointState, 'command/joint_position', 10)
+        node.create_subscription(ros_msg.JointState, 'joint_states', self._on_state, 10)
+        node.create_subscription(ros_msg.WrenchStamped, 'sim/contact_wrench',
+                                 self.contact.append, ros.qos_profile_sensor_data)
+        node.create_subscription(ros_msg.JointState, 'sim/env_joint_states', self.env.append,
                                  10)
 
     def _on_state(self, msg):
@@ -37,18 +37,18 @@ class EchoSpg:
         self.states.append(msg)
         if not self.answer(k):
             return
-        cmd = messages.JointState(name=list(msg.name),
+        cmd = ros_msg.JointState(name=list(msg.name),
                                   position=_commands(k, self.q0).tolist())
         cmd.header.stamp = msg.header.stamp
         self.pub.publish(cmd)
 
 
 def _bridge(args):
-    dds.init(['prog', '--ros-args',
+    ros.init(['prog', '--ros-args',
               *functools.reduce(operator.iadd, (['-p', a] for a in args), [])])
-    node = dds.Node('sim_bridge')
-    spg_node = dds.Node('spg')
-    spin = node.context.executor((node, spg_node)).spin_once
+    node = ros.Node('sim_bridge')
+    spg_node = ros.Node('spg')
+    spin = ros.executor((node, spg_node)).spin_once
     bridge = SimBridge(node, spin=spin)
     return bridge, spg_node, spin
 
@@ -57,7 +57,7 @@ def test_lockstep_over_dds_equals_in_process_run(domain):
     bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'scene:=drawer_horizontal',
                                       'mode:=lockstep'])
     spg = EchoSpg(spg_node, bridge.sim.q0)
-    assert dds.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
+    assert ros.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
                           nodes=(bridge.node, spg_node))
     bridge.run_lockstep(max_ticks=40)
     final = bridge.sim.read_state()
@@ -72,7 +72,7 @@ def test_lockstep_over_dds_equals_in_process_run(domain):
         ref.step(2)
     np.testing.assert_array_equal(final.q, ref.read_state().q)
     assert final.missed_commands == 0
-    assert dds.spin_until(lambda: spg.env and spg.contact, 2.0, nodes=(spg_node,))
+    assert ros.spin_until(lambda: spg.env and spg.contact, 2.0, nodes=(spg_node,))
     assert list(spg.env[0].name) == ['drawer']
     bridge.close()
 
@@ -80,7 +80,7 @@ def test_lockstep_over_dds_equals_in_process_run(domain):
 def test_realtime_holds_q_v_and_counts_missing_commands(domain):
     bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=realtime'])
     spg = EchoSpg(spg_node, bridge.sim.q0, answer=lambda k: k == 0)
-    assert dds.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
+    assert ros.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
                           nodes=(bridge.node, spg_node))
     stats = bridge.run_realtime(max_ticks=100)
     s = bridge.sim.read_state()
@@ -92,14 +92,14 @@ def test_realtime_holds_q_v_and_counts_missing_commands(domain):
 
 def test_push_topic_moves_the_tool(domain):
     bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=lockstep'])
-    pub = spg_node.create_publisher(messages.WrenchStamped, 'sim/apply_wrench', 10)
-    assert dds.spin_until(lambda: pub.get_subscription_count() == 1, 5.0,
+    pub = spg_node.create_publisher(ros_msg.WrenchStamped, 'sim/apply_wrench', 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() == 1, 5.0,
                           nodes=(bridge.node, spg_node))
-    push = messages.WrenchStamped()
+    push = ros_msg.WrenchStamped()
     push.header.frame_id = 'tool;duration=0.1'
     push.wrench.force.z = 20.0
     pub.publish(push)
-    assert dds.spin_until(lambda: bridge._pushes, 5.0, nodes=(bridge.node, spg_node))
+    assert ros.spin_until(lambda: bridge._pushes, 5.0, nodes=(bridge.node, spg_node))
     bridge._apply_inputs()
     z0 = bridge.sim.chain_pose('tool')[0][2]
     bridge.sim.step(101)
@@ -145,13 +145,13 @@ def test_stiffness_and_damping_parameters_set_the_emulated_impedance(domain):
     bridge, _, _ = _bridge([f'stiffness:={K.tolist()}', 'damping:=[7.5]', 'mode:=lockstep'])
     tau = _impedance_torque(bridge, dq, qd)
     bridge.close()
-    dds.shutdown()
+    ros.shutdown()
     np.testing.assert_allclose(tau, K * dq - 7.5 * qd, rtol=0.05, atol=0.02)
     bridge, _, _ = _bridge(['mode:=lockstep'])  # not given: the robot configuration's
     robot = bridge.sim.robot
     tau = _impedance_torque(bridge, dq, qd)
     bridge.close()
-    dds.shutdown()
+    ros.shutdown()
     np.testing.assert_allclose(tau, robot.stiffness * dq - robot.damping * qd, rtol=0.05,
                                atol=0.02)
     with pytest.raises(ParameterError, match='stiffness must be one number or 7 numbers'):
@@ -166,5 +166,5 @@ def test_zero_damping_is_a_setting_not_the_default(domain):
     assert bridge.node.get_parameter('stiffness').value == list(bridge.sim.robot.stiffness)
     tau = _impedance_torque(bridge, dq, qd)
     bridge.close()
-    dds.shutdown()
+    ros.shutdown()
     np.testing.assert_allclose(tau, 0.0, atol=0.02)

@@ -26,7 +26,8 @@ import pytest
 import yaml
 
 from ifc_spg.model import RobotModel
-from ifc_spg.ros import dds, messages
+from ifc_spg import ros
+from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = pytest.mark.dds
@@ -90,16 +91,16 @@ def live_run(tmp_path_factory):
     old = {k: os.environ.get(k) for k in LOOPBACK_KEYS}
     for key in old:
         os.environ[key] = env[key]
-    dds.init(['test'])
-    node = dds.Node('listener')
+    ros.init(['test'])
+    node = ros.Node('listener')
     status, sim_t = [], [0.0]
-    node.create_subscription(messages.String, 'spg/status',
+    node.create_subscription(ros_msg.String, 'spg/status',
                              lambda m: status.append(json.loads(m.data)), 100)
-    node.create_subscription(messages.JointState, 'joint_states',
+    node.create_subscription(ros_msg.JointState, 'joint_states',
                              lambda m: sim_t.__setitem__(0, stamp_ns(m) * 1e-9), 100)
 
     def spin_until(condition, timeout):
-        return dds.spin_until(condition, timeout, nodes=node)
+        return ros.spin_until(condition, timeout, nodes=node)
 
     def accepted(n):
         return sum(s.get('event', {}).get('type') == 'stack_accepted' for s in status) >= n
@@ -112,6 +113,9 @@ def live_run(tmp_path_factory):
         assert spin_until(lambda: 'recording' in procs.log('recorder') or
                           rec.poll() is not None, 60.0) and rec.poll() is None, \
             procs.log('recorder')
+        # the stack_accepted event is volatile: connect to the node's status first
+        assert spin_until(lambda: node.count_publishers('spg/status') >= 1 or
+                          spg.poll() is not None, 60.0), procs.log('spg_node')
         procs.start('publisher_press', str(files[0]), '--robot', 'lbr_iiwa14',
                     exe='task_publisher')
         assert spin_until(lambda: accepted(1) or spg.poll() is not None, 60.0), \
@@ -129,7 +133,7 @@ def live_run(tmp_path_factory):
         assert procs.stop('recorder', signal.SIGINT, 30.0) == 0, procs.log('recorder')
     finally:
         procs.close()
-        dds.shutdown()
+        ros.shutdown()
         for key, value in old.items():
             if value is None:
                 os.environ.pop(key, None)
@@ -310,13 +314,13 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
     stack = tmp_path / 'reach.yaml'
     stack.write_text(REACH)
     robot = RobotModel.from_config('lbr_iiwa14')
-    dds.init(['test'])
-    node = dds.Node('listener')
+    ros.init(['test'])
+    node = ros.Node('listener')
     states, commands, status = record_spg_topics(node)
     procs = ProcessGroup(tmp_path, env)
 
     def spin_until(condition, timeout):
-        return dds.spin_until(condition, timeout, nodes=node)
+        return ros.spin_until(condition, timeout, nodes=node)
 
     def events(kind):
         return sum(s.get('event', {}).get('type') == kind for s in status)
@@ -328,6 +332,8 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
                 '-p', 'status.decimation:=50']
     try:
         spg = procs.start('spg_node', *spg_args)
+        assert spin_until(lambda: node.count_publishers('spg/status') >= 1 or
+                          spg.poll() is not None, 60.0), procs.log('spg_node')
         procs.start('task_publisher', str(stack))
         assert spin_until(lambda: events('stack_accepted') or spg.poll() is not None, 60.0), \
             procs.log('spg_node')
@@ -356,7 +362,7 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
         assert procs.stop('spg_node2') == 0, procs.log('spg_node2')
     finally:
         procs.close()
-        dds.shutdown()
+        ros.shutdown()
 
     # the latched stack reached the new SPG
     assert "task stack 'reach' (id 1) accepted" in procs.log('spg_node2')

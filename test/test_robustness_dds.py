@@ -17,7 +17,8 @@ import pytest
 
 from ifc_spg.bag import BagReader
 from ifc_spg.model import RobotModel
-from ifc_spg.ros import dds, messages
+from ifc_spg import ros
+from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = pytest.mark.dds
@@ -40,10 +41,10 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
     stack.write_text(STACK)
     bag_path = tmp_path / 'bag'
     robot = RobotModel.from_config('lbr_iiwa14')
-    dds.init(['test'])
-    node = dds.Node('listener')
+    ros.init(['test'])
+    node = ros.Node('listener')
     status = []
-    node.create_subscription(messages.String, 'spg/status',
+    node.create_subscription(ros_msg.String, 'spg/status',
                              lambda m: status.append(json.loads(m.data)), 100)
     procs = ProcessGroup(tmp_path, env)
     start, log = procs.start, procs.log
@@ -52,7 +53,7 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         return procs.stop(name, sig, timeout)
 
     def spin_until(condition, timeout):
-        return dds.spin_until(condition, timeout, nodes=node)
+        return ros.spin_until(condition, timeout, nodes=node)
 
     def event(kind):
         return any(s.get('event', {}).get('type') == kind for s in status)
@@ -64,6 +65,9 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
                           60.0) and rec.poll() is None, log('recorder')
         spg = start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
                     '-p', 'status.decimation:=50')
+        # the stack_accepted event is volatile: connect to the node's status first
+        assert spin_until(lambda: node.count_publishers('spg/status') >= 1 or
+                          spg.poll() is not None, 60.0), log('spg_node')
         start('task_publisher', str(stack))
         assert spin_until(lambda: event('stack_accepted') or spg.poll() is not None, 60.0), \
             log('spg_node')
@@ -90,7 +94,7 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         assert stop('recorder', signal.SIGINT, 30.0) == 0, log('recorder')  # closes the bag
     finally:
         procs.close(signal.SIGKILL, STOP_TIMEOUT)
-        dds.shutdown()
+        ros.shutdown()
 
     # every command the SPG published is in the bag (the SPG's count from its exit line)
     match = re.search(r'spg_node: (\d+) ticks, (\d+) commands', log('spg_node'))

@@ -12,6 +12,7 @@ import pytest
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.qos import QoSProfile, latched, qos_profile_sensor_data
+from ifc_spg.ros.parameters import SetParametersResult
 
 pytestmark = pytest.mark.dds
 
@@ -174,18 +175,25 @@ def test_parameters_overrides_types_ranges(domain, tmp_path):
         integer_range=[IntegerRange(from_value=1, to_value=5, step=1)])).value == 3
     assert node.declare_parameter('untouched', 'abc').value == 'abc'
     assert node.get_parameter('rate').value == 250.0
-    with pytest.raises(ParameterError, match=r"'rate': value 2000.0 is outside its range "
-                                             r'\[1.0, 1000.0\]'):
-        from ifc_spg.ros.parameters import Parameter
-        node.set_parameters([Parameter('rate', value=2000.0)])
+    from ifc_spg.ros.parameters import Parameter
+    [result] = node.set_parameters([Parameter('rate', value=2000.0)])
+    assert not result.successful
+    assert "'rate': value 2000.0 is outside its range [1.0, 1000.0]" in result.reason
+    assert node.get_parameter('rate').value == 250.0
     with pytest.raises(ParameterError, match="parameter 'rat' is not declared.*did you mean "
                                              "'rate'"):
         node.get_parameter('rat')
     ro = node.declare_parameter('robot', 'lbr', ParameterDescriptor(read_only=True))
     assert ro.value == 'lbr'
-    with pytest.raises(ParameterError, match='read-only'):
-        from ifc_spg.ros.parameters import Parameter
-        node.set_parameters([Parameter('robot', value='icub')])
+    [result] = node.set_parameters([Parameter('robot', value='icub')])
+    assert not result.successful and 'read-only' in result.reason
+    seen = []
+    node.add_on_set_parameters_callback(
+        lambda ps: seen.append(ps[0].value) or SetParametersResult(
+            successful=ps[0].value < 900.0, reason='too fast'))
+    assert [r.successful for r in node.set_parameters(
+        [Parameter('rate', value=800.0), Parameter('rate', value=950.0)])] == [True, False]
+    assert seen == [800.0, 950.0] and node.get_parameter('rate').value == 800.0
 
 
 def test_parameter_override_type_mismatch_is_clear(domain):

@@ -11,8 +11,8 @@ import xml.etree.ElementTree as ET
 from helpers import BIN, ROOT, reach_stack, use_loopback
 import pytest
 
-from ifc_spg.ros import dds, messages
-from ifc_spg.ros.qos import latched
+from ifc_spg import ros
+from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import LOOPBACK_CONFIG, loopback_env, stop_process
 
 SCRIPTS = sorted((ROOT / 'scripts').glob('*.sh'))
@@ -87,19 +87,19 @@ def test_publish_stack_delivers_and_exits(tmp_path, monkeypatch):
     env = use_loopback(monkeypatch, _env())
     stack = tmp_path / 'reach.yaml'
     stack.write_text(STACK)
-    dds.init(['listener'])
+    ros.init(['listener'])
     try:
-        node = dds.Node('listener')
+        node = ros.Node('listener')
         received = []
-        node.create_subscription(messages.String, 'spg/task_stack', received.append,
-                                 latched(1))
+        node.create_subscription(ros_msg.String, 'spg/task_stack', received.append,
+                                 ros.latched(1))
         result = _run([str(ROOT / 'scripts' / 'publish_stack.sh'), '-t', '30', str(stack)],
                       env=env, timeout=60)
         assert result.returncode == 0, result.stderr
-        assert dds.spin_until(lambda: received, 5.0, nodes=node)
+        assert ros.spin_until(lambda: received, 5.0, nodes=node)
         assert received[0].data == STACK
     finally:
-        dds.shutdown()
+        ros.shutdown()
 
 
 def test_sim_lbr_lockstep_runs_and_stops_what_it_started(tmp_path):

@@ -10,8 +10,8 @@ import yaml
 
 from ifc_spg.model import RobotModel
 from ifc_spg.pspm import PspmConfig
-from ifc_spg.ros import dds, messages
-from ifc_spg.ros.qos import latched
+from ifc_spg import ros
+from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import stamp_ns
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.spg_config import PARAMETERS
@@ -29,22 +29,22 @@ class FakeRobot:
     def __init__(self, node, spg_node):
         self.node, self.nodes = node, (spg_node, node)
         self.commands, self.status, self.diag = [], [], []
-        self.pub = node.create_publisher(messages.JointState, 'joint_states', 10)
-        self.stack_pub = node.create_publisher(messages.String, 'spg/task_stack', latched(1))
-        node.create_subscription(messages.JointState, 'command/joint_position',
+        self.pub = node.create_publisher(ros_msg.JointState, 'joint_states', 10)
+        self.stack_pub = node.create_publisher(ros_msg.String, 'spg/task_stack', ros.latched(1))
+        node.create_subscription(ros_msg.JointState, 'command/joint_position',
                                  self.commands.append, 10)
-        node.create_subscription(messages.String, 'spg/status',
+        node.create_subscription(ros_msg.String, 'spg/status',
                                  lambda m: self.status.append(json.loads(m.data)), 10)
-        node.create_subscription(messages.DiagnosticArray, 'spg/diagnostics', self.diag.append,
+        node.create_subscription(ros_msg.DiagnosticArray, 'spg/diagnostics', self.diag.append,
                                  10)
         assert self.spin_until(lambda: self.pub.get_subscription_count() == 1 and
                                self.stack_pub.get_subscription_count() == 1)
 
     def spin_until(self, condition, timeout=5.0):
-        return dds.spin_until(condition, timeout, nodes=self.nodes)
+        return ros.spin_until(condition, timeout, nodes=self.nodes)
 
     def send(self, names, q, qdot, stamp_ns):
-        msg = messages.JointState(name=list(names), position=list(map(float, q)),
+        msg = ros_msg.JointState(name=list(names), position=list(map(float, q)),
                                   velocity=list(map(float, qdot)))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 10**9)
         self.pub.publish(msg)
@@ -62,7 +62,7 @@ class FakeRobot:
 
     def publish_stack(self, text, kind):
         n = len(self.events(kind))
-        self.stack_pub.publish(messages.String(data=text))
+        self.stack_pub.publish(ros_msg.String(data=text))
         assert self.spin_until(lambda: len(self.events(kind)) > n), f'no {kind} event'
         return self.events(kind)[-1]
 
@@ -71,10 +71,10 @@ def _start(params):
     args = ['spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml')]
     for p in params:
         args += ['-p', p]
-    dds.init(args)
-    node = dds.Node('spg_node')
+    ros.init(args)
+    node = ros.Node('spg_node')
     spg = SpgNode(node)
-    return spg, FakeRobot(dds.Node('fake_robot'), node)
+    return spg, FakeRobot(ros.Node('fake_robot'), node)
 
 
 def _reference(robot, config):
@@ -160,7 +160,7 @@ def test_bad_messages_are_counted_not_fatal(domain):
     spg.publish_diagnostics()
     assert fake.spin_until(lambda: fake.diag)
     values = {kv.key: kv.value for kv in fake.diag[-1].status[0].values}
-    assert fake.diag[-1].status[0].level == messages.DiagnosticStatus.WARN
+    assert fake.diag[-1].status[0].level == ros_msg.DiagnosticStatus.WARN
     assert values['rejected.non_finite'] == '1' and values['ticks'] == '7'
 
 
@@ -177,7 +177,7 @@ def test_watchdog_stops_commanding_and_resumes_from_the_measured_q(domain):
     assert fake.spin_until(lambda: fake.events('watchdog'), 2.0)
     assert 'no joint state' in fake.events('watchdog')[-1]['message']
     assert fake.spin_until(lambda: fake.diag and fake.diag[-1].status[0].level ==
-                           messages.DiagnosticStatus.STALE, 2.0)
+                           ros_msg.DiagnosticStatus.STALE, 2.0)
     assert len(fake.commands) == n  # nothing commanded while stale
     q_new = q + 0.05  # the robot sagged meanwhile
     cmd = fake.tick(names, q_new, z, 200 * DT_NS)
@@ -213,8 +213,8 @@ def test_task_stack_file_parameter(domain, tmp_path, capsys):
     assert main(['spg_node', '--ros-args', '-p', f'task_stack_file:={bad}']) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and 'tasks[0].type' in err
-    dds.init(['spg_node', '--ros-args', '-p', f'task_stack_file:={good}'])
-    spg = SpgNode(dds.Node('spg_node'))
+    ros.init(['spg_node', '--ros-args', '-p', f'task_stack_file:={good}'])
+    spg = SpgNode(ros.Node('spg_node'))
     assert spg.runner.spg._pending is not None and spg.runner.status()['pending_stack'] == \
         {'id': 1, 'name': 'reach'}
 
@@ -238,8 +238,8 @@ def _flatten(prefix, mapping, out):
 def test_config_files_load_into_the_node(domain, robot):
     path = CONFIG / f'{robot}.yaml'
     expected = _flatten('', yaml.safe_load(path.read_text())['/**']['ros__parameters'], {})
-    dds.init(['spg_node', '--ros-args', '--params-file', str(path)])
-    node = dds.Node('spg_node')
+    ros.init(['spg_node', '--ros-args', '--params-file', str(path)])
+    node = ros.Node('spg_node')
     spg = SpgNode(node)
     assert spg.config.robot == robot and spg.runner.robot.name == robot
     by_name = {p.name: p.field for p in PARAMETERS}
@@ -257,7 +257,7 @@ def test_impedance_parameters_set_the_gains_the_spg_computes_with(domain):
     assert spg.config.stiffness == () and spg.config.damping == ()
     assert spg.node.get_parameter('impedance.stiffness').value == list(default.stiffness)
     np.testing.assert_array_equal(spg.runner.robot.stiffness, default.stiffness)
-    dds.shutdown()
+    ros.shutdown()
     K = [800.0, 800.0, 600.0, 600.0, 300.0, 200.0, 100.0]
     spg, fake = _start([f'impedance.stiffness:={K}', 'impedance.damping:=[12.5]'])
     np.testing.assert_array_equal(spg.runner.robot.stiffness, K)
@@ -273,10 +273,10 @@ def test_impedance_parameters_set_the_gains_the_spg_computes_with(domain):
     assert params['stiffness'] == K and params['damping'] == [12.5] * 7
 
 
-def test_proxsuite_is_started_with_a_warning(domain, capsys):
-    _start(['solver:=proxsuite'])
-    err = capsys.readouterr().err
+def test_proxsuite_is_started_with_a_warning(domain, capfd):
+    _start(['solver:=proxsuite'])  # rclpy logs from C to fd 2: capfd, not capsys
+    err = capfd.readouterr().err
     assert '[WARN]' in err and 'use daqp on a robot' in err
-    dds.shutdown()
+    ros.shutdown()
     _start([])
-    assert 'use daqp on a robot' not in capsys.readouterr().err
+    assert 'use daqp on a robot' not in capfd.readouterr().err

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ifc_spg.model import RobotModel
-from ifc_spg.ros import dds
+from ifc_spg import ros
 from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
 pytestmark = pytest.mark.dds
@@ -22,16 +22,19 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
     stack = tmp_path / 'reach.yaml'
     stack.write_text(STACK)
     robot = RobotModel.from_config('lbr_iiwa14')
-    dds.init(['test'])
-    node = dds.Node('listener')
+    ros.init(['test'])
+    node = ros.Node('listener')
     states, commands, status = record_spg_topics(node)
     procs = ProcessGroup(tmp_path, env)
     start, log = procs.start, procs.log
     try:
         spg = start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
                     '-p', 'status.decimation:=50')
+        # the stack_accepted event is volatile: connect to the node's status first
+        assert ros.spin_until(lambda: node.count_publishers('spg/status') >= 1 or
+                              spg.poll() is not None, 60.0, nodes=node), log('spg_node')
         start('task_publisher', str(stack))
-        accepted = dds.spin_until(lambda: any(s.get('event', {}).get('type') == 'stack_accepted'
+        accepted = ros.spin_until(lambda: any(s.get('event', {}).get('type') == 'stack_accepted'
                                               for s in status) or spg.poll() is not None,
                                   60.0, nodes=node)
         assert accepted and spg.poll() is None, log('spg_node')
@@ -39,14 +42,14 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
                        'scene:=free', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}')
         deadline = time.monotonic() + 90.0
         while bridge.poll() is None and time.monotonic() < deadline:
-            dds.spin_until(lambda: False, 0.2, nodes=node)
+            ros.spin_until(lambda: False, 0.2, nodes=node)
         assert bridge.returncode == 0, log('sim_bridge')
         ticks = round(SIM_SECONDS / 0.002)
-        assert dds.spin_until(lambda: len(commands) >= ticks, 10.0, nodes=node), \
+        assert ros.spin_until(lambda: len(commands) >= ticks, 10.0, nodes=node), \
             (len(commands), log('spg_node'))
     finally:
         procs.close()
-        dds.shutdown()
+        ros.shutdown()
     assert spg.returncode == 0  # a clean exit on SIGTERM
 
     # One command per tick, answering each state by its stamp (the lockstep bridge re-sends a

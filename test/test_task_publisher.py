@@ -9,8 +9,8 @@ from helpers import BIN, reach_stack
 import pytest
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.ros import dds, messages
-from ifc_spg.ros.qos import latched
+from ifc_spg import ros
+from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import stop_process
 from ifc_spg.task_publisher import main, parse_entry
 from ifc_spg.task_stack.check import main as check_main
@@ -31,18 +31,18 @@ class Listener:
     """A subscription on spg/task_stack in its own context (own DDS participant)."""
 
     def __init__(self):
-        self.context = dds.Context(['listener'])
-        self.node = dds.Node('listener', context=self.context)
+        self.context = ros.new_context(['listener'])
+        self.node = ros.Node('listener', context=self.context)
         self.received = []
-        self.node.create_subscription(messages.String, 'spg/task_stack',
+        self.node.create_subscription(ros_msg.String, 'spg/task_stack',
                                       lambda m: self.received.append((time.monotonic(),
-                                                                      m.data)), latched(1))
+                                                                      m.data)), ros.latched(1))
 
     def spin_until(self, condition, timeout):
-        return dds.spin_until(condition, timeout, nodes=self.node)
+        return ros.spin_until(condition, timeout, nodes=self.node)
 
     def close(self):
-        self.context.shutdown()
+        ros.shutdown(context=self.context)
 
 
 @pytest.mark.parametrize('entry, expected', [

@@ -38,6 +38,7 @@ from ifc_spg.ros.parameters import (
     Parameter,
     ParameterDescriptor,
     ParameterType,
+    SetParametersResult,
     check_parameter_value,
 )
 from ifc_spg.ros.qos import as_qos, latched, to_dds_qos
@@ -405,6 +406,7 @@ class Node:
         self._clock = Clock()
         self._parameters = {}
         self._descriptors = {}
+        self._on_set = []
         self.publishers, self.subscriptions, self.timers = [], [], []
         self._destroyed = False
         self.context.nodes.append(self)
@@ -481,6 +483,20 @@ class Node:
             if entry is not None:
                 ex.waitset.detach(entry[1])
                 ex.subs = [s for s in ex.subs if s is not sub]
+
+    def count_publishers(self, topic_name):
+        """Publishers matched on ``topic_name``, as seen by this node's subscriptions to it
+        (rclpy counts the whole graph; the built-in backend knows the writers its readers
+        matched, which is what a test waiting for a connection needs)."""
+        name = self.resolve_topic_name(topic_name)
+        return max((s.get_publisher_count() for s in self.subscriptions
+                    if s.topic_name == name), default=0)
+
+    def count_subscribers(self, topic_name):
+        """Subscriptions matched on ``topic_name`` by this node's publishers to it."""
+        name = self.resolve_topic_name(topic_name)
+        return max((p.get_subscription_count() for p in self.publishers
+                    if p.topic_name == name), default=0)
 
     def destroy_publisher(self, pub):
         """Destroy a publisher of this node."""
@@ -574,17 +590,35 @@ class Node:
         self.get_parameter(name)
         return self._descriptors[name]
 
+    def add_on_set_parameters_callback(self, callback):
+        """Call ``callback(parameters) -> SetParametersResult`` before parameters change (as
+        rclpy does); an unsuccessful result refuses the change."""
+        self._on_set.append(callback)
+
     def set_parameters(self, parameters):
-        """Set declared parameters (type, range and read_only checked); raises on failure."""
+        """Set declared parameters, one at a time as rclpy does: type, range and read_only
+        are checked, then the on-set callbacks; one SetParametersResult per parameter."""
+        results = []
         for param in parameters:
-            old = self.get_parameter(param.name)
-            descriptor = self._descriptors[param.name]
-            if descriptor.read_only:
-                raise ParameterError(f"parameter '{param.name}' is read-only")
-            check_parameter_value(param.name, param.value, descriptor, old.type_)
-        for param in parameters:
-            self._parameters[param.name] = Parameter(param.name, value=param.value)
-        return [True] * len(parameters)
+            old = self.get_parameter(param.name)  # undeclared: raises, as rclpy does
+            try:
+                descriptor = self._descriptors[param.name]
+                if descriptor.read_only:
+                    raise ParameterError(f"parameter '{param.name}' is read-only")
+                check_parameter_value(param.name, param.value, descriptor, old.type_)
+            except ParameterError as exc:
+                results.append(SetParametersResult(successful=False, reason=str(exc)))
+                continue
+            new = Parameter(param.name, value=param.value)
+            result = SetParametersResult(successful=True)
+            for callback in self._on_set:
+                result = callback([new])
+                if not result.successful:
+                    break
+            if result.successful:
+                self._parameters[param.name] = new
+            results.append(result)
+        return results
 
     # misc -------------------------------------------------------------------------------------
 

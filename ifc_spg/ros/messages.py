@@ -355,7 +355,7 @@ class Gid(Message):
     __slots__ = ('data',)
     _TYPE = 'rmw_dds_common/msg/Gid'
     _FIELDS = (('data', 'char[16]'),)
-    _HASH = 'RIHS01_a8e2f2bd4b156011c7ed7618c1db625ac341c2dc3ff09b8dd107f33f20dcec07'
+    _HASH = 'RIHS01_ab6f21cfbb0a6dbb837161e1110c2051a2850ed9f9c53944d7115d9bcebedf71'
 
 
 class NodeEntitiesInfo(Message):
@@ -366,7 +366,7 @@ class NodeEntitiesInfo(Message):
     _FIELDS = (('node_namespace', 'string<=256'), ('node_name', 'string<=256'),
                ('reader_gid_seq', 'rmw_dds_common/msg/Gid[]'),
                ('writer_gid_seq', 'rmw_dds_common/msg/Gid[]'))
-    _HASH = 'RIHS01_8ecbfcad87fa92b9c1458f525b5faf5bf7cab9427a92524d72a394112992b5ab'
+    _HASH = 'RIHS01_8ffef65ee2d088c63b1e8fcd31e800ba9fc8dbe0ee15ca60d1676de5218087a7'
 
 
 class ParticipantEntitiesInfo(Message):
@@ -376,4 +376,4 @@ class ParticipantEntitiesInfo(Message):
     _TYPE = 'rmw_dds_common/msg/ParticipantEntitiesInfo'
     _FIELDS = (('gid', 'rmw_dds_common/msg/Gid'),
                ('node_entities_info_seq', 'rmw_dds_common/msg/NodeEntitiesInfo[]'))
-    _HASH = 'RIHS01_e725f4a506958c79f95dd693b965722c57b19cd18e7eff984f49561b93dc985d'
+    _HASH = 'RIHS01_91a0593bacdcc50ea9bdcf849a938b128412cc1ea821245c663bcd26f83c295e'

@@ -80,6 +80,14 @@ class ParameterDescriptor:
     integer_range: list = dataclasses.field(default_factory=list)
 
 
+@dataclasses.dataclass
+class SetParametersResult:
+    """rcl_interfaces/msg/SetParametersResult: ``successful`` and, if not, the ``reason``."""
+
+    successful: bool = False
+    reason: str = ''
+
+
 class Parameter:
     """A named, typed parameter value (``.name``, ``.value``, ``.type_``)."""
 

@@ -1,12 +1,15 @@
-"""Test helpers: a loopback-only Cyclone DDS configuration, a random ROS domain, and child
-processes started (and stopped, by PID) from a test.
+"""Test helpers: a loopback-only DDS configuration for both backends, a random ROS domain,
+and child processes started (and stopped, by PID) from a test.
 
-    env = loopback_env()            # for subprocesses: CYCLONEDDS_URI + ROS_DOMAIN_ID
+    env = loopback_env()            # for subprocesses: CYCLONEDDS_URI, ROS_DOMAIN_ID, ...
+    env = loopback_env(backend='cyclonedds')   # children on the built-in backend
     monkeypatch.setenv(...)         # or apply LOOPBACK_KEYS to the current process in a test
     procs = ProcessGroup(tmp_path, env)   # console scripts logging to tmp_path/<name>.log
 
 Cyclone binds to ``lo`` only (``lo`` has no MULTICAST flag, so multicast is switched off and the
-participants find each other by unicast to 127.0.0.1).
+participants find each other by unicast to 127.0.0.1); rclpy on Fast DDS is kept on the host
+by ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (unicast discovery to 127.0.0.1, no multicast).
+Both use the standard RTPS port mapping, so the two vendors find each other on one domain.
 """
 
 import os
@@ -28,7 +31,8 @@ LOOPBACK_CONFIG = (
     '<Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
     '</Domain></CycloneDDS>')
 # the environment variables :func:`loopback_env` sets
-LOOPBACK_KEYS = ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND')
+LOOPBACK_KEYS = ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND',
+                 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS')
 
 
 def random_domain_id(rng=None):
@@ -37,12 +41,26 @@ def random_domain_id(rng=None):
     return rng.randint(1, 101)
 
 
-def loopback_env(domain_id=None, base=None):
-    """A copy of ``base`` (default os.environ) with CYCLONEDDS_URI and ROS_DOMAIN_ID set."""
+def loopback_env(domain_id=None, base=None, backend=None):
+    """A copy of ``base`` (default os.environ) on loopback, on one ROS domain.
+
+    Args:
+        domain_id: the ROS domain; None: a random one.
+        base: the environment to copy.
+        backend: 'rclpy' or 'cyclonedds' for the processes started with it; None: the
+            backend this process runs (``ifc_spg.ros.BACKEND``).
+    """
+    if backend is None:
+        from ifc_spg import ros
+        backend = ros.BACKEND
+    if backend not in ('rclpy', 'cyclonedds'):
+        raise ValueError(f"backend '{backend}' is not 'rclpy' or 'cyclonedds'")
     env = dict(os.environ if base is None else base)
     env['CYCLONEDDS_URI'] = LOOPBACK_CONFIG
     env['ROS_DOMAIN_ID'] = str(random_domain_id() if domain_id is None else domain_id)
-    env['IFC_SPG_ROS_BACKEND'] = 'cyclonedds'
+    env['IFC_SPG_ROS_BACKEND'] = backend
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['ROS_STATIC_PEERS'] = ''
     return env
 
 
