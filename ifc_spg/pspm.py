@@ -328,7 +328,10 @@ class StallMonitor:
     ``probe_every`` ticks, the SPG solves the cascade once more without the passivity bound
     and :meth:`observe` gets the power [W] each joint's tank would have had to give for that
     solution (beyond what the IFC damper returned). A candidate asking for more than
-    ``min_power`` [W] (averaged over probes) is stalled. The first stall of an episode (a
+    ``min_power`` [W] (averaged over probes) is stalled. The power reported is the larger
+    of that request and the rate at which the joint drained its tank while it still had
+    energy (averaged over ``drain_time`` [s], frozen while the tank is empty): a stalled
+    joint barely moves, so its request alone understates what running will take. The first stall of an episode (a
     stack activation or a restart) is flagged in :attr:`new` for one tick, so callers log it
     once.
 
@@ -340,9 +343,11 @@ class StallMonitor:
         min_power: Requested power [W] below which a candidate is not stalled.
     """
 
-    def __init__(self, n, dt, time_constant=0.5, probe_every=25, min_power=1e-3):
+    def __init__(self, n, dt, time_constant=0.5, probe_every=25, min_power=1e-3,
+                 drain_time=2.0):
         self.n = int(n)
         self._alpha = min(1.0, float(dt) / float(time_constant))
+        self._alpha_drain = min(1.0, float(dt) / float(drain_time))
         self.probe_every = int(probe_every)
         self.min_power = float(min_power)
         self.reset()
@@ -351,6 +356,7 @@ class StallMonitor:
         """A new episode: forget the averages; the next stall is reported again."""
         self._empty = np.zeros(self.n)
         self._power = np.zeros(self.n)
+        self._drain = np.zeros(self.n)
         self._ticks = 0
         self.report = None
         self.new = False
@@ -361,20 +367,24 @@ class StallMonitor:
         """True when this tick's caller should solve without the passivity bound."""
         return self._ticks % self.probe_every == 0 and bool(np.any(self._empty > 0.5))
 
-    def observe(self, empty, requested_power=None, *, power_budget=0.0, max_power=0.0,
-                task_time=0.0):
+    def observe(self, empty, requested_power=None, *, drain=None, power_budget=0.0,
+                max_power=0.0, task_time=0.0):
         """Book one tick.
 
         Args:
             empty: Bool mask of joints whose tank ended the tick empty.
             requested_power: Per joint [W] the stack asked for beyond the damper's refill
                 (only on probe ticks, else None).
+            drain: Per joint [W], the energy this tick's step took from the tank beyond the
+                damper's refill, over dT.
             power_budget: The refill rate in effect [W]; max_power: the ceiling [W].
             task_time: Task time of this tick [s].
         """
         self._ticks += 1
         self._empty += self._alpha * (empty - self._empty)
         candidate = self._empty > 0.5
+        if drain is not None:
+            self._drain += np.where(candidate, 0.0, self._alpha_drain * (drain - self._drain))
         if requested_power is not None:
             p = np.where(candidate, np.maximum(requested_power, 0.0), 0.0)
             self._power += 0.3 * (p - self._power)
@@ -385,7 +395,7 @@ class StallMonitor:
             self.report = None
             return
         joints = tuple(int(j) for j in stalled)
-        power = tuple(float(self._power[j]) for j in stalled)
+        power = tuple(float(max(self._power[j], self._drain[j])) for j in stalled)
         since = task_time if self.report is None else self.report.since
         self.report = StallReport(joints, power, float(sum(power)), float(power_budget),
                                   float(max_power), float(since))

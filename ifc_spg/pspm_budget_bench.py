@@ -44,25 +44,6 @@ SURFACE_MAX_RMS_N = 1.0
 SURFACE_MIN_SPAN_M = 0.09
 
 
-def _params(robot):
-    """``{ros parameter name: value}`` of the shipped ``config/<robot>.yaml``."""
-    path = find_config_dir() / f'{robot}.yaml'
-    doc = yaml.safe_load(path.read_text(encoding='utf8'))
-    params = next(iter(doc.values()))['ros__parameters']
-    out = {}
-
-    def flat(prefix, d):
-        for k, v in d.items():
-            if isinstance(v, dict):
-                flat(f'{prefix}{k}.', v)
-            else:
-                out[prefix + k] = v
-    flat('', params)
-    for key in ('robot', 'dt', 'watchdog.timeout'):  # set by the scenario (offline: no watchdog)
-        out.pop(key, None)
-    return out
-
-
 def _thesis_scenario(stack_file):
     """The thesis scenario running ``stack_file`` (first with PSPM on), or None."""
     for path in sorted((find_config_dir() / 'scenarios').glob('thesis_*.yaml')):
@@ -78,7 +59,8 @@ def _thesis_scenario(stack_file):
 _SCENES = {'table_5_1_constrained_manipulation.yaml': {'scene': 'drawer_vertical'}}
 
 
-def shipped_scenario(stack_file, seconds, robot=None, scene=None, scene_options=None):
+def shipped_scenario(stack_file, seconds, robot=None, scene=None, scene_options=None,
+                     power=None):
     """The scenario dict of ``stack_file`` (a name in ``config/tasks/``) as shipped.
 
     Args:
@@ -86,6 +68,7 @@ def shipped_scenario(stack_file, seconds, robot=None, scene=None, scene_options=
         seconds: Duration [s].
         robot: Override the robot (default: the stack's ``robot``).
         scene, scene_options: Override the thesis scenario's scene (and its options).
+        power: Override the stack's power_budget and the ceiling [W] (to measure a need).
     """
     tasks_dir = find_config_dir() / 'tasks'
     stack = yaml.safe_load((tasks_dir / stack_file).read_text(encoding='utf8'))
@@ -95,15 +78,19 @@ def shipped_scenario(stack_file, seconds, robot=None, scene=None, scene_options=
             'scene': scene or thesis.get('scene', 'free'),
             'scene_options': scene_options if scene_options is not None else
             thesis.get('scene_options') or {},
-            'duration': float(seconds), 'spg': _params(robot),
-            'stacks': [{'at': 0.0, 'file': stack_file}], 'progress': 0,
+            'duration': float(seconds), 'spg': {'params_file': f'{robot}.yaml'},
+            'stacks': [{'at': 0.0, 'file': stack_file} if power is None else
+                       {'at': 0.0, 'stack': dict(stack, power_budget=float(power))}],
+            'progress': 0,
             'metrics': ['tank_energy_min', 'max_contact_force', 'limit_violations',
                         'tick_time', 'missed_ticks']}
     for key in ('q0', 'q0_deg'):
         if thesis.get(key) is not None:
             data[key] = thesis[key]
-    sim = {k: v for k, v in (thesis.get('sim') or {}).items() if k not in ('stiffness',
-                                                                            'damping')}
+    if power is not None:
+        data['spg']['pspm.max_power'] = float(power)
+    sim = {k: v for k, v in (thesis.get('sim') or {}).items()
+           if k not in ('stiffness', 'damping')}
     if sim:
         data['sim'] = sim
     return data
@@ -154,11 +141,14 @@ def surface_tracking_figures(bag, robot, *, period, start=0.0, settle=SURFACE_SE
             'min_span_m': min(spans) if spans else None}
 
 
-def run_stack(stack_file, seconds, out_dir=None):
-    """Run one shipped stack; return its row (dict). The bag is deleted unless ``out_dir``."""
+def run_stack(stack_file, seconds, out_dir=None, power=None):
+    """Run one shipped stack; return its row (dict). The bag is deleted unless ``out_dir``.
+
+    ``net_j_per_min`` is the energy the SPG spent from the tanks beyond what the IFC damper
+    returned, per minute: initial tank energy + refill - final tank energy."""
     from ifc_spg.model import RobotModel
 
-    data = shipped_scenario(stack_file, seconds)
+    data = shipped_scenario(stack_file, seconds, power=power)
     scenario = scenario_from_dict(data, where=f'bench:{stack_file}',
                                   base=find_config_dir() / 'tasks')
     tmp = Path(tempfile.mkdtemp(prefix='pspm_bench_')) if out_dir is None else \
@@ -170,9 +160,12 @@ def run_stack(stack_file, seconds, out_dir=None):
         stack = yaml.safe_load((find_config_dir() / 'tasks' / stack_file).read_text())
         row = {'stack': Path(stack_file).stem, 'robot': scenario.robot,
                'scene': scenario.scene, 'minutes': m['duration_s'] / 60.0,
-               'power_budget_w': stack.get('power_budget') or 0.0,
+               'power_budget_w': pspm.get('power_budget_w', 0.0),
                'max_power_w': pspm.get('max_power_w'),
                'refilled_j_per_min': pspm.get('refilled_per_minute_j'),
+               'net_j_per_min': None if not pspm else
+               (pspm['tank_energy_start_j'] + pspm['refilled_j'] - pspm['tank_energy_end_j']) *
+               60.0 / m['duration_s'],
                'stalls': pspm.get('stalls'), 'stall': pspm.get('last_stall_message'),
                'tank_energy_min_j': m.get('tank_energy_min_j'),
                'limit_violations': m.get('limit_violations'),
@@ -193,7 +186,8 @@ def run_stack(stack_file, seconds, out_dir=None):
 def _row_text(r):
     refill = r['refilled_j_per_min']
     text = (f"{r['stack']:<38} {r['robot']:<16} {r['power_budget_w']:>6g} W "
-            f"{'-' if refill is None else f'{refill:8.2f}'} J/min  stalls {r['stalls']}  "
+            f"refill {'-' if refill is None else f'{refill:7.2f}'} J/min, net use "
+            f"{r['net_j_per_min'] or 0.0:7.2f} J/min  stalls {r['stalls']}  "
             f"tank min {r['tank_energy_min_j'] or 0.0:.3f} J  rtf {r['real_time_factor']:.2f}")
     if 'surface' in r:
         s = r['surface']
@@ -214,6 +208,9 @@ def main(argv=None):
     parser.add_argument('--jobs', type=int, default=1, help='parallel processes')
     parser.add_argument('-o', '--output', default=None, help='keep bags and rows here')
     parser.add_argument('--json', default=None, help='write the rows to this JSON file')
+    parser.add_argument('--power', type=float, default=None,
+                        help="measure: every stack's power_budget and the ceiling set to this "
+                        '[W] instead of the shipped values')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     files = sorted(p.name for p in (find_config_dir() / 'tasks').glob('*.yaml'))
     if opts.only:
@@ -224,7 +221,8 @@ def main(argv=None):
           'parameters', flush=True)
     rows = []
     with ProcessPoolExecutor(max_workers=max(1, opts.jobs)) as pool:
-        futures = [pool.submit(run_stack, f, seconds, opts.output) for f in files]
+        futures = [pool.submit(run_stack, f, seconds, opts.output, opts.power)
+                   for f in files]
         for fut in futures:
             row = fut.result()
             rows.append(row)

@@ -27,7 +27,9 @@ A scenario file (YAML)::
     q0_deg: [0, 30, 0, -60, 0, 90, 0]     # or q0 [rad]; default: home
     dt: 0.002                    # SPG / command period [s]
     timestep: 0.001              # physics step [s]
-    spg: {solver: daqp, pspm: true, status_decimation: 1}   # SpgConfig fields
+    spg: {solver: daqp, pspm: true, status_decimation: 1}   # SpgConfig fields, or
+                                 #  {params_file: lbr_iiwa14.yaml, ...}: a spg_node params
+                                 #  file (in config/), then the overrides given next to it
     duration: 5.0                # [s] of sim time
     stacks:                      # task-stack sequence: file (relative to this file or
       - {at: 0.0, file: surface_tracking.yaml}          #  config/tasks/) or inline stack
@@ -188,12 +190,48 @@ def _stack_text(entry, i, base, where):
     return StackEntry(at, text, source)
 
 
+def params_file_values(path):
+    """``{ROS parameter name: value}`` of a ``spg_node`` params file (``config/<robot>.yaml``:
+    ``/**: ros__parameters:`` with nested groups), without robot, dt and watchdog.timeout
+    (a scenario sets those; offline there is no wall-clock watchdog).
+
+    Raises:
+        ParameterError: The file is missing or not a params file.
+    """
+    import yaml
+
+    path = Path(path)
+    if not path.is_absolute() and not path.is_file():
+        path = find_config_dir() / path
+    try:
+        doc = yaml.safe_load(path.read_text(encoding='utf8'))
+        params = next(iter(doc.values()))['ros__parameters']
+    except (OSError, yaml.YAMLError, AttributeError, KeyError, TypeError,
+            StopIteration) as exc:
+        raise ParameterError(f"params file '{path}': not a spg_node params file ({exc}); "
+                             'expected /**: {ros__parameters: {...}}') from None
+    out = {}
+
+    def flat(prefix, d):
+        for k, v in d.items():
+            if isinstance(v, dict):
+                flat(f'{prefix}{k}.', v)
+            else:
+                out[prefix + k] = v
+    flat('', params)
+    for key in ('robot', 'dt', 'watchdog.timeout'):
+        out.pop(key, None)
+    return out
+
+
 def _spg_config(spec, robot, dt, where):
     from ifc_spg.spg_config import PARAMETERS, config_from_parameters
 
     spec = dict(spec or {})
     fields = {p.field: p.name for p in PARAMETERS}
     values = {'robot': robot, 'dt': dt}
+    if 'params_file' in spec:  # the shipped node parameters, then the scenario's overrides
+        values.update(params_file_values(spec.pop('params_file')))
     for key, value in spec.items():
         name = fields.get(key, key)
         if key == 'pspm' and isinstance(value, dict):
@@ -687,6 +725,9 @@ def _report(sc, duration, wall, n_ticks, missed, warnings, last_tasks, m_force, 
                        'refilled_j': float(tanks.refilled.sum()),
                        'refilled_per_minute_j': float(tanks.refilled.sum()) * 60.0 /
                        duration if duration > 0 else None,
+                       'tank_energy_start_j': float(tanks.config.initial_energy *
+                                                    np.count_nonzero(tanks.mask)),
+                       'tank_energy_end_j': float(tanks.energy.sum()),
                        'stalls': runner.pspm_stalls,
                        'stall': runner.spg.info.pspm['stall'],
                        'last_stall_message': runner.last_stall or None}

@@ -319,7 +319,7 @@ class SetPointGenerator:
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, qdot_v)
             stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, levels[len(top):],
-                                      task_time)
+                                      task_time, energy_step)
             if stall is not None and status == 'ok':
                 message = stall_message(stall, self.robot.joint_names)
         if self._native is not None:
@@ -338,7 +338,8 @@ class SetPointGenerator:
             joint_names=self.robot.joint_names)
         return self.q_v.copy()
 
-    def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time):
+    def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time,
+                     energy_step):
         """Book this tick in the stall monitor; on its probe ticks, solve the cascade again
         without the passivity bound to learn the power the stack asks for. Returns the
         :class:`~ifc_spg.pspm.StallReport` or None."""
@@ -360,7 +361,8 @@ class SetPointGenerator:
                         requested = tanks.requested_power(q, q_v, np.asarray(res.qdot_v))
                 except Exception:  # a probe must never take the tick down
                     pass
-        monitor.observe(tanks.empty(), requested, power_budget=tanks.power,
+        drain = (energy_step - tanks.dissipated_min) * (1.0 / self.dt)
+        monitor.observe(tanks.empty(), requested, drain=drain, power_budget=tanks.power,
                         max_power=tanks.config.max_power, task_time=task_time)
         return monitor.report
 
