@@ -573,8 +573,8 @@ def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0):
             _publish_raw(pubs[topic], data)
             counts[topic] += 1
         for pub in pubs.values():
-            if hasattr(pub, 'wait_for_acks') and not stop.requested:
-                pub.wait_for_acks(wait_s)
+            if not stop.requested:
+                ros.wait_for_acks(pub, wait_s)
     finally:
         for s, h in old.items():
             signal.signal(s, h)

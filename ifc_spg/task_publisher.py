@@ -179,12 +179,7 @@ def main(argv=None):
             log.info(f"published '{path}' (stack '{name}') on {pub.topic_name} at "
                      f'+{time.monotonic() - start:.3f} s')
         if args.once:
-            acked = getattr(pub, 'wait_for_acks', None) or pub.wait_for_all_acked
-            try:
-                acked(timeout_sec=args.timeout)
-            except TypeError:  # rclpy takes a Duration
-                from rclpy.duration import Duration
-                acked(Duration(seconds=args.timeout))
+            ros.wait_for_acks(pub, args.timeout)
             return 0
         linger = float('inf') if args.linger is None else args.linger
         end = time.monotonic() + linger

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import json
 import math
 import sys
+import time
 
 import numpy as np
 
@@ -195,6 +196,8 @@ class SimBridge:
         self._command = None
         self._pushes = []
         self._published_stamp = None
+        self._sent_at = {}      # stamp -> monotonic time the state was first published
+        self.latencies = []     # [s] state published -> its command received, here
         self.ticks = 0
         self._reported_missed = 0
         node.get_logger().info(
@@ -211,6 +214,9 @@ class SimBridge:
             return
         stamp = (int(message.header.stamp.sec), int(message.header.stamp.nanosec))
         self._command = (q_v, stamp)
+        sent = self._sent_at.pop(stamp, None)
+        if sent is not None:  # the first command answering a state we published
+            self.latencies.append(time.monotonic() - sent)
 
     def _command_vector(self, message):
         positions = list(message.position)
@@ -270,6 +276,10 @@ class SimBridge:
             env.velocity = s.env_qd.tolist()
             self.pub_env.publish(env)
         self._published_stamp = (int(stamp.sec), int(stamp.nanosec))
+        self._sent_at.setdefault(self._published_stamp, time.monotonic())
+        if len(self._sent_at) > 1000:  # states never answered: forget the oldest
+            for key in list(self._sent_at)[:500]:
+                del self._sent_at[key]
         return self._published_stamp
 
     def _wrench(self, stamp, frame, w):
@@ -311,8 +321,6 @@ class SimBridge:
 
     def run_lockstep(self, max_ticks=None, republish=1.0, ok=lambda: True):
         """Publish, wait for the matching command, step; until ``duration``/``max_ticks``."""
-        import time
-
         while ok() and not self._done(max_ticks):
             stamp = self.publish_state()
             last = time.monotonic()
@@ -346,10 +354,15 @@ class SimBridge:
             self.run_lockstep(max_ticks, ok=ok)
         else:
             stats = self.run_realtime(max_ticks, ok=ok)
+            lat = np.sort(np.array(self.latencies)) * 1e3
+            latency = (f'; command latency p50 {np.percentile(lat, 50):.3f} ms, p99 '
+                       f'{np.percentile(lat, 99):.3f} ms, max {lat[-1]:.3f} ms over '
+                       f'{lat.size} commands' if lat.size else '; no command received')
             self.node.get_logger().info(
                 f"realtime pacing: p50 lateness {stats['p50'] * 1e6:.0f} us, p99 "
                 f"{stats['p99'] * 1e6:.0f} us, {stats['overruns']} overrun(s), "
-                f'{self.sim.missed_commands} missed command(s)')
+                f'{self.sim.missed_commands} missed command(s) of {self.ticks} periods'
+                f'{latency}')
 
     def close(self):
         """Close the simulation."""

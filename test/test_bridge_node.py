@@ -12,7 +12,7 @@ from ifc_spg.ros import msg as ros_msg
 from sim_bridge.node import SimBridge, main, parse_push_frame
 from sim_bridge.simulation import Simulation
 
-pytestmark = pytest.mark.dds
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 
 def _commands(k, q0):

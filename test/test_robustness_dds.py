@@ -21,7 +21,7 @@ from ifc_spg import ros
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 
-pytestmark = pytest.mark.dds
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 DT = 0.002
 HOG_SECONDS = 5.0

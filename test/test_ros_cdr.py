@@ -121,7 +121,8 @@ def test_cdr_bytes_equal_rosbags_both_ways(typename):
 @pytest.mark.parametrize('typename', ALL_TYPES)
 def test_type_hash_and_dds_name(typename):
     cls = REGISTRY[typename]
-    assert cls._HASH == TYPESTORE.hash_rihs01(typename)
+    if not typename.startswith('rmw_dds_common/'):  # char fields: see test_ros_type_hashes
+        assert cls._HASH == TYPESTORE.hash_rihs01(typename)
     pkg, _, name = typename.split('/')
     assert cls._DDS_TYPE == f'{pkg}::msg::dds_::{name}_'
 

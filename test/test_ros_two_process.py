@@ -10,7 +10,7 @@ import pytest
 
 from ifc_spg.ros.testing import loopback_env, stop_process
 
-pytestmark = pytest.mark.dds
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 IFC_SPG = str(BIN / 'ifc-spg')
 CYCLONEDDS = str(BIN / 'cyclonedds')
@@ -65,6 +65,7 @@ def test_talker_listener_500hz_for_10s_loses_nothing():
     assert summary['rate_hz'] == pytest.approx(RATE_HZ, rel=0.05)
 
 
+@pytest.mark.backend_pinned
 def test_cyclonedds_cli_shows_ros_type_on_rt_topic():
     # the built-in backend's wire format, read by Cyclone's own CLI (Fast DDS 2.14 does not
     # offer XTypes type information, so `cyclonedds typeof` cannot show an rclpy writer's type)

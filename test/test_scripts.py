@@ -83,6 +83,7 @@ def test_check_stacks_exit_codes(tmp_path):
     assert fail.returncode == 2 and 'bad.yaml' in fail.stderr and 'gain' in fail.stderr
 
 
+@pytest.mark.ros
 def test_publish_stack_delivers_and_exits(tmp_path, monkeypatch):
     env = use_loopback(monkeypatch, _env())
     stack = tmp_path / 'reach.yaml'
@@ -102,6 +103,7 @@ def test_publish_stack_delivers_and_exits(tmp_path, monkeypatch):
         ros.shutdown()
 
 
+@pytest.mark.ros
 def test_sim_lbr_lockstep_runs_and_stops_what_it_started(tmp_path):
     stack = tmp_path / 'reach.yaml'
     stack.write_text(STACK)
@@ -115,6 +117,7 @@ def test_sim_lbr_lockstep_runs_and_stops_what_it_started(tmp_path):
     assert "task stack 'reach' (id 1) accepted" in (out / 'spg_node.log').read_text()
 
 
+@pytest.mark.ros
 def test_sim_lbr_trap_stops_its_processes_on_sigterm(tmp_path):
     out = tmp_path / 'logs'
     proc = subprocess.Popen([str(ROOT / 'scripts' / 'sim_lbr.sh'), '-m', 'realtime', '-d',

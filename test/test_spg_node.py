@@ -17,7 +17,7 @@ from ifc_spg.spg import SetPointGenerator
 from ifc_spg.spg_config import PARAMETERS
 from ifc_spg.spg_node import SpgNode, main
 
-pytestmark = pytest.mark.dds
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 STACK = reach_stack()
 BAD_STACK = STACK.replace('type: joint_position', 'type: joint_positon')

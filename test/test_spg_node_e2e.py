@@ -11,7 +11,7 @@ from ifc_spg.model import RobotModel
 from ifc_spg import ros
 from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
-pytestmark = pytest.mark.dds
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 SIM_SECONDS = 3.0
 STACK = reach_stack('lbr_iiwa14')

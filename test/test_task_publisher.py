@@ -15,7 +15,7 @@ from ifc_spg.ros.testing import stop_process
 from ifc_spg.task_publisher import main, parse_entry
 from ifc_spg.task_stack.check import main as check_main
 
-pytestmark = pytest.mark.dds
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 STACK = reach_stack('lbr_iiwa14', name='{name}')
 

@@ -29,7 +29,7 @@ from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
 __all__ = [
     'BACKEND', 'RMW', 'init', 'shutdown', 'ok', 'Node', 'spin', 'spin_once', 'spin_until',
-    'executor', 'new_context', 'describe', 'QoSProfile', 'ReliabilityPolicy',
+    'executor', 'new_context', 'describe', 'wait_for_acks', 'QoSProfile', 'ReliabilityPolicy',
     'DurabilityPolicy', 'HistoryPolicy', 'qos_profile_sensor_data', 'latched',
     'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange', 'Parameter',
     'SetParametersResult', 'parse_ros_args', 'remove_ros_args', 'RosArgs',
@@ -162,6 +162,13 @@ if _rclpy_available(_choice()):
                 if self.executor.context.ok():
                     raise
 
+    def wait_for_acks(publisher, timeout_sec=1.0):
+        """Wait until every matched reliable reader acknowledged what ``publisher`` sent;
+        True if they did within ``timeout_sec`` [s]."""
+        from rclpy.duration import Duration
+
+        return publisher.wait_for_all_acked(Duration(seconds=timeout_sec))
+
     def spin(node, executor=None):
         """Run callbacks of ``node`` until its context shuts down (a signal ends it quietly,
         as with the built-in backend)."""
@@ -233,6 +240,11 @@ else:
         """The (cached) executor of ``nodes``: ``executor(nodes).spin_once(timeout_sec)``."""
         nodes = (nodes,) if isinstance(nodes, Node) else tuple(nodes)
         return nodes[0].context.executor(nodes)
+
+    def wait_for_acks(publisher, timeout_sec=1.0):
+        """Wait until every matched reliable reader acknowledged what ``publisher`` sent;
+        True if they did within ``timeout_sec`` [s]."""
+        return publisher.wait_for_acks(timeout_sec)
 
 
 def describe():

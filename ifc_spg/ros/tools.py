@@ -65,6 +65,10 @@ def talker(argv):
             integer=True)).value
         wait_timeout = node.declare_parameter('wait_timeout_s', 10.0, _descriptor(
             'Give up waiting for subscribers after this long [s].', 0.0, 3600.0)).value
+        settle = node.declare_parameter('settle_s', 0.5, _descriptor(
+            'After the subscribers matched, wait this long before publishing [s]: discovery '
+            'is not symmetric (a Fast DDS writer may see a reader before the reader knows '
+            'the writer, and the first samples are then lost).', 0.0, 60.0)).value
         pub = node.create_publisher(JointState, 'joint_states', 10)
         names = [f'joint_{i + 1}' for i in range(n_joints)]
         clock = node.get_clock()
@@ -72,6 +76,8 @@ def talker(argv):
                                             wait_timeout, [node]):
             node.get_logger().error(f'no {wait_subs} subscriber(s) after {wait_timeout} s')
             return 1
+        if wait_subs and settle > 0:
+            ros.spin_until(lambda: False, settle, [node])
         sent = [0]
 
         def tick():
@@ -92,8 +98,8 @@ def talker(argv):
                                f'{pub.topic_name}')
         while ros.ok() and not (count and sent[0] >= count):
             ros.spin_once(node, timeout_sec=0.1)
-        if ros.ok() and hasattr(pub, 'wait_for_acks'):
-            pub.wait_for_acks(5.0)
+        if ros.ok():
+            ros.wait_for_acks(pub, 5.0)
         node.get_logger().info(f'published {sent[0]} messages')
         return 0
     finally:
