@@ -39,7 +39,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={'ifc_spg': ['model/data/*', 'schema/*.json']},
+    package_data={'ifc_spg': ['model/data/*', 'schema/*.json', 'dynamics/kdl_bench.cpp']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -1,0 +1,26 @@
+"""Every install route builds the C kernels: ``pip wheel .`` with build isolation (setup.py
+cannot import numpy from the caller's environment there; pyproject.toml's [build-system]
+provides it) holds both extensions."""
+
+from pathlib import Path
+import subprocess
+import sys
+import zipfile
+
+from helpers import ROOT
+import pytest
+
+pytestmark = pytest.mark.slow
+
+
+def test_isolated_wheel_build_carries_both_c_extensions(tmp_path):
+    out = subprocess.run([sys.executable, '-m', 'pip', 'wheel', '--no-deps',
+                          '--disable-pip-version-check', '-q', '-w', str(tmp_path),
+                          str(ROOT)], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    (wheel,) = Path(tmp_path).glob('ifc_spg-*.whl')
+    names = zipfile.ZipFile(wheel).namelist()
+    for module in ('ifc_spg/_native', 'ifc_spg/dynamics/_native_dynamics'):
+        assert any(n.startswith(module) and n.endswith('.so') for n in names), \
+            (module, [n for n in names if n.endswith('.so')])
+    assert 'ifc_spg/dynamics/kdl_bench.cpp' in names
