@@ -18,6 +18,10 @@ watchdog.timeout, status.decimation, diagnostics.period, task_stack_file,
 topics.{joint_states, command, task_stack, status, diagnostics}. An unknown, mistyped or
 out-of-range parameter ends the node with exit code 2 and a message naming it.
 
+At run time (``ros2 param set``, rcl_interfaces SetParameters with rclpy) status.decimation,
+diagnostics.period and watchdog.timeout change from the next tick; every other parameter is
+refused with the reason in the SetParametersResult (restart the node to change it).
+
 The logic lives in :class:`ifc_spg.spg_runner.SpgRunner` (no ROS); this module only wires
 it to topics and timers.
 """
@@ -37,6 +41,22 @@ _LEVELS = {'OK': 0, 'WARN': 1, 'ERROR': 2, 'STALE': 3}
 
 def _stamp_ns(stamp):
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+#: Parameters that may change while the node runs (applied from the next tick): how often it
+#: reports and when it stops commanding. The rest define the solver, the model, the energy
+#: tanks or the topics, and are refused at run time with the reason.
+LIVE_PARAMETERS = ('status.decimation', 'diagnostics.period', 'watchdog.timeout')
+_FIXED_WHY = {
+    'impedance': "the energy tanks, the torque-limit level and the wrench tasks are built "
+                 "with the robot's K and D, and a bag records them once",
+    'pspm': 'the energy tanks are built with them; changing them would change what '
+            'passivity guarantees mid-run',
+    'topics': 'the subscriptions and publishers are made at start-up',
+    'robot': 'the model, limits and joint names come from it',
+    'dt': 'the cascade, the limits and the tanks are discretised with it',
+    'solver': 'the cascade is built with it',
+}
 
 
 class SpgNode:
@@ -63,9 +83,9 @@ class SpgNode:
                                                    self.on_joint_state, 10)
         self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
                                                   self.on_task_stack, ros.latched(1))
-        if c.watchdog_timeout > 0:
-            node.create_timer(min(max(c.watchdog_timeout / 4, 0.002), 0.1), self.on_watchdog)
-        node.create_timer(c.diagnostics_period, self.publish_diagnostics)
+        self._watchdog_timer = self._diag_timer = None
+        self._start_timers()
+        node.add_on_set_parameters_callback(self.on_set_parameters)
         self._logged = {}
         self.commands_sent = 0
         self.log.info(f"spg_node: robot '{c.robot}' ({self.runner.robot.n} joints), dt {c.dt} s,"
@@ -78,6 +98,53 @@ class SpgNode:
                              'take seconds (README, Benchmarks); use daqp on a robot')
         if c.task_stack_file:
             self.load_file(c.task_stack_file)
+
+    def _start_timers(self):
+        c, node = self.config, self.node
+        for timer in (self._watchdog_timer, self._diag_timer):
+            if timer is not None:
+                node.destroy_timer(timer)
+        self._watchdog_timer = None
+        if c.watchdog_timeout > 0:
+            self._watchdog_timer = node.create_timer(
+                min(max(c.watchdog_timeout / 4, 0.002), 0.1), self.on_watchdog)
+        self._diag_timer = node.create_timer(c.diagnostics_period, self.publish_diagnostics)
+
+    def on_set_parameters(self, parameters):
+        """A parameter change at run time (``ros2 param set``, SetParameters): the
+        :data:`LIVE_PARAMETERS` apply from the next tick; the others are refused with the
+        reason (they shape the solver, the model or the topics: restart the node)."""
+        from dataclasses import replace
+
+        from ifc_spg import ros
+        from ifc_spg.spg_config import PARAMETERS
+
+        fields = {p.name: p.field for p in PARAMETERS}
+        changes = {}
+        for param in parameters:
+            if param.name not in LIVE_PARAMETERS:
+                why = _FIXED_WHY.get(param.name.split('.')[0], 'it is read at start-up')
+                return ros.SetParametersResult(successful=False, reason=(
+                    f"'{param.name}' cannot change while spg_node runs ({why}); restart "
+                    f"spg_node with -p {param.name}:=... . Live parameters: "
+                    f"{', '.join(LIVE_PARAMETERS)}"))
+            value = param.value
+            if isinstance(getattr(self.config, fields[param.name]), float):
+                value = float(value)
+            changes[fields[param.name]] = value
+        try:
+            config = replace(self.config, **changes)
+        except IfcSpgError as exc:
+            return ros.SetParametersResult(successful=False, reason=str(exc))
+        old = self.config
+        self.config = self.runner.config = config
+        if (old.watchdog_timeout, old.diagnostics_period) != (config.watchdog_timeout,
+                                                              config.diagnostics_period):
+            self._start_timers()
+        self.log.info('parameters changed from the next tick: ' + ', '.join(
+            f'{p.name} {getattr(old, fields[p.name])} -> {getattr(config, fields[p.name])}'
+            for p in parameters))
+        return ros.SetParametersResult(successful=True)
 
     def load_file(self, path):
         """Run the task stack in file ``path`` (as if it arrived on the task topic)."""

@@ -280,3 +280,21 @@ def test_proxsuite_is_started_with_a_warning(domain, capfd):
     ros.shutdown()
     _start([])
     assert 'use daqp on a robot' not in capfd.readouterr().err
+
+
+def test_live_parameters_apply_and_the_others_are_refused(domain):
+    """set_parameters on the node (both backends; with rclpy also through its services, see
+    test_spg_node_parameters): live ones apply from the next tick, the others are refused."""
+    spg, fake = _start([])
+    robot = RobotModel.from_config('lbr_iiwa14')
+    results = spg.node.set_parameters([ros.Parameter('status.decimation', value=2),
+                                       ros.Parameter('robot', value='lbr4'),
+                                       ros.Parameter('watchdog.timeout', value=0.5)])
+    assert [r.successful for r in results] == [True, False, True]
+    assert "'robot' cannot change while spg_node runs" in results[1].reason
+    assert spg.config.status_decimation == 2 and spg.runner.config.watchdog_timeout == 0.5
+    assert spg.node.get_parameter('robot').value == 'lbr_iiwa14'
+    for k in range(4):
+        fake.tick(list(robot.joint_names), robot.q_home, np.zeros(7), k * DT_NS)
+    assert fake.spin_until(lambda: [s['tick'] for s in fake.status if 'event' not in s] ==
+                           [2, 4])
