@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from ifc_spg.model import RobotModel
+from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.task_stack import TaskStack, TaskStackError, builder, check, schema
 from ifc_spg.task_stack.loader import MAX_NODES, MAX_TEXT_BYTES
@@ -70,7 +71,10 @@ def test_shipped_stack_runs_200_ticks(path):
     r = robot(stack.robot)
     tasks = stack.build(r)
     assert len(tasks) >= len(stack.tasks)
-    spg = SetPointGenerator(r, stack, dt=0.002)
+    # a stack that asks for a power budget needs a ceiling that allows it (the shipped robot
+    # configs set one; the library default is strictly passive)
+    spg = SetPointGenerator(r, stack, dt=0.002,
+                            pspm=PspmConfig(max_power=stack.power_budget or 0.0))
     plant = JointImpedancePlant(r, r.q_home, dt=0.002, substeps=2)
     q, qdot, t = plant.q.copy(), plant.qdot.copy(), 0.0
     for _ in range(200):
