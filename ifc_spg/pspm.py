@@ -286,6 +286,8 @@ class StallReport(NamedTuple):
         requested_power: Power [W] the stack asked of each stalled joint's tank beyond what
             the IFC damper returned (same order as ``joints``).
         total_power: Sum of ``requested_power`` [W].
+        robot_power: The rate [W] at which all the tanks together were drained (beyond the
+            damper's refill) while they had energy: what the whole stack spends running.
         power_budget: The refill rate in effect [W].
         max_power: The node's ceiling ``pspm.max_power`` [W].
         since: Task time [s] at which the stall was first reported.
@@ -294,17 +296,19 @@ class StallReport(NamedTuple):
     joints: tuple
     requested_power: tuple
     total_power: float
+    robot_power: float
     power_budget: float
     max_power: float
     since: float
 
     def suggestion(self):
-        """The setting that would give the stack the power it asks for: twice the request,
-        or twice the budget in effect if that is more (the request is a lower bound; a stall
-        reported again under the new budget asks for twice that)."""
+        """The setting that would give the stack the power it asks for: twice the larger of
+        the request, the robot's running consumption and the budget in effect (these are
+        lower bounds; a stall reported again under the new budget asks for twice that)."""
         # the request is measured at the stalled state (the joint barely moves, so less than
-        # moving will take): ask for twice it, and at least twice the budget in effect
-        need = _round_up(2.0 * max(self.total_power, self.power_budget))
+        # moving will take) and the refill goes to whichever tank is emptiest: ask for twice
+        # the larger of the request, what the whole robot spent running, and the budget
+        need = _round_up(2.0 * max(self.total_power, self.robot_power, self.power_budget))
         fix = f"declare 'power_budget: {need:g}' [W] in the task stack"
         if need > self.max_power:
             fix += f' and raise the spg_node parameter pspm.max_power to >= {need:g} W'
@@ -331,9 +335,10 @@ class StallMonitor:
     ``min_power`` [W] (averaged over probes) is stalled. The power reported is the larger
     of that request and the rate at which the joint drained its tank while it still had
     energy (averaged over ``drain_time`` [s], frozen while the tank is empty): a stalled
-    joint barely moves, so its request alone understates what running will take. The first stall of an episode (a
-    stack activation or a restart) is flagged in :attr:`new` for one tick, so callers log it
-    once.
+    joint barely moves, so its request alone understates what running will take. The
+    report also gives the drain rate of all the tanks together (``robot_power``). The first
+    stall of an episode (a stack activation or a restart) is flagged in :attr:`new` for one
+    tick, so callers log it once.
 
     Args:
         n: Number of joints.
@@ -344,7 +349,7 @@ class StallMonitor:
     """
 
     def __init__(self, n, dt, time_constant=0.5, probe_every=25, min_power=1e-3,
-                 drain_time=2.0):
+                 drain_time=5.0):
         self.n = int(n)
         self._alpha = min(1.0, float(dt) / float(time_constant))
         self._alpha_drain = min(1.0, float(dt) / float(drain_time))
@@ -397,7 +402,8 @@ class StallMonitor:
         joints = tuple(int(j) for j in stalled)
         power = tuple(float(max(self._power[j], self._drain[j])) for j in stalled)
         since = task_time if self.report is None else self.report.since
-        self.report = StallReport(joints, power, float(sum(power)), float(power_budget),
+        robot = max(0.0, float(self._drain.sum()))
+        self.report = StallReport(joints, power, float(sum(power)), robot, float(power_budget),
                                   float(max_power), float(since))
         if not self._reported:
             self._reported = self.new = True
@@ -409,6 +415,7 @@ def stall_message(report, joint_names):
     each = ', '.join(f'{n} {p:.3g}' for n, p in zip(names, report.requested_power))
     return (f"PSPM stall: the energy tanks of {', '.join(names)} are empty and clip the task "
             f'stack since task time {report.since:.2f} s (the tasks slow down or stop); the '
-            f'stack asks for {report.total_power:.3g} W ({each} W) with a power budget of '
+            f'stack asks for {report.total_power:.3g} W ({each} W), the whole robot spent '
+            f'{report.robot_power:.3g} W while its tanks had energy, with a power budget of '
             f'{report.power_budget:g} W (ceiling pspm.max_power {report.max_power:g} W); '
             f'{report.suggestion()}')

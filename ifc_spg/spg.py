@@ -90,7 +90,8 @@ class SpgInfo:
                 'joints': [names[j] for j in stall.joints],
                 'requested_power': {names[j]: p for j, p in zip(stall.joints,
                                                                 stall.requested_power)},
-                'total_power': stall.total_power, 'since': stall.since,
+                'total_power': stall.total_power, 'robot_power': stall.robot_power,
+                'since': stall.since,
                 'fix': stall.suggestion(), 'message': stall_message(stall, names)}}
 
     @property
