@@ -59,9 +59,13 @@ class BridgeParams:
     ft_raw: bool = False
     stiffness: tuple = ()
     damping: tuple = ()
+    wait_for_subscribers: int = 0
 
 
 _DESCRIPTIONS = {
+    'wait_for_subscribers': 'Before the first state, wait (up to 60 s) for this many '
+                            'subscriptions on joint_states, then 0.5 s more (discovery is not '
+                            'symmetric: a new subscriber may not know us yet); 0: start at once',
     'robot': 'Robot configuration (lbr_iiwa14, lbr4, icub_upper_body, accrea_dual_arm)',
     'interface': 'IFC emulation lbr_fri|icub|accrea (empty: implied by the robot)',
     'scene': 'Scene name (free, table, obstacle, drawer_horizontal, drawer_vertical, crank, '
@@ -348,8 +352,29 @@ class SimBridge:
         self.pacing = pacer.stats()
         return self.pacing
 
+    def wait_for_subscribers(self, ok=lambda: True):
+        """Wait for ``wait_for_subscribers`` subscriptions on joint_states (see its
+        description); False if they did not come within 60 s."""
+        import time
+
+        n = self.params.wait_for_subscribers
+        if n <= 0:
+            return True
+        deadline = time.monotonic() + 60.0
+        while ok() and self.pub_joints.get_subscription_count() < n:
+            if time.monotonic() > deadline:
+                self.node.get_logger().error(f'no {n} subscriber(s) on joint_states after 60 s')
+                return False
+            self._spin(0.05)
+        settle = time.monotonic() + 0.5
+        while ok() and time.monotonic() < settle:
+            self._spin(0.05)
+        return True
+
     def run(self, max_ticks=None, ok=lambda: True):
         """Run in the configured mode."""
+        if not self.wait_for_subscribers(ok):
+            return
         if self.params.mode == 'lockstep':
             self.run_lockstep(max_ticks, ok=ok)
         else:

@@ -47,8 +47,11 @@ class FakeClock:
         return self.t
 
 
-def record_spg_topics(node, depth=100):
+def record_spg_topics(node, depth=10000):
     """Subscribe ``node`` to joint_states, command/joint_position and spg/status.
+
+    The history is deep: a lockstep loop runs faster than real time, and a test's Python
+    executor (rclpy's in particular) may fall behind it for a while without losing messages.
 
     Returns:
         The lists (states, commands, status) the messages are appended to; status documents

@@ -45,7 +45,7 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
     node = ros.Node('listener')
     status = []
     node.create_subscription(ros_msg.String, 'spg/status',
-                             lambda m: status.append(json.loads(m.data)), 100)
+                             lambda m: status.append(json.loads(m.data)), 10000)
     procs = ProcessGroup(tmp_path, env)
     start, log = procs.start, procs.log
 
@@ -68,6 +68,8 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         # the stack_accepted event is volatile: connect to the node's status first
         assert spin_until(lambda: node.count_publishers('spg/status') >= 1 or
                           spg.poll() is not None, 60.0), log('spg_node')
+        # and the recorder (another process: not observable here) gets 1 s to match it too
+        spin_until(lambda: False, 1.0)
         start('task_publisher', str(stack))
         assert spin_until(lambda: event('stack_accepted') or spg.poll() is not None, 60.0), \
             log('spg_node')
@@ -75,16 +77,20 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         assert stop('task_publisher', signal.SIGKILL) == -signal.SIGKILL
         # run 1: realtime bridge while a CPU hog loads the machine (bounded, killed by PID)
         start('hog', '-c', HOG, exe='python')
+        # the SPG and the recorder subscribe to joint_states: start once both know us
         bridge = start('bridge1', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=free',
-                       '-p', 'mode:=realtime', '-p', 'duration:=3.0', exe='sim_bridge')
+                       '-p', 'mode:=realtime', '-p', 'duration:=3.0',
+                       '-p', 'wait_for_subscribers:=2', exe='sim_bridge')
         assert spin_until(lambda: bridge.poll() is not None, 60.0), log('bridge1')
         stop('hog', signal.SIGKILL)
         assert bridge.returncode == 0, log('bridge1')
         # the joint states stopped: the watchdog trips and reports it
         assert spin_until(lambda: event('watchdog'), 10.0), log('spg_node')
         # run 2: a restarted bridge (clock from 0 again, robot back at home)
+        # the SPG and the recorder subscribe to joint_states: start once both know us
         bridge = start('bridge2', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=free',
-                       '-p', 'mode:=realtime', '-p', 'duration:=3.0', exe='sim_bridge')
+                       '-p', 'mode:=realtime', '-p', 'duration:=3.0',
+                       '-p', 'wait_for_subscribers:=2', exe='sim_bridge')
         assert spin_until(lambda: bridge.poll() is not None, 60.0), log('bridge2')
         assert bridge.returncode == 0, log('bridge2')
         assert spin_until(lambda: event('resumed'), 10.0), log('spg_node')
