@@ -338,7 +338,8 @@ class StallMonitor:
     joint barely moves, so its request alone understates what running will take. The
     report also gives the drain rate of all the tanks together (``robot_power``). The first
     stall of an episode (a stack activation or a restart) is flagged in :attr:`new` for one
-    tick, so callers log it once.
+    tick, so callers log it once; it is flagged again only when joints not reported before
+    in the episode stall (at most once per joint and episode).
 
     Args:
         n: Number of joints.
@@ -365,7 +366,7 @@ class StallMonitor:
         self._ticks = 0
         self.report = None
         self.new = False
-        self._reported = False
+        self._reported = set()
 
     @property
     def wants_probe(self):
@@ -405,8 +406,9 @@ class StallMonitor:
         robot = max(0.0, float(self._drain.sum()))
         self.report = StallReport(joints, power, float(sum(power)), robot, float(power_budget),
                                   float(max_power), float(since))
-        if not self._reported:
-            self._reported = self.new = True
+        if not self._reported.issuperset(joints):  # first stall, or other joints stall
+            self._reported.update(joints)
+            self.new = True
 
 
 def stall_message(report, joint_names):

@@ -52,7 +52,7 @@ class SpgInfo:
         message: Human-readable reason for a non-'ok' status, or the PSPM stall warning.
         stall: :class:`~ifc_spg.pspm.StallReport` while an empty tank clips the stack's
             solution (status stays 'ok'), else None; stall_new: True on the tick the first
-            stall of an episode is reported (log it once).
+            stall of an episode is reported (log it), and again only if other joints stall.
         power_budget: Refill rate of the tanks in effect [W] (the stack's power_budget).
         pspm: Dict (computed on demand) of power_budget, max_power [W], refilled [J] per
             joint, and stall {joints, requested_power [W] per joint, total_power, since,

@@ -212,7 +212,7 @@ class SpgRunner:
         self.ticks = 0
         self.watchdog_trips = 0
         self.resumes = 0
-        self.pspm_stalls = 0            # PSPM stall episodes reported (one per episode)
+        self.pspm_stalls = 0            # PSPM stalls reported (once per episode and joint)
         self.last_stall = ''            # the last stall's message (log it when the count grows)
         self.stale = False              # watchdog tripped, not yet resumed
         self.started = False            # at least one tick since the start/restart
@@ -340,7 +340,8 @@ class SpgRunner:
         info = self.spg.info
         if info.status in ('fallback', 'hold', 'bad_input'):
             self._error('spg', f'{info.status}: {info.message}')
-        if info.stall_new:  # the first stall of this episode (stack activation or restart)
+        if info.stall_new:  # the first stall of this episode (stack activation or restart),
+            # or one of joints that had not stalled in it
             self.pspm_stalls += 1
             self.last_stall = info.message
             self._error('pspm', info.message)
@@ -427,9 +428,9 @@ class SpgRunner:
         residual (max violation of the level's velocity bounds), slack}], tank_energy [J],
         solve_time / tick_time [s], qdot_v [rad/s], rejected {reason: count}, watchdog
         {timeout, trips, resumes}, pspm {power_budget and max_power [W], refilled [J] per
-        joint, stall: None or {joints, requested_power [W] per joint, total_power [W], since
-        [s], fix, message}, stalls (episodes reported)} (None without PSPM), errors (the
-        last few), event {type, message} (when given)
+        joint, stall: None or {joints, requested_power [W] per joint, total_power and
+        robot_power [W], since [s], fix, message}, stalls (reports, once per episode and
+        joint)} (None without PSPM), errors (the last few), event {type, message} (when given)
         config (the :class:`SpgConfig` as a dict) and robot_params (:func:`robot_params`: the
         K, D and limits the SPG uses), both in the first document and every event.
 
