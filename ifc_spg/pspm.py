@@ -326,43 +326,51 @@ def _round_up(x):
 class StallMonitor:
     """Detects a stall: an empty tank that clips the stack's solution for more than a moment.
 
-    Each tick :meth:`observe` gets the joints whose tank ended the tick empty (the step used
-    all the available energy). Their exponential average (time constant ``time_constant``)
-    above 1/2 — about 0.35 s of an empty tank — makes the joint a *candidate*; then, every
-    ``probe_every`` ticks, the SPG solves the cascade once more without the passivity bound
-    and :meth:`observe` gets the power [W] each joint's tank would have had to give for that
-    solution (beyond what the IFC damper returned). A candidate asking for more than
-    ``min_power`` [W] (averaged over probes) is stalled. The power reported is the larger
-    of that request and the rate at which the joint drained its tank while it still had
-    energy (averaged over ``drain_time`` [s], frozen while the tank is empty): a stalled
-    joint barely moves, so its request alone understates what running will take. The
-    report also gives the drain rate of all the tanks together (``robot_power``). The first
-    stall of an episode (a stack activation or a restart) is flagged in :attr:`new` for one
-    tick, so callers log it once; it is flagged again only when joints not reported before
-    in the episode stall (at most once per joint and episode).
+    Each tick :meth:`observe` looks at the joints whose tank ended the tick empty (the step
+    used all the available energy). Their exponential average (time constant
+    ``time_constant``) above 1/2 — about 0.35 s of an empty tank — makes the joint a
+    *candidate*; then, every ``probe_every`` ticks, the SPG solves the cascade once more
+    without the passivity bound and :meth:`observe` gets the power [W] each joint's tank
+    would have had to give for that solution (beyond what the IFC damper returned). A
+    candidate asking for more than ``min_power`` [W] (averaged over probes) is stalled. The
+    power reported is the larger of that request and the rate at which the joint drained its
+    tank while it still had energy (averaged over ``drain_time`` [s], frozen while the tank
+    is empty): a stalled joint barely moves, so its request alone understates what running
+    will take. The report also gives the drain rate of all the tanks together
+    (``robot_power``). The first stall of an episode (a stack activation or a restart) is
+    flagged in :attr:`new` for one tick, so callers log it once; it is flagged again only
+    when joints not reported before in the episode stall (at most once per joint and
+    episode). While no tank is empty a tick costs two comparisons; the drain rates are
+    booked every ``probe_every`` ticks from the tanks' energies and refills.
 
     Args:
-        n: Number of joints.
-        dt: SPG period in [s].
+        tanks: The :class:`EnergyTanks` to watch.
         time_constant: Of the empty-tank average in [s].
-        probe_every: Ticks between the extra solves while a joint is a candidate.
+        probe_every: Ticks between the extra solves while a joint is a candidate (and
+            between drain samples).
         min_power: Requested power [W] below which a candidate is not stalled.
+        drain_time: Averaging time of the drain rates in [s].
     """
 
-    def __init__(self, n, dt, time_constant=0.5, probe_every=25, min_power=1e-3,
+    def __init__(self, tanks, time_constant=0.5, probe_every=25, min_power=1e-3,
                  drain_time=5.0):
-        self.n = int(n)
-        self._alpha = min(1.0, float(dt) / float(time_constant))
-        self._alpha_drain = min(1.0, float(dt) / float(drain_time))
+        self.tanks = tanks
+        self.n = tanks.K.size
+        dt = tanks.dt
+        self._alpha = min(1.0, dt / float(time_constant))
         self.probe_every = int(probe_every)
+        self._window = self.probe_every * dt
+        self._alpha_drain = min(1.0, self._window / float(drain_time))
         self.min_power = float(min_power)
         self.reset()
 
     def reset(self):
         """A new episode: forget the averages; the next stall is reported again."""
         self._empty = np.zeros(self.n)
+        self._active = False            # some joint's empty average is not (yet) zero
         self._power = np.zeros(self.n)
         self._drain = np.zeros(self.n)
+        self._mark = None               # (tank energy, refilled + shuffled) of the last sample
         self._ticks = 0
         self.report = None
         self.new = False
@@ -371,41 +379,61 @@ class StallMonitor:
     @property
     def wants_probe(self):
         """True when this tick's caller should solve without the passivity bound."""
-        return self._ticks % self.probe_every == 0 and bool(np.any(self._empty > 0.5))
+        return self._active and self._ticks % self.probe_every == 0 and bool(
+            np.any(self._empty > 0.5))
 
-    def observe(self, empty, requested_power=None, *, drain=None, power_budget=0.0,
-                max_power=0.0, task_time=0.0):
-        """Book one tick.
+    def _sample_drain(self, candidate):
+        # energy that left the tanks beyond the damper's refill: E_before + refill + shuffle
+        # - E_after, per joint, over the window (booked while the joint is not a candidate)
+        tanks = self.tanks
+        mark = (tanks.energy.copy(), tanks.refilled + tanks.shuffled)
+        if self._mark is not None:
+            drain = (self._mark[0] - mark[0] + mark[1] - self._mark[1]) / self._window
+            step = self._alpha_drain * (drain - self._drain)
+            if candidate is not None:
+                step[candidate] = 0.0
+            self._drain += step
+        self._mark = mark
+
+    def observe(self, requested_power=None, *, task_time=0.0):
+        """Book one tick (after the tanks booked the step).
 
         Args:
-            empty: Bool mask of joints whose tank ended the tick empty.
             requested_power: Per joint [W] the stack asked for beyond the damper's refill
                 (only on probe ticks, else None).
-            drain: Per joint [W], the energy this tick's step took from the tank beyond the
-                damper's refill, over dT.
-            power_budget: The refill rate in effect [W]; max_power: the ceiling [W].
             task_time: Task time of this tick [s].
         """
         self._ticks += 1
-        self._empty += self._alpha * (empty - self._empty)
+        self.new = False
+        tanks = self.tanks
+        sample = self._ticks % self.probe_every == 0
+        if not self._active:
+            if not (tanks.energy <= 1e-9).any():  # the usual tick: no tank is empty
+                if sample:
+                    self._sample_drain(None)
+                return
+            self._active = True
+        self._empty += self._alpha * (tanks.empty() - self._empty)
         candidate = self._empty > 0.5
-        if drain is not None:
-            self._drain += np.where(candidate, 0.0, self._alpha_drain * (drain - self._drain))
+        if sample:
+            self._sample_drain(candidate)
         if requested_power is not None:
             p = np.where(candidate, np.maximum(requested_power, 0.0), 0.0)
             self._power += 0.3 * (p - self._power)
         self._power[~candidate] = 0.0
         stalled = np.flatnonzero(candidate & (self._power > self.min_power))
-        self.new = False
         if not stalled.size:
             self.report = None
+            if self._empty.max() < 1e-6:
+                self._empty[:] = 0.0
+                self._active = False
             return
         joints = tuple(int(j) for j in stalled)
         power = tuple(float(max(self._power[j], self._drain[j])) for j in stalled)
         since = task_time if self.report is None else self.report.since
         robot = max(0.0, float(self._drain.sum()))
-        self.report = StallReport(joints, power, float(sum(power)), robot, float(power_budget),
-                                  float(max_power), float(since))
+        self.report = StallReport(joints, power, float(sum(power)), robot, float(tanks.power),
+                                  float(tanks.config.max_power), float(since))
         if not self._reported.issuperset(joints):  # first stall, or other joints stall
             self._reported.update(joints)
             self.new = True

@@ -155,7 +155,7 @@ class SetPointGenerator:
             modulated = ~robot.stiff_mask if robot.ifc == JOINT_IMPEDANCE \
                 else np.zeros(n, dtype=bool)
             self.tanks = EnergyTanks(robot.stiffness, robot.damping, modulated, dt, pspm)
-        self._stall = None if self.tanks is None else StallMonitor(n, dt)
+        self._stall = None if self.tanks is None else StallMonitor(self.tanks)
         self._probe_solver = None  # a second cascade for stall probes (created when needed)
         self._solver_args = (solver, n, rho)
         self._torque_limit = None
@@ -320,7 +320,7 @@ class SetPointGenerator:
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, qdot_v)
             stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, levels[len(top):],
-                                      task_time, energy_step)
+                                      task_time)
             if stall is not None and status == 'ok':
                 message = stall_message(stall, self.robot.joint_names)
         if self._native is not None:
@@ -339,8 +339,7 @@ class SetPointGenerator:
             joint_names=self.robot.joint_names)
         return self.q_v.copy()
 
-    def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time,
-                     energy_step):
+    def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time):
         """Book this tick in the stall monitor; on its probe ticks, solve the cascade again
         without the passivity bound to learn the power the stack asks for. Returns the
         :class:`~ifc_spg.pspm.StallReport` or None."""
@@ -362,9 +361,7 @@ class SetPointGenerator:
                         requested = tanks.requested_power(q, q_v, np.asarray(res.qdot_v))
                 except Exception:  # a probe must never take the tick down
                     pass
-        drain = (energy_step - tanks.dissipated_min) * (1.0 / self.dt)
-        monitor.observe(tanks.empty(), requested, drain=drain, power_budget=tanks.power,
-                        max_power=tanks.config.max_power, task_time=task_time)
+        monitor.observe(requested, task_time=task_time)
         return monitor.report
 
     def _hold(self, status, message, t_start):
