@@ -288,7 +288,27 @@ def _discovered(participant, reader):
     return out
 
 
-class Recorder:
+class _Recording:
+    """What both recorders share: the topics they record, and writing what arrived, then
+    looking for new topics on the graph (at most every 0.2 s)."""
+
+    _last_discovery = 0.0
+
+    @property
+    def recording(self):
+        """The topics subscribed to."""
+        return [t for t, s in self._subs.items() if s is not None]
+
+    def _write_and_discover(self):
+        n = self.drain()
+        now = time.monotonic()
+        if now - self._last_discovery > 0.2:
+            self._last_discovery = now
+            self.discover()
+        return n
+
+
+class Recorder(_Recording):
     """Records topics of the built-in DDS backend into a bag (``ifc-spg bag record``).
 
     Args:
@@ -318,10 +338,6 @@ class Recorder:
         self._pubs = BuiltinDataReader(node.context.participant, BuiltinTopicDcpsPublication)
         self._last_discovery = 0.0
 
-    @property
-    def recording(self):
-        """The topics subscribed to."""
-        return [t for t, s in self._subs.items() if s is not None]
 
     def _subscribe(self, topic, msgtype, qos):
         from ifc_spg.ros import dds, messages
@@ -371,12 +387,7 @@ class Recorder:
         """Wait up to ``timeout_s`` [s] for data, write what arrived, look for new topics."""
         self._waitset.wait(int(timeout_s * 1e9))
         self.node.context.guard.take()
-        n = self.drain()
-        now = time.monotonic()
-        if now - self._last_discovery > 0.2:
-            self._last_discovery = now
-            self.discover()
-        return n
+        return self._write_and_discover()
 
 
 def _rclpy_message_class(msgtype):
@@ -395,7 +406,7 @@ def _from_rclpy_qos(profile):
                       durability=DurabilityPolicy(int(profile.durability)))
 
 
-class RclpyRecorder:
+class RclpyRecorder(_Recording):
     """Records topics over rclpy into a bag: raw (serialized CDR) subscriptions, written with
     their receive time, so the bytes are those on the wire (as ``ros2 bag record``).
 
@@ -438,10 +449,6 @@ class RclpyRecorder:
             reader_qos, raw=True)
         self.writer.add_topic(topic, msgtype, qos)
 
-    @property
-    def recording(self):
-        """The topics subscribed to."""
-        return [t for t, s in self._subs.items() if s is not None]
 
     def discover(self):
         """Subscribe to newly discovered topics we want (typed and QoS'd by the graph)."""
@@ -470,12 +477,7 @@ class RclpyRecorder:
             self._executor.spin_once(timeout_sec=0.0)
             if not self._pending:
                 break
-        n = self.drain()
-        now = time.monotonic()
-        if now - self._last_discovery > 0.2:
-            self._last_discovery = now
-            self.discover()
-        return n
+        return self._write_and_discover()
 
 
 def record(path, topics=None, discover_all=False, duration=None, args=None, quiet=False):
