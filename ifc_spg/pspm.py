@@ -15,9 +15,10 @@ Stiff (position-controlled) joints have no spring and are not modulated.
 Power budget (issue 18): a stack that does work on its environment (sliding a tool, lifting
 a drawer) may ask for a refill rate P [W] up to the node's ceiling ``max_power`` (0 by
 default: strictly passive). Each tick, P dT is added to E_avail of the modulated joints,
-emptiest tank first (water-filling: the tanks below a common level are raised to it, never
-above E_max; with every tank full the refill is not taken), so the joints that spend
-energy get the budget as soon as they need it. Then, per joint j,
+emptiest tank first (water-filling of E_r + E_Dmin: the tanks below a common level are
+raised to it, never above E_max; with every tank full the refill is not taken), so the
+joints that spend energy get the budget as soon as they need it, and the budget only tops
+up what the damper's E_Dmin does not. Then, per joint j,
 -int tau_j qdot_j >= -(c_j^2 + R_j) with R_j the energy refilled into joint j, and
 sum_j R_j <= int P dt: the whole robot injects at most sum_j c_j^2 + P t (the energy the
 IFC damper surely dissipated, E_Dmin, is already on the left side: the port's tau includes
@@ -178,7 +179,10 @@ class EnergyTanks:
         if self._q_prev is None:
             self._q_prev = np.array(q, dtype=float)
         if self._native is not None:
-            shuffle = self._added() if self._extra else None
+            shuffle = None
+            if self._extra:  # the refill tops up what E_Dmin leaves (numpy's E_Dmin below)
+                shuffle = self._added(self._D_over_dt * (q - self._q_prev) ** 2
+                                      if self.power > 0.0 else None)
             lower, upper, self.dissipated_min, self._avail = self._native.pspm_bounds(
                 q, q_v, self._q_prev, self.energy, shuffle, self._D_over_dt,
                 self._two_over_K, self._inv_dt, self._modulated)
@@ -189,7 +193,7 @@ class EnergyTanks:
         self.dissipated_min = step
         self._q_prev[:] = q
         if self._extra:
-            self._avail = self.energy + step + self._added()
+            self._avail = self.energy + step + self._added(step)
         else:
             self._avail = self.energy + step
         dq = q_v - q
@@ -206,8 +210,9 @@ class EnergyTanks:
             upper[self._fixed] = np.inf
         return VelocityBox(lower, upper)
 
-    def _added(self):
-        """This tick's shuffled plus refilled energy per joint in [J]."""
+    def _added(self, dissipated):
+        """This tick's shuffled plus refilled energy per joint in [J] (``dissipated``: this
+        tick's E_Dmin, which counts as already in the tank when the refill is shared)."""
         if self._shuffling:
             room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
             self._shuffle_now = np.minimum(self.config.shuffle, room)
@@ -215,15 +220,15 @@ class EnergyTanks:
         else:
             added = np.zeros(self.K.size)
         if self.power > 0.0:
-            room = self._water_fill(self.power * self.dt)
+            room = self._water_fill(self.power * self.dt, self.energy + dissipated)
             self._refill_now = room
             added += room
         return added
 
-    def _water_fill(self, amount):
-        """Share ``amount`` [J] among the modulated tanks, emptiest first: the tanks below a
-        common level are raised to it (never above E_max); returns the refill per joint."""
-        e = self.energy
+    def _water_fill(self, amount, e):
+        """Share ``amount`` [J] among the modulated tanks with energies ``e`` [J], emptiest
+        first: the tanks below a common level are raised to it (never above E_max); returns
+        the refill per joint."""
         idx = np.flatnonzero(self.mask)
         order = idx[np.argsort(e[idx], kind='stable')]
         levels = e[order]
