@@ -13,12 +13,15 @@ from helpers import use_loopback  # noqa: E402 (needs the path above)
 @pytest.fixture
 def dds_env(monkeypatch):
     """This test on its own loopback DDS domain: the environment (also for child processes);
-    the built-in DDS backend is shut down afterwards."""
+    the active backend's default context and the built-in backend's (tests of the built-in
+    backend itself use it directly, also where rclpy is active) are shut down afterwards."""
     from ifc_spg import ros
+    from ifc_spg.ros import dds
 
     env = use_loopback(monkeypatch)
     yield env
     ros.shutdown()
+    dds.shutdown()
 
 
 @pytest.fixture
