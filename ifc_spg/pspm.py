@@ -16,9 +16,11 @@ Power budget (issue 18): a stack that does work on its environment (sliding a to
 a drawer) may ask for a refill rate P [W] up to the node's ceiling ``max_power`` (0 by
 default: strictly passive). Each tick, P dT is added to E_avail of the modulated joints,
 emptiest tank first (water-filling of E_r + E_Dmin: the tanks below a common level are
-raised to it, never above E_max; with every tank full the refill is not taken), so the
-joints that spend energy get the budget as soon as they need it, and the budget only tops
-up what the damper's E_Dmin does not. Then, per joint j,
+raised to it, never above the take-off level E_r,init (E_max if that is 0); with every tank
+at that level the refill is not taken), so the joints that spend energy get the budget as
+soon as they need it, the budget only tops up what the damper's E_Dmin does not, and the
+room up to E_max stays free for the energy the joints give back (a full tank would discard
+it, and the budget would pay for it again). Then, per joint j,
 -int tau_j qdot_j >= -(c_j^2 + R_j) with R_j the energy refilled into joint j, and
 sum_j R_j <= int P dt: the whole robot injects at most sum_j c_j^2 + P t (the energy the
 IFC damper surely dissipated, E_Dmin, is already on the left side: the port's tau includes
@@ -105,6 +107,10 @@ class EnergyTanks:
         self._fixed = np.flatnonzero(~self.mask)  # joints without modulation (stiff)
         self._shuffling = config.shuffle > 0.0 and config.shuffle_budget > 0.0
         self._extra = self._shuffling  # shuffle or refill added to E_avail this tick
+        # the refill keeps the tanks at E_r,init at most: the room above is for the energy
+        # the joints give back (a full tank would discard it and the budget pay for it again)
+        self._fill_level = config.initial_energy if config.initial_energy > 0 else \
+            config.max_energy
         self._D_over_dt = self.D / self.dt
         self._inv_dt = 1.0 / self.dt
         self._minus_inv_dt = -self._inv_dt
@@ -227,8 +233,8 @@ class EnergyTanks:
 
     def _water_fill(self, amount, e):
         """Share ``amount`` [J] among the modulated tanks with energies ``e`` [J], emptiest
-        first: the tanks below a common level are raised to it (never above E_max); returns
-        the refill per joint."""
+        first: the tanks below a common level are raised to it (never above the fill level
+        E_r,init, or E_max if that is 0); returns the refill per joint."""
         idx = np.flatnonzero(self.mask)
         order = idx[np.argsort(e[idx], kind='stable')]
         levels = e[order]
@@ -237,7 +243,7 @@ class EnergyTanks:
         level = (amount + filled) / k              # the level if the k emptiest are raised
         nxt = np.append(levels[1:], np.inf)
         j = int(np.argmax(level <= nxt))           # the first k whose level fits below the next
-        level = min(float(level[j]), self.config.max_energy)
+        level = min(float(level[j]), self._fill_level)
         refill = np.zeros(e.size)
         refill[order[:j + 1]] = np.maximum(level - levels[:j + 1], 0.0)
         return refill

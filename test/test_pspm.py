@@ -125,7 +125,7 @@ class TaskStack_(list):
 
 def test_refill_goes_to_the_emptiest_tanks_and_never_beyond_the_budget():
     K = np.full(4, 100.0)
-    cfg = PspmConfig(initial_energy=0.0, max_energy=1.0, max_power=10.0)
+    cfg = PspmConfig(initial_energy=0.0, max_energy=1.0, max_power=10.0)  # fill up to E_max
     tanks = EnergyTanks(K, np.ones(4), np.array([True, True, True, False]), 0.002, cfg)
     tanks.reset(np.zeros(4))
     tanks.set_power(10.0)
@@ -145,6 +145,16 @@ def test_refill_goes_to_the_emptiest_tanks_and_never_beyond_the_budget():
     with pytest.raises(ParameterError, match=r'power_budget 11 W exceeds the ceiling of 10 W'
                                              r'.*pspm.max_power'):
         tanks.set_power(11.0)
+    # with E_r,init > 0 the refill stops there: the room above is for energy given back
+    tanks = EnergyTanks(K, np.ones(4), np.ones(4, bool), 0.002,
+                        PspmConfig(initial_energy=0.3, max_energy=1.0, max_power=200.0))
+    tanks.reset(np.zeros(4))
+    tanks.set_power(200.0)  # 0.4 J per tick, more than the room below 0.3 J
+    tanks.energy = np.array([0.0, 0.25, 0.5, 0.3])
+    tanks.bounds(np.zeros(4), np.zeros(4))
+    tanks.update(np.zeros(4), np.zeros(4), np.zeros(4))
+    np.testing.assert_allclose(tanks.refilled, [0.3, 0.05, 0.0, 0.0])
+    np.testing.assert_allclose(tanks.energy, [0.3, 0.3, 0.5, 0.3])
 
 
 def test_a_stack_asking_for_more_than_the_ceiling_is_rejected_naming_both_numbers():
