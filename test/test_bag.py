@@ -138,6 +138,7 @@ def test_record_over_dds_counts_match_and_sigterm_closes(tmp_path, dds_env):
 
 
 @pytest.mark.ros
+@pytest.mark.flaky(reruns=2)  # rclpy on a loaded machine: discovery sometimes exceeds --delay
 def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     src = tmp_path / 'src'
     _write_sample(src, n=100)

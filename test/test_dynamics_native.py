@@ -57,7 +57,10 @@ def _same(rc, rn, where):
         # in either implementation; what it does to the motion (q̈, torques) is not
         if f == 'nu' and rn.singular:
             continue
-        _close(getattr(rc, f), getattr(rn, f), f'{where}: {f}')
+        # the residual of constraints that cannot all hold (rank-deficient coupling) carries
+        # the same round-off through nu: 3.6e-9 seen once in a full suite run
+        tol = 1e-7 if f == 'constraint_residual' and rn.singular else 1e-10
+        _close(getattr(rc, f), getattr(rn, f), f'{where}: {f}', tol=tol)
     if np.isnan(rn.gauss):
         assert np.isnan(rc.gauss)
     else:

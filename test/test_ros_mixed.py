@@ -94,7 +94,8 @@ def test_bridge_and_spg_on_different_backends(tmp_path, spg_backend, bridge_back
         bridge = bridge_procs.start(
             'sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'interface:=lbr_fri',
             '-p', 'scene:=table', '-p', 'scene_options:=\'{"gap": 0.01}\'', '-p',
-            'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}')
+            'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}',
+            '-p', 'wait_for_subscribers:=2')  # the SPG and the recorder
         assert _wait(lambda: bridge.poll() is not None, 240), bridge_procs.log('sim_bridge')
         assert bridge.returncode == 0, bridge_procs.log('sim_bridge')
         assert f'backend: {bridge_backend}' in bridge_procs.log('sim_bridge')
@@ -117,7 +118,8 @@ def test_bridge_and_spg_on_different_backends(tmp_path, spg_backend, bridge_back
     # (once unheard by the SPG); each stamp has one command and the SPG sent one per tick.
     n_steps = round(SIM_SECONDS / DT)
     assert len(set(states)) >= n_steps
-    assert ticks == sent == len(commands) == len(set(commands)) >= n_steps
+    assert ticks == sent == len(commands) >= n_steps   # one command per state heard
+    assert len(commands) - len(set(commands)) <= len(states) - len(set(states))  # re-sent
     assert set(commands) == set(states)
     # the contact force, as in the single-backend e2e test
     t, f = np.array(wrench).T
@@ -182,7 +184,7 @@ def test_bag_record_of_rclpy_nodes_deserializes_with_rosbags(tmp_path):
                                exe='ifc-spg')
         assert _wait(lambda: talker.poll() is not None, 60), talkers.log('talker')
         assert talker.returncode == 0, talkers.log('talker')
-        _wait(lambda: False, 0.5)
+        _wait(lambda: False, 2.0)  # the latched stack reaches the recorder when it matches
         assert recs.stop('recorder', signal.SIGINT) == 0, recs.log('recorder')
     finally:
         talkers.close()
