@@ -525,8 +525,14 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
 
 # -- play ---------------------------------------------------------------------------------
 
-def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0):
+def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0, wait_subscribers=0,
+         wait_timeout=30.0):
     """Publish a bag's messages with their original timing (scaled by ``rate``) and QoS.
+
+    ``delay`` [s] is waited in any case; with ``wait_subscribers`` N, also until every topic
+    has N matched subscriptions (at most ``wait_timeout`` [s]), then 0.5 s more. Discovery
+    between two processes can take a DDS announcement period (Fast DDS: 3 s), so a fixed
+    delay alone may publish to nobody.
 
     Returns:
         {topic: messages published}.
@@ -562,6 +568,16 @@ def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0):
         deadline = time.monotonic() + delay
         while time.monotonic() < deadline and not stop.requested:
             ros.spin_once(node, timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
+        if wait_subscribers > 0:
+            def matched():
+                return all(p.get_subscription_count() >= wait_subscribers
+                           for p in pubs.values())
+
+            if not ros.spin_until(lambda: matched() or stop.requested, wait_timeout, [node]):
+                node.get_logger().warning(
+                    f'not every topic has {wait_subscribers} subscriber(s) after '
+                    f'{wait_timeout} s; playing anyway')
+            ros.spin_until(lambda: stop.requested, 0.5, [node])
         start_wall = time.monotonic()
         for topic, _, t, data in bag.raw(set(pubs)):
             if stop.requested:
@@ -642,6 +658,9 @@ def main(argv=None):
     p.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     p.add_argument('--delay', type=float, default=0.5, help='wait S seconds for discovery')
     p.add_argument('--topics', nargs='*', default=None, help='only these topics')
+    p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
+                   help='after --delay, wait (up to 30 s) until every topic has N matched '
+                        'subscriptions (discovery can take seconds)')
     i = sub.add_parser('info', help='topics, types, counts, duration')
     i.add_argument('bag')
     opts = parser.parse_args(argv)
@@ -651,7 +670,8 @@ def main(argv=None):
         elif opts.cmd == 'record':
             record(opts.output, opts.topics or None, opts.all, opts.duration, ros_args)
         else:
-            counts = play(opts.bag, opts.rate, opts.delay, opts.topics, ros_args)
+            counts = play(opts.bag, opts.rate, opts.delay, opts.topics, ros_args,
+                          wait_subscribers=opts.wait_for_subscribers)
             print('played ' + ', '.join(f'{t}: {c}' for t, c in counts.items()))
     except IfcSpgError as exc:
         print(f'ifc-spg bag {opts.cmd}: {exc}', file=sys.stderr)

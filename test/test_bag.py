@@ -138,7 +138,6 @@ def test_record_over_dds_counts_match_and_sigterm_closes(tmp_path, dds_env):
 
 
 @pytest.mark.ros
-@pytest.mark.flaky(reruns=2)  # rclpy on a loaded machine: discovery sometimes exceeds --delay
 def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     src = tmp_path / 'src'
     _write_sample(src, n=100)
@@ -147,7 +146,10 @@ def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     try:
         _wait_line(rec, 'recording')
         t0 = time.monotonic()
-        player = _start(['bag', 'play', str(src), '--rate', '0.5', '--delay', '2.0'], dds_env)
+        # a fixed delay is not enough on rclpy: Fast DDS' discovery of two processes took
+        # longer than 2 s in half of the tries here (the next announcement, 3 s, finds it)
+        player = _start(['bag', 'play', str(src), '--rate', '0.5', '--delay', '2.0',
+                         '--wait-for-subscribers', '1'], dds_env)
         assert player.wait(60) == 0, player.stderr.read()
         elapsed = time.monotonic() - t0
         time.sleep(0.3)

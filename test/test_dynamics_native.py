@@ -51,6 +51,12 @@ def _close(a, b, what, tol=1e-10):
 
 def _same(rc, rn, where):
     assert rc.singular == rn.singular and rc.rank == rn.rank, where
+    # 1e-10 relative, times the condition number of the constraint coupling matrix: two
+    # correct implementations that round differently part by that much (n=5 chain 1 state 1:
+    # qdd 3.4e-7 at |qdd| 634, cond ~1e3)
+    coupling = np.asarray(rn.coupling, dtype=float)
+    cond = float(np.linalg.cond(coupling)) if coupling.size and not rn.singular else 1.0
+    factor = max(1.0, cond) if np.isfinite(cond) else 1.0
     for f in FIELDS:
         # with a rank-deficient coupling matrix nu is the damped solution along directions
         # whose eigenvalues are round-off (1e-16): it is defined only up to that round-off
@@ -59,17 +65,19 @@ def _same(rc, rn, where):
             continue
         # the residual of constraints that cannot all hold (rank-deficient coupling) carries
         # the same round-off through nu: 3.6e-9 seen once in a full suite run
-        tol = 1e-7 if f == 'constraint_residual' and rn.singular else 1e-10
+        tol = 1e-7 if f == 'constraint_residual' and rn.singular else 1e-10 * factor
         _close(getattr(rc, f), getattr(rn, f), f'{where}: {f}', tol=tol)
     if np.isnan(rn.gauss):
         assert np.isnan(rc.gauss)
     else:
-        assert abs(rc.gauss - rn.gauss) <= 1e-10 * (1.0 + abs(rn.gauss)), where
+        assert abs(rc.gauss - rn.gauss) <= 1e-10 * factor * (1.0 + abs(rn.gauss)), where
 
 
 def _random_inputs(rng, model):
     n = model.nv
-    q = pin.randomConfiguration(model, -np.pi * np.ones(model.nq), np.pi * np.ones(model.nq))
+    # from the test's own generator (pinocchio's randomConfiguration draws from a global one,
+    # so the states would depend on what ran before)
+    q = pin.integrate(model, pin.neutral(model), rng.uniform(-np.pi, np.pi, model.nv))
     kw = {}
     if rng.random() < 0.7:
         kw['base_acceleration'] = rng.normal(size=6) * 3
@@ -256,7 +264,7 @@ def test_kdl_reproduces_our_accelerations(which, tmp_path):
     rng = np.random.default_rng(50)
     states, qs = [], []
     for _ in range(10):
-        q = pin.randomConfiguration(model, -np.pi * np.ones(model.nq), np.pi * np.ones(model.nq))
+        q = pin.integrate(model, pin.neutral(model), rng.uniform(-np.pi, np.pi, model.nv))
         qs.append(q)
         states.append((solver.chain.joint_angles(q), rng.normal(size=model.nv),
                        rng.normal(size=model.nv) * 3))

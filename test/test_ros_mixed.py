@@ -184,7 +184,8 @@ def test_bag_record_of_rclpy_nodes_deserializes_with_rosbags(tmp_path):
                                exe='ifc-spg')
         assert _wait(lambda: talker.poll() is not None, 60), talkers.log('talker')
         assert talker.returncode == 0, talkers.log('talker')
-        _wait(lambda: False, 2.0)  # the latched stack reaches the recorder when it matches
+        _wait(lambda: False, 4.0)  # the latched stack reaches the recorder when it matches (Fast
+        # DDS discovery of a process can take one 3 s announcement period)
         assert recs.stop('recorder', signal.SIGINT) == 0, recs.log('recorder')
     finally:
         talkers.close()
