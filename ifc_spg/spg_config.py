@@ -59,6 +59,16 @@ class SpgConfig:
         task_stack_topic: Input task stacks (latched).
         status_topic: Output status JSON.
         diagnostics_topic: Output DiagnosticArray.
+        enable: Command the robot (False: publish nothing, or the measured q with
+            ``hold_when_disabled``; switching it on restarts from the measured q).
+        hold_when_disabled: While disabled, command the measured q (a position controller
+            that needs a command every period holds still).
+        command_interface: The command message: 'joint_state' (sensor_msgs/JointState, the
+            bridge's and lockstep's), 'float64_multi_array' (std_msgs/Float64MultiArray,
+            ros2_control's JointGroupPositionController) or 'joint_trajectory'
+            (trajectory_msgs/JointTrajectory, one point at dT, for trajectory controllers).
+        command_joints: Joint order of the command (ros2_control's ``joints``); () keeps
+            the robot configuration's.
     """
 
     robot: str = 'lbr_iiwa14'
@@ -83,6 +93,10 @@ class SpgConfig:
     task_stack_topic: str = 'spg/task_stack'
     status_topic: str = 'spg/status'
     diagnostics_topic: str = 'spg/diagnostics'
+    enable: bool = True
+    hold_when_disabled: bool = False
+    command_interface: str = 'joint_state'
+    command_joints: tuple = ()
 
     def __post_init__(self):
         for p in PARAMETERS:
@@ -96,6 +110,11 @@ class SpgConfig:
                 raise ParameterError(f"parameter '{p.name}': {value!r} is a "
                                      f'{type(value).__name__}, expected a '
                                      f'{type(default).__name__} ({p.description})')
+            if p.field == 'command_joints':
+                if not all(isinstance(v, str) and v for v in value):
+                    raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
+                                         f'joint names ({p.description})')
+                continue
             if isinstance(default, tuple):
                 if not all(type(v) in (int, float) and math.isfinite(v) for v in value):
                     raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
@@ -111,6 +130,11 @@ class SpgConfig:
         if self.solver not in SOLVERS:
             raise ParameterError(f"parameter 'solver': '{self.solver}' is not one of "
                                  f"{', '.join(SOLVERS)}{did_you_mean(self.solver, SOLVERS)}")
+        if self.command_interface not in COMMAND_INTERFACES:
+            raise ParameterError(
+                f"parameter 'command.interface': '{self.command_interface}' is not one of "
+                f"{', '.join(COMMAND_INTERFACES)}"
+                f'{did_you_mean(self.command_interface, COMMAND_INTERFACES)}')
         self.pspm_config()  # validates the energies (initial <= max)
         for p in PARAMETERS:
             if p.field.endswith('_topic') and not getattr(self, p.field):
@@ -183,7 +207,18 @@ PARAMETERS = (
     Param('topics.status', 'status_topic', 'Output status std_msgs/String (JSON)'),
     Param('topics.diagnostics', 'diagnostics_topic',
           'Output diagnostic_msgs/DiagnosticArray topic'),
+    Param('enable', 'enable', 'Command the robot (live; also the latched spg/enable Bool '
+          'topic). Off: nothing is published (or the measured q, see command.'
+          'hold_when_disabled); on: restart from the measured q'),
+    Param('command.hold_when_disabled', 'hold_when_disabled',
+          'While disabled, command the measured q'),
+    Param('command.interface', 'command_interface',
+          'joint_state (sensor_msgs/JointState), float64_multi_array (ros2_control '
+          'JointGroupPositionController) or joint_trajectory (one point at dT)'),
+    Param('command.joints', 'command_joints',
+          "Joint order of the command (ros2_control's 'joints'; default: the robot's)"),
 )
+COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 
 _DEFAULTS = {f.name: f.default for f in fields(SpgConfig)}
 _BY_NAME = {p.name: p for p in PARAMETERS}
@@ -304,7 +339,9 @@ def robot_gains_of(robot):
 
     SpgConfig(robot=robot)  # an unknown robot: the error names the choices
     model = RobotModel.from_config(robot)
-    return {key: [float(v) for v in getattr(model, key)] for key in ('stiffness', 'damping')}
+    out = {key: [float(v) for v in getattr(model, key)] for key in ('stiffness', 'damping')}
+    out['command_joints'] = list(model.joint_names)
+    return out
 
 
 def config_file(robot):

@@ -30,6 +30,8 @@ import signal
 import sys
 import time
 
+import numpy as np
+
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.spg_config import declare_parameters
 from ifc_spg.spg_runner import SpgRunner, status_json
@@ -46,7 +48,8 @@ def _stamp_ns(stamp):
 #: Parameters that may change while the node runs (applied from the next tick): how often it
 #: reports and when it stops commanding. The rest define the solver, the model, the energy
 #: tanks or the topics, and are refused at run time with the reason.
-LIVE_PARAMETERS = ('status.decimation', 'diagnostics.period', 'watchdog.timeout')
+LIVE_PARAMETERS = ('status.decimation', 'diagnostics.period', 'watchdog.timeout', 'enable',
+                   'command.hold_when_disabled')
 _FIXED_WHY = {
     'impedance': "the energy tanks, the torque-limit level and the wrench tasks are built "
                  "with the robot's K and D, and a bag records them once",
@@ -57,6 +60,28 @@ _FIXED_WHY = {
     'dt': 'the cascade, the limits and the tanks are discretised with it',
     'solver': 'the cascade is built with it',
 }
+
+
+def _command_order(config, joint_names):
+    """Indices into the robot's joints, in ``command.joints`` order (default: the robot's).
+
+    Raises:
+        ParameterError: Not exactly the robot's joints (names the missing / unknown ones).
+    """
+    from ifc_spg.errors import ParameterError, did_you_mean
+
+    names = list(config.command_joints) or list(joint_names)
+    unknown = [n for n in names if n not in joint_names]
+    if unknown:
+        raise ParameterError(f"parameter 'command.joints': unknown joint '{unknown[0]}'"
+                             f'{did_you_mean(unknown[0], joint_names)}; the robot '
+                             f"'{config.robot}' has {', '.join(joint_names)}")
+    missing = [n for n in joint_names if n not in names]
+    if missing or len(set(names)) != len(names):
+        raise ParameterError(f"parameter 'command.joints' must name each of the robot's joints "
+                             f"once ({', '.join(joint_names)}); missing {missing}, given "
+                             f'{names}')
+    return [list(joint_names).index(n) for n in names]
 
 
 class SpgNode:
@@ -76,7 +101,16 @@ class SpgNode:
         self.config = c = declare_parameters(node)
         self.runner = SpgRunner(c, clock=clock)
         self.log = node.get_logger()
-        self.pub_command = node.create_publisher(msg.JointState, c.command_topic, 10)
+        self._command_order = _command_order(c, self.runner.joint_names)
+        self._write = {'joint_state': self._joint_state_command,
+                       'float64_multi_array': self._float64_multi_array_command,
+                       'joint_trajectory': self._joint_trajectory_command}[c.command_interface]
+        command_type = {'joint_state': msg.JointState, 'float64_multi_array':
+                        msg.Float64MultiArray, 'joint_trajectory': msg.JointTrajectory}
+        self.pub_command = node.create_publisher(command_type[c.command_interface],
+                                                 c.command_topic, 10)
+        self.sub_enable = node.create_subscription(msg.Bool, 'spg/enable', self.on_enable,
+                                                   ros.latched(1))
         self.pub_status = node.create_publisher(msg.String, c.status_topic, 10)
         self.pub_diag = node.create_publisher(msg.DiagnosticArray, c.diagnostics_topic, 10)
         self.sub_states = node.create_subscription(msg.JointState, c.joint_states_topic,
@@ -141,6 +175,7 @@ class SpgNode:
         if (old.watchdog_timeout, old.diagnostics_period) != (config.watchdog_timeout,
                                                               config.diagnostics_period):
             self._start_timers()
+        self._set_enable(old.enable, config.enable)
         self.log.info('parameters changed from the next tick: ' + ', '.join(
             f'{p.name} {getattr(old, fields[p.name])} -> {getattr(config, fields[p.name])}'
             for p in parameters))
@@ -160,8 +195,44 @@ class SpgNode:
         self._report_stack(event)
 
     # -- callbacks ----------------------------------------------------------------------
+    def on_enable(self, message):
+        """``spg/enable`` (latched Bool): switch commanding on or off, as the parameter."""
+        from ifc_spg import ros
+
+        results = self.node.set_parameters([ros.Parameter('enable', value=bool(message.data))])
+        if not results[0].successful:
+            self.log.error(f'spg/enable: {results[0].reason}')
+
+    def _set_enable(self, old, new):
+        if new and not old:
+            self.runner.request_restart()
+            self.log.warning('enabled: commanding from the measured q at the next joint state')
+            self.publish_status(('enabled', 'commanding from the measured q'))
+        elif old and not new:
+            self.log.warning('disabled: no commands' + (
+                ' (holding the measured q)' if self.config.hold_when_disabled else ''))
+            self.publish_status(('disabled', 'no commands'))
+
+    def _hold(self, message):
+        """While disabled: the measured q, in the command's joint order (if asked to)."""
+        if not self.config.hold_when_disabled:
+            return
+        index = {n: i for i, n in enumerate(message.name)}
+        try:
+            q = np.array([float(message.position[index[n]]) for n in self.runner.joint_names])
+        except (KeyError, IndexError, TypeError, ValueError):
+            return
+        if not np.all(np.isfinite(q)):
+            return
+        robot = self.runner.robot
+        self._write(message.header.stamp, np.clip(q, robot.q_min, robot.q_max),
+                    np.zeros(q.size))
+
     def on_joint_state(self, message):
         """Tick: validate, step the SPG, publish the command (and status every N ticks)."""
+        if not self.config.enable:
+            self._hold(message)
+            return
         runner = self.runner
         rejected, trips = sum(runner.rejected.values()), runner.watchdog_trips
         was_stale, stalls = runner.stale, runner.pspm_stalls
@@ -173,12 +244,7 @@ class SpgNode:
             self.log.warning(runner.last_error)
         if cmd is None:
             return
-        out = self._msg.JointState()
-        out.header.stamp = message.header.stamp
-        out.name = list(cmd.names)
-        out.position = cmd.position.tolist()
-        out.velocity = cmd.velocity.tolist()
-        self.pub_command.publish(out)
+        self._write(message.header.stamp, cmd.position, cmd.velocity)
         self.commands_sent += 1
         if cmd.resumed and cmd.tick > 1:
             text = (f'joint states are back (stamp {cmd.stamp_ns * 1e-9:.3f} s): restarted from '
@@ -212,8 +278,39 @@ class SpgNode:
                            f"'{event.name or 'none'}'")
             self.publish_status(('stack_rejected', event.message))
 
+    # -- commands, one writer per interface (q_v, qdot_v in the robot's joint order) -------
+    def _joint_state_command(self, stamp, position, velocity):
+        out = self._msg.JointState()
+        out.header.stamp = stamp
+        order = self._command_order
+        out.name = [self.runner.joint_names[i] for i in order]
+        out.position = [float(position[i]) for i in order]
+        out.velocity = [float(velocity[i]) for i in order]
+        self.pub_command.publish(out)
+
+    def _float64_multi_array_command(self, stamp, position, velocity):
+        out = self._msg.Float64MultiArray()
+        out.data = [float(position[i]) for i in self._command_order]
+        self.pub_command.publish(out)
+
+    def _joint_trajectory_command(self, stamp, position, velocity):
+        msg = self._msg
+        out = msg.JointTrajectory()
+        out.header.stamp = stamp
+        order = self._command_order
+        out.joint_names = [self.runner.joint_names[i] for i in order]
+        point = msg.JointTrajectoryPoint()
+        point.positions = [float(position[i]) for i in order]
+        point.velocities = [float(velocity[i]) for i in order]
+        point.time_from_start.sec, nanosec = divmod(round(self.config.dt * 1e9), 1_000_000_000)
+        point.time_from_start.nanosec = nanosec
+        out.points = [point]
+        self.pub_command.publish(out)
+
     def on_watchdog(self):
         """Timer: trip the watchdog when joint states stopped."""
+        if not self.config.enable:
+            return
         if self.runner.check_watchdog():
             self.log.warning(self.runner.last_error)
             self.publish_status(('watchdog', self.runner.last_error))

@@ -216,6 +216,7 @@ class SpgRunner:
         self.last_stall = ''            # the last stall's message (log it when the count grows)
         self.stale = False              # watchdog tripped, not yet resumed
         self.started = False            # at least one tick since the start/restart
+        self._restart_requested = False
         self.stack_id = 0
         self.stack_name = ''
         self._stack_since = None
@@ -298,7 +299,7 @@ class SpgRunner:
             return self._reject('non_finite', 'the stamp is not a finite whole number of ns')
         last = self._last_stamp
         timeout_ns = int(self.config.watchdog_timeout * 1e9)
-        restart = not self.started
+        restart = not self.started or self._restart_requested
         if last is not None:
             if stamp_ns == last:
                 self._reject('duplicate_stamp', f'stamp {stamp_ns * 1e-9:.9f} s seen before; '
@@ -371,8 +372,14 @@ class SpgRunner:
             self._perm[names] = perm
         return perm
 
+    def request_restart(self):
+        """Restart from the measured q at the next joint state (e.g. after the node was
+        disabled: the robot may have been moved meanwhile)."""
+        self._restart_requested = True
+
     def _restart(self, q):
         """Start (or restart after the watchdog) from the measured ``q``."""
+        self._restart_requested = False
         self.spg.reset(q)  # also re-activates the stack: init values, task time from here
         if self.started:
             self.resumes += 1

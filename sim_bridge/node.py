@@ -60,9 +60,21 @@ class BridgeParams:
     stiffness: tuple = ()
     damping: tuple = ()
     wait_for_subscribers: int = 0
+    command_interface: str = 'joint_state'
+    command_topic: str = 'command/joint_position'
+    command_joints: tuple = ()
 
+
+COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 
 _DESCRIPTIONS = {
+    'command_interface': 'The command message the emulated controller takes: joint_state '
+                         '(sensor_msgs/JointState), float64_multi_array (ros2_control '
+                         'JointGroupPositionController) or joint_trajectory (the last point '
+                         'of each trajectory_msgs/JointTrajectory)',
+    'command_topic': 'Topic of the commands',
+    'command_joints': "Joint order of float64_multi_array commands (the controller's "
+                      "'joints'; default: the robot's)",
     'wait_for_subscribers': 'Before the first state, wait (up to 60 s) for this many '
                             'subscriptions on joint_states, then 0.5 s more (discovery is not '
                             'symmetric: a new subscriber may not know us yet); 0: start at once',
@@ -97,12 +109,14 @@ def declare(node):
         default = default.default
         if name == 'q0':
             default = [0.0]  # typed as a double array; [] would be untyped
-        elif name in ('stiffness', 'damping'):  # declared with the robot's own values
+        elif name in ('stiffness', 'damping', 'command_joints'):  # the robot's own values
             gains = gains or robot_gains_of(values['robot'])
             default = gains[name]
         desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
         values[name] = declare_checked(node, name, default, desc)
-        if isinstance(default, list):  # not set (q0's placeholder, the robot's gains): ()
+        if name == 'command_joints':
+            values[name] = () if list(values[name]) == default else tuple(values[name])
+        elif isinstance(default, list):  # not set (q0's placeholder, the robot's gains): ()
             value = [float(x) for x in (values[name] or ())]
             values[name] = () if value == default else tuple(value)
     return validate(BridgeParams(**values))
@@ -110,6 +124,10 @@ def declare(node):
 
 def validate(p):
     """Return ``p`` if valid, else raise :class:`ParameterError` naming the fix."""
+    if p.command_interface not in COMMAND_INTERFACES:
+        raise ParameterError(f"command_interface '{p.command_interface}' is not one of "
+                             f"{', '.join(COMMAND_INTERFACES)}"
+                             f'{did_you_mean(p.command_interface, COMMAND_INTERFACES)}')
     if p.mode not in MODES:
         raise ParameterError(f"mode '{p.mode}' is not one of {', '.join(MODES)}"
                              f'{did_you_mean(p.mode, MODES)}')
@@ -192,8 +210,18 @@ class SimBridge:
         self.pub_contact = node.create_publisher(msg.WrenchStamped, 'sim/contact_wrench',
                                                  ros.qos_profile_sensor_data)
         self.pub_env = node.create_publisher(msg.JointState, 'sim/env_joint_states', 10)
-        node.create_subscription(msg.JointState, 'command/joint_position', self._on_command,
-                                 10)
+        command_type = {'joint_state': msg.JointState,
+                        'float64_multi_array': msg.Float64MultiArray,
+                        'joint_trajectory': msg.JointTrajectory}[p.command_interface]
+        self._array_order = None
+        if p.command_joints:
+            unknown = [n for n in p.command_joints if n not in self.sim.joint_names]
+            if unknown or sorted(p.command_joints) != sorted(self.sim.joint_names):
+                raise ParameterError(
+                    f'command_joints must name each joint once ({", ".join(self.sim.joint_names)}'
+                    f'); got {list(p.command_joints)}')
+            self._array_order = [list(p.command_joints).index(n) for n in self.sim.joint_names]
+        node.create_subscription(command_type, p.command_topic, self._on_command, 10)
         node.create_subscription(msg.WrenchStamped, 'sim/apply_wrench', self._on_push, 10)
         self._names = list(self.sim.joint_names)
         self._index = {n: i for i, n in enumerate(self._names)}
@@ -212,15 +240,35 @@ class SimBridge:
     # -- callbacks ------------------------------------------------------------------------
     def _on_command(self, message):
         try:
-            q_v = self._command_vector(message)
+            q_v, stamp = self._decode_command(message)
         except ParameterError as exc:
-            self.node.get_logger().error(f'command/joint_position rejected: {exc}')
+            self.node.get_logger().error(f'{self.params.command_topic} rejected: {exc}')
             return
-        stamp = (int(message.header.stamp.sec), int(message.header.stamp.nanosec))
         self._command = (q_v, stamp)
         sent = self._sent_at.pop(stamp, None)
         if sent is not None:  # the first command answering a state we published
             self.latencies.append(time.monotonic() - sent)
+
+    def _decode_command(self, message):
+        """(q_v in the simulation's joint order, stamp) of a command of the configured
+        interface; a Float64MultiArray has no stamp: (0, 0), which lockstep takes as the
+        answer to the state it waits for."""
+        interface = self.params.command_interface
+        if interface == 'float64_multi_array':
+            data = np.array(list(message.data), dtype=float)
+            if data.size != len(self._names):
+                raise ParameterError(f'{data.size} values for {len(self._names)} joints')
+            return (data[self._array_order] if self._array_order else data), (0, 0)
+        stamp = (int(message.header.stamp.sec), int(message.header.stamp.nanosec))
+        if interface == 'joint_trajectory':
+            if not message.points:
+                raise ParameterError('a JointTrajectory without points')
+            point = message.points[-1]
+
+            class _Named:  # the JointState fields _command_vector reads
+                name, position = message.joint_names, point.positions
+            return self._command_vector(_Named), stamp
+        return self._command_vector(message), stamp
 
     def _command_vector(self, message):
         positions = list(message.position)

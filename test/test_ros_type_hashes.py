@@ -1,7 +1,7 @@
 """RIHS01 type hashes of the built-in message classes equal rosidl's (Jazzy).
 
 The table below is what rosidl_generator_type_description wrote into the Jazzy message
-packages (share/<pkg>/msg/<T>.json of ros-jazzy-*-msgs 5.3.6, builtin_interfaces 2.0.3,
+packages (share/<pkg>/msg/<T>.json of ros-jazzy-*-msgs 5.3.6 incl. trajectory_msgs, builtin_interfaces 2.0.3,
 rmw_dds_common 3.1.0). Where those packages are installed the table is checked against their
 files, against the hash an rclpy publisher announces, and against the hash rclpy (Fast DDS) reads
 from a built-in backend writer's USER_DATA on the wire.
@@ -20,6 +20,12 @@ from ifc_spg.ros import messages
 from ifc_spg.ros.messages import REGISTRY
 
 ROSIDL_HASHES = {
+    'std_msgs/msg/Bool':
+        'RIHS01_feb91e995ff9ebd09c0cb3d2aed18b11077585839fb5db80193b62d74528f6c9',
+    'trajectory_msgs/msg/JointTrajectory':
+        'RIHS01_179b33eba59d676f6d967ac71fe35e7ca2f64b2f3928f4a018cec115e213796e',
+    'trajectory_msgs/msg/JointTrajectoryPoint':
+        'RIHS01_de8907036d8bd45aac6f30cc9044a3d4a329c42cbf719aff7d95a584cfa532d7',
     'builtin_interfaces/msg/Duration':
         'RIHS01_e8d009f659816f758b75334ee1a9ca5b5c0b859843261f14c7f937349599d93b',
     'builtin_interfaces/msg/Time':

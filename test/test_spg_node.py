@@ -298,3 +298,76 @@ def test_live_parameters_apply_and_the_others_are_refused(domain):
         fake.tick(list(robot.joint_names), robot.q_home, np.zeros(7), k * DT_NS)
     assert fake.spin_until(lambda: [s['tick'] for s in fake.status if 'event' not in s] ==
                            [2, 4])
+
+
+def test_disabled_node_commands_nothing_then_enables_from_the_measured_q(domain):
+    """enable:=false publishes nothing; hold_when_disabled publishes the measured q; the
+    latched spg/enable topic switches it on, and the first command is the measured q plus at
+    most one v_max dT step (a restart), whatever the robot did meanwhile."""
+    spg, fake = _start(['enable:=false'])
+    fake.publish_stack(STACK, 'stack_accepted')
+    robot = RobotModel.from_config('lbr_iiwa14')
+    names, q = list(robot.joint_names), np.array(robot.q_home, dtype=float)
+    fake.send(names, q, np.zeros(7), 0)
+    fake.spin_until(lambda: False, 0.3)
+    assert fake.commands == [] and spg.runner.ticks == 0
+    spg.node.set_parameters([ros.Parameter('command.hold_when_disabled', value=True)])
+    held = fake.tick(names, q + 0.01, np.zeros(7), DT_NS)   # the measured q, in limits
+    np.testing.assert_array_equal(held.position, q + 0.01)
+    assert list(held.velocity) == [0.0] * 7 and spg.runner.ticks == 0
+    enable = fake.node.create_publisher(ros_msg.Bool, 'spg/enable', ros.latched(1))
+    assert fake.spin_until(lambda: enable.get_subscription_count() == 1)
+    enable.publish(ros_msg.Bool(data=True))
+    assert fake.spin_until(lambda: spg.config.enable)
+    moved = q + 0.05    # the robot was moved while disabled
+    cmd = fake.tick(names, moved, np.zeros(7), 2 * DT_NS)
+    step = np.abs(np.asarray(cmd.position) - moved)
+    assert np.all(step <= robot.v_max * spg.config.dt + 1e-12), step
+    assert spg.runner.ticks == 1
+    fake.tick(names, np.asarray(cmd.position), np.zeros(7), 3 * DT_NS)
+    enable.publish(ros_msg.Bool(data=False))
+    assert fake.spin_until(lambda: not spg.config.enable)
+    assert fake.events('disabled') or fake.spin_until(lambda: fake.events('disabled'))
+
+
+@pytest.mark.parametrize('interface', ['float64_multi_array', 'joint_trajectory'])
+def test_command_interfaces_carry_the_same_command_in_the_given_joint_order(domain, interface):
+    robot = RobotModel.from_config('lbr_iiwa14')
+    order = list(reversed(robot.joint_names))
+    topic = {'float64_multi_array': 'forward_position_controller/commands',
+             'joint_trajectory': 'joint_trajectory_controller/joint_trajectory'}[interface]
+    spg, fake = _start([f'command.interface:={interface}', f'topics.command:={topic}',
+                        f'command.joints:={order}'])
+    kind = {'float64_multi_array': ros_msg.Float64MultiArray,
+            'joint_trajectory': ros_msg.JointTrajectory}[interface]
+    got = []
+    fake.node.create_subscription(kind, topic, got.append, 100)
+    fake.publish_stack(STACK, 'stack_accepted')
+    ref = _reference(robot, spg.config)
+    q, qdot = np.array(robot.q_home, dtype=float), np.zeros(7)
+    assert fake.spin_until(lambda: spg.pub_command.get_subscription_count() >= 1)
+    perm = [list(robot.joint_names).index(n) for n in order]
+    for k in range(5):
+        n = len(got)
+        fake.send(list(robot.joint_names), q, qdot, k * DT_NS)
+        assert fake.spin_until(lambda: len(got) > n), 'no command'
+        expected = ref.step(q, qdot, k * DT_NS * 1e-9)
+        msg = got[-1]
+        if interface == 'float64_multi_array':
+            np.testing.assert_array_equal(msg.data, expected[perm])
+        else:
+            assert list(msg.joint_names) == order and len(msg.points) == 1
+            point = msg.points[0]
+            np.testing.assert_array_equal(point.positions, expected[perm])
+            np.testing.assert_array_equal(point.velocities, ref.qdot_v[perm])
+            assert (point.time_from_start.sec, point.time_from_start.nanosec) == (0, 2_000_000)
+            assert stamp_ns(msg) == k * DT_NS
+        qdot = (expected - q) / spg.config.dt
+        q = expected
+
+
+def test_command_joints_must_be_the_robots(domain, capsys):
+    assert main(['spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
+                 '-p', "command.joints:=['A1', 'A2']"]) == 2
+    err = capsys.readouterr().err
+    assert "parameter 'command.joints'" in err

@@ -206,6 +206,15 @@ class String(Message):
     _HASH = 'RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18'
 
 
+class Bool(Message):
+    """std_msgs/msg/Bool: ``data``."""
+
+    __slots__ = ('data',)
+    _TYPE = 'std_msgs/msg/Bool'
+    _FIELDS = (('data', 'bool'),)
+    _HASH = 'RIHS01_feb91e995ff9ebd09c0cb3d2aed18b11077585839fb5db80193b62d74528f6c9'
+
+
 class MultiArrayDimension(Message):
     """std_msgs/msg/MultiArrayDimension: ``label``, ``size``, ``stride``."""
 
@@ -243,6 +252,30 @@ class JointState(Message):
     _FIELDS = (('header', 'std_msgs/msg/Header'), ('name', 'string[]'),
                ('position', 'float64[]'), ('velocity', 'float64[]'), ('effort', 'float64[]'))
     _HASH = 'RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e'
+
+
+# trajectory_msgs ------------------------------------------------------------------------------
+
+class JointTrajectoryPoint(Message):
+    """trajectory_msgs/msg/JointTrajectoryPoint: ``positions``, ``velocities``,
+    ``accelerations``, ``effort``, ``time_from_start`` (Duration)."""
+
+    __slots__ = ('positions', 'velocities', 'accelerations', 'effort', 'time_from_start')
+    _TYPE = 'trajectory_msgs/msg/JointTrajectoryPoint'
+    _FIELDS = (('positions', 'float64[]'), ('velocities', 'float64[]'),
+               ('accelerations', 'float64[]'), ('effort', 'float64[]'),
+               ('time_from_start', 'builtin_interfaces/msg/Duration'))
+    _HASH = 'RIHS01_de8907036d8bd45aac6f30cc9044a3d4a329c42cbf719aff7d95a584cfa532d7'
+
+
+class JointTrajectory(Message):
+    """trajectory_msgs/msg/JointTrajectory: ``header``, ``joint_names``, ``points``."""
+
+    __slots__ = ('header', 'joint_names', 'points')
+    _TYPE = 'trajectory_msgs/msg/JointTrajectory'
+    _FIELDS = (('header', 'std_msgs/msg/Header'), ('joint_names', 'string[]'),
+               ('points', 'trajectory_msgs/msg/JointTrajectoryPoint[]'))
+    _HASH = 'RIHS01_179b33eba59d676f6d967ac71fe35e7ca2f64b2f3928f4a018cec115e213796e'
 
 
 # geometry_msgs --------------------------------------------------------------------------------

@@ -6,10 +6,11 @@ built-in ones of :mod:`ifc_spg.ros.messages`, with the same field names and wire
 
 from ifc_spg.ros import BACKEND
 
-__all__ = ['Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'MultiArrayLayout',
+__all__ = ['Time', 'Duration', 'Header', 'String', 'Bool', 'MultiArrayDimension',
+           'MultiArrayLayout',
            'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose',
            'PoseStamped', 'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus',
-           'DiagnosticArray']
+           'DiagnosticArray', 'JointTrajectory', 'JointTrajectoryPoint']
 
 if BACKEND == 'rclpy':
     from builtin_interfaces.msg import Duration, Time
@@ -25,20 +26,25 @@ if BACKEND == 'rclpy':
     )
     from sensor_msgs.msg import JointState
     from std_msgs.msg import (
+        Bool,
         Float64MultiArray,
         Header,
         MultiArrayDimension,
         MultiArrayLayout,
         String,
     )
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 else:
     from ifc_spg.ros.messages import (
+        Bool,
         DiagnosticArray,
         DiagnosticStatus,
         Duration,
         Float64MultiArray,
         Header,
         JointState,
+        JointTrajectory,
+        JointTrajectoryPoint,
         KeyValue,
         MultiArrayDimension,
         MultiArrayLayout,
