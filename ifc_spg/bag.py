@@ -4,9 +4,11 @@
     ifc-spg bag play DIR [--rate R] [--delay S] [--topics T ...] [--ros-args ...]
     ifc-spg bag info DIR
 
-Bags are rosbag2 directories (``metadata.yaml`` version 9 + one ``.mcap`` file, profile
-``ros2``, schemas in ``ros2msg`` encoding, CDR messages) written with the ``rosbags`` writer,
-so ``ros2 bag``, ``rosbags``, the ``mcap`` reader and Foxglove open them. Each topic records
+Bags are rosbag2 directories as rosbag2 Jazzy writes them (``metadata.yaml`` version 9 with
+``ros_distro: jazzy`` and each topic's ``type_description_hash``, one ``<name>_0.mcap`` file,
+profile ``ros2``, schemas in ``ros2msg`` encoding, channels with ``offered_qos_profiles`` and
+``topic_type_hash``, CDR messages), so ``ros2 bag``, ``rosbags``, the ``mcap`` reader and
+Foxglove open them. Each topic records
 its publishers' offered QoS profiles in the metadata, so ``play`` republishes with the
 original reliability and durability (the latched ``spg/task_stack`` stays latched).
 
@@ -36,12 +38,14 @@ from ifc_spg.ros.qos import (
 __all__ = [
     'TOPICS',
     'BagReader',
+    'ROS_DISTRO',
     'BagWriter',
     'from_rosbags_qos',
     'info',
     'main',
     'play',
     'record',
+    'rosbag2_metadata',
     'stamp_ns',
     'to_rosbags_qos',
 ]
@@ -111,27 +115,89 @@ def _typestore():
     return get_typestore(Stores.ROS2_JAZZY)
 
 
+#: ``ros_distro`` of the bags we write: our message types are Jazzy's (rosbag2 writes the
+#: ``ROS_DISTRO`` of the recording machine, rosbag2_cpp SequentialWriter::init_metadata).
+ROS_DISTRO = 'jazzy'
+
+
+def rosbag2_metadata(topics, files, custom_data=None):
+    """The ``rosbag2_bagfile_information`` rosbag2 Jazzy writes, keys in its order.
+
+    rosbag2_storage/include/rosbag2_storage/yaml.hpp (branch jazzy), ``convert<BagMetadata>::
+    encode``, ``convert<TopicInformation>::encode``, ``convert<TopicMetadata>::encode`` (version
+    9: ``offered_qos_profiles`` a sequence, ``type_description_hash`` the RIHS01 string) and
+    ``convert<FileInformation>::encode``.
+
+    Args:
+        topics: ``[(name, type, offered QoS as dump_qos_v9 dicts, RIHS01 hash, count)]``.
+        files: ``[(relative path, start [ns], duration [ns], message count)]``.
+        custom_data: str -> str (rosbag2 writes an empty map as ``{}``).
+    """
+    start = min((f[1] for f in files), default=0)
+    end = max((f[1] + f[2] for f in files), default=0)
+    count = sum(f[3] for f in files)
+    return {
+        'version': 9,
+        'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': end - start},
+        'starting_time': {'nanoseconds_since_epoch': start},
+        'message_count': count,
+        'topics_with_message_count': [
+            {'topic_metadata': {'name': name, 'type': msgtype, 'serialization_format': 'cdr',
+                                'offered_qos_profiles': qos, 'type_description_hash': digest},
+             'message_count': n}
+            for name, msgtype, qos, digest, n in topics],
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': [f[0] for f in files],
+        'files': [{'path': p, 'starting_time': {'nanoseconds_since_epoch': s},
+                   'duration': {'nanoseconds': d}, 'message_count': n}
+                  for p, s, d, n in files],
+        'custom_data': dict(custom_data or {}),
+        'ros_distro': ROS_DISTRO,
+    }
+
+
+def _yaml_dump(doc):
+    import yaml
+
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=False, width=1 << 16)
+
+
 class BagWriter:
-    """Writes a rosbag2 MCAP bag (metadata version 9) with the ``rosbags`` writer.
+    """Writes a rosbag2 MCAP bag as rosbag2 Jazzy does (metadata version 9, ``ros_distro:
+    jazzy``, ``type_description_hash`` per topic, ``topic_type_hash`` per MCAP channel).
 
     Args:
         path: Bag directory to create (must not exist).
 
-    Use as a context manager or call :meth:`close`; topics are added on first use.
+    The MCAP file (``<name>_0.mcap``, profile ``ros2``, ``ros2msg`` schemas, uncompressed
+    chunks) is written with the ``mcap`` library; message definitions, RIHS01 hashes and the
+    QoS encoding come from ``rosbags``' Jazzy typestore. Use as a context manager or call
+    :meth:`close`; topics are added on first use.
     """
 
     def __init__(self, path):
-        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+        from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
+        if self.path.exists():
+            raise ParameterError(f"cannot create bag '{self.path}': it exists (choose a new "
+                                 'directory or remove the old one)')
         try:
-            self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-            self._writer.open()
-        except WriterError as exc:
-            raise ParameterError(f"cannot create bag '{self.path}': {exc} (choose a new "
-                                 'directory or remove the old one)') from None
+            self.path.mkdir(parents=True)
+            self._file_name = f'{self.path.name}_0.mcap'
+            self._file = open(self.path / self._file_name, 'xb')
+        except OSError as exc:
+            raise ParameterError(f"cannot create bag '{self.path}': {exc}") from None
+        # rosbag2_storage_mcap's default storage preset: chunks without compression
+        self._mcap = Writer(self._file, compression=CompressionType.NONE)
+        self._mcap.start(profile='ros2', library='ifc_spg (rosbag2 jazzy layout)')
         self._store = _typestore()
-        self._connections = {}
+        self._schemas = {}
+        self._connections = {}  # topic -> (channel id, type, qos dicts, hash)
+        self._custom = {}
+        self._start = self._end = None
         self.counts = {}
         self._closed = False
 
@@ -143,24 +209,41 @@ class BagWriter:
             msgtype: ROS type name (``sensor_msgs/msg/JointState``).
             qos: A QoSProfile, a list of rosbags ``Qos``, or None (reliable depth 10).
         """
+        from rosbags.rosbag2.metadata import dump_qos_v9
+
         if topic in self._connections:
-            return self._connections[topic]
+            return self._connections[topic][0]
         if msgtype not in self._store.types:
             raise ParameterError(f"topic '{topic}': unknown message type '{msgtype}' (the bag "
                                  'writer knows the ROS 2 Jazzy standard types)')
         if qos is None:
             qos = QoSProfile(depth=10)
         profiles = [to_rosbags_qos(qos)] if isinstance(qos, QoSProfile) else list(qos)
-        conn = self._writer.add_connection(topic, msgtype, typestore=self._store,
-                                           offered_qos_profiles=profiles)
-        self._connections[topic] = conn
+        digest = self._store.hash_rihs01(msgtype)
+        if msgtype not in self._schemas:
+            msgdef, _ = self._store.generate_msgdef(msgtype, ros_version=2)
+            self._schemas[msgtype] = self._mcap.register_schema(
+                name=msgtype, encoding='ros2msg', data=msgdef.encode())
+        dumped = dump_qos_v9(profiles)
+        # rosbag2_storage_mcap/src/mcap_storage.cpp (jazzy), MCAPStorage::create_topic: the
+        # channel carries offered_qos_profiles (serialize_rclcpp_qos_vector, version 9) and
+        # topic_type_hash (the topic's type_description_hash)
+        channel = self._mcap.register_channel(
+            topic=topic, message_encoding='cdr', schema_id=self._schemas[msgtype],
+            metadata={'offered_qos_profiles': _yaml_dump(dumped).rstrip('\n'),
+                      'topic_type_hash': digest})
+        self._connections[topic] = (channel, msgtype, dumped, digest)
         self.counts[topic] = 0
-        return conn
+        return channel
 
     def write(self, topic, t_ns, data):
         """Write serialized CDR ``data`` on registered ``topic`` at log time ``t_ns`` [ns]."""
-        self._writer.write(self._connections[topic], int(t_ns), data)
+        t = int(t_ns)
+        self._mcap.add_message(self._connections[topic][0], log_time=t, data=bytes(data),
+                               publish_time=t)
         self.counts[topic] += 1
+        self._start = t if self._start is None else min(self._start, t)
+        self._end = t if self._end is None else max(self._end, t)
 
     def write_msg(self, topic, t_ns, msg):
         """Serialize a built-in message (:mod:`ifc_spg.ros.messages`) and write it."""
@@ -172,13 +255,29 @@ class BagWriter:
 
     def set_custom_data(self, key, value):
         """Store a string in the metadata's ``custom_data``."""
-        self._writer.set_custom_data(key, str(value))
+        self._custom[str(key)] = str(value)
+
+    def metadata(self):
+        """The ``rosbag2_bagfile_information`` of what was written so far (dict)."""
+        start = self._start or 0
+        files = [(self._file_name, start, (self._end or 0) - start, sum(self.counts.values()))]
+        topics = [(t, c[1], c[2], c[3], self.counts[t]) for t, c in self._connections.items()]
+        return rosbag2_metadata(topics, files, self._custom)
 
     def close(self):
         """Write the MCAP summary and ``metadata.yaml``; idempotent."""
-        if not self._closed:
-            self._closed = True
-            self._writer.close()
+        if self._closed:
+            return
+        self._closed = True
+        info = self.metadata()
+        # MCAPStorage::update_metadata: a metadata record 'rosbag2' with the YAML of the
+        # BagMetadata, written when the writer closes
+        self._mcap.add_metadata('rosbag2', {'serialized_metadata': _yaml_dump(info)})
+        self._mcap.finish()
+        self._file.close()
+        tmp = self.path / 'metadata.yaml.tmp'
+        tmp.write_text(_yaml_dump({'rosbag2_bagfile_information': info}), 'utf8')
+        tmp.replace(self.path / 'metadata.yaml')
 
     def __enter__(self):
         return self

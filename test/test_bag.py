@@ -174,3 +174,99 @@ def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     # receive times keep the original spacing (x2 at rate 0.5), loosely
     span = (times[-1] - times[0]) * 1e-9
     assert 0.3 < span < 1.5
+
+
+def _jazzy_qos(depth, reliability, durability):
+    """One offered profile as rosbag2 Jazzy encodes it (version 9): rosbag2_storage/src/
+    rosbag2_storage/qos.cpp, ``convert<rclcpp::QoS>::encode`` (policies as
+    rmw_qos_*_policy_to_str, durations as ``convert<rmw_time_t>::encode`` {sec, nsec})."""
+    inf = {'sec': 9223372036, 'nsec': 854775807}
+    return {'history': 'keep_last', 'depth': depth, 'reliability': reliability,
+            'durability': durability, 'deadline': inf, 'lifespan': inf,
+            'liveliness': 'automatic', 'liveliness_lease_duration': inf,
+            'avoid_ros_namespace_conventions': False}
+
+
+def test_metadata_is_what_rosbag2_jazzy_writes(tmp_path):
+    """metadata.yaml, the MCAP channels and the MCAP 'rosbag2' record, field by field, against
+    the structure rosbag2 (branch jazzy) writes, read from its source:
+
+    - rosbag2_storage/include/rosbag2_storage/yaml.hpp: ``convert<BagMetadata>::encode``
+      (keys and their order), ``convert<TopicInformation>::encode``,
+      ``convert<TopicMetadata>::encode`` (version 9: ``offered_qos_profiles`` a sequence,
+      ``type_description_hash``), ``convert<FileInformation>::encode``, durations as
+      ``{nanoseconds}``, times as ``{nanoseconds_since_epoch}``; an empty ``custom_data`` map is
+      ``{}`` (its decode needs a map: ``null`` fails ``ros2 bag info``);
+    - rosbag2_cpp/src/rosbag2_cpp/writers/sequential_writer.cpp, ``init_metadata``:
+      ``ros_distro`` is ROS_DISTRO (jazzy), the file ``<bag>_0.mcap``;
+    - rosbag2_storage_mcap/src/mcap_storage.cpp, ``MCAPStorage::create_topic``: channel
+      metadata ``offered_qos_profiles`` (serialize_rclcpp_qos_vector, version 9) and
+      ``topic_type_hash``; ``MCAPStorage::update_metadata``: a metadata record ``rosbag2``
+      with ``serialized_metadata``, the YAML of the same BagMetadata.
+    """
+    import yaml
+    from mcap.reader import make_reader
+
+    from ifc_spg.ros.messages import REGISTRY
+
+    path = tmp_path / 'bag'
+    _write_sample(path)
+    h = {t: REGISTRY[t]._HASH for t in ('sensor_msgs/msg/JointState', 'std_msgs/msg/String',
+                                        'geometry_msgs/msg/WrenchStamped')}
+    qos = {'/joint_states': _jazzy_qos(10, 'reliable', 'volatile'),
+           '/spg/task_stack': _jazzy_qos(1, 'reliable', 'transient_local'),
+           '/sim/contact_wrench': _jazzy_qos(5, 'best_effort', 'volatile')}
+
+    def topic(name, msgtype, count):
+        return {'topic_metadata': {'name': name, 'type': msgtype, 'serialization_format': 'cdr',
+                                   'offered_qos_profiles': [qos[name]],
+                                   'type_description_hash': h[msgtype]},
+                'message_count': count}
+
+    duration, count = 49 * 2_000_000, 101
+    expected = {
+        'version': 9,
+        'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': duration},
+        'starting_time': {'nanoseconds_since_epoch': 0},
+        'message_count': count,
+        'topics_with_message_count': [
+            topic('/joint_states', 'sensor_msgs/msg/JointState', 50),
+            topic('/spg/task_stack', 'std_msgs/msg/String', 1),
+            topic('/sim/contact_wrench', 'geometry_msgs/msg/WrenchStamped', 50)],
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': ['bag_0.mcap'],
+        'files': [{'path': 'bag_0.mcap', 'starting_time': {'nanoseconds_since_epoch': 0},
+                   'duration': {'nanoseconds': duration}, 'message_count': count}],
+        'custom_data': {'note': 'hello'},
+        'ros_distro': 'jazzy',
+    }
+    doc = yaml.safe_load((path / 'metadata.yaml').read_text())
+    assert list(doc) == ['rosbag2_bagfile_information']
+    got = doc['rosbag2_bagfile_information']
+    assert list(got) == list(expected)  # rosbag2's key order
+    for key, value in expected.items():
+        assert got[key] == value, key
+    for want, have in zip(expected['topics_with_message_count'],
+                          got['topics_with_message_count']):
+        assert list(have['topic_metadata']) == list(want['topic_metadata'])
+        assert list(have['topic_metadata']['offered_qos_profiles'][0]) == list(qos['/joint_states'])
+    with open(path / 'bag_0.mcap', 'rb') as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        channels = {c.topic: c.metadata for c in summary.channels.values()}
+        records = list(reader.iter_metadata())
+    for name, msgtype, _ in [(t['topic_metadata']['name'], t['topic_metadata']['type'], 0)
+                             for t in expected['topics_with_message_count']]:
+        assert set(channels[name]) == {'offered_qos_profiles', 'topic_type_hash'}
+        assert channels[name]['topic_type_hash'] == h[msgtype]
+        assert yaml.safe_load(channels[name]['offered_qos_profiles']) == [qos[name]]
+    (record,) = records
+    assert record.name == 'rosbag2' and set(record.metadata) == {'serialized_metadata'}
+    assert yaml.safe_load(record.metadata['serialized_metadata']) == expected
+    # an empty custom_data is a map, as yaml-cpp encodes an empty std::unordered_map
+    with BagWriter(tmp_path / 'empty') as w:
+        w.add_topic('/joint_states', *TOPICS['joint_states'])
+    empty = yaml.safe_load((tmp_path / 'empty' / 'metadata.yaml').read_text())
+    assert empty['rosbag2_bagfile_information']['custom_data'] == {}
