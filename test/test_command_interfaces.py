@@ -1,0 +1,86 @@
+"""The demo's press task (approach 1 cm/s, press 8 N on the table) through each command
+interface, as processes over loopback DDS (both backends: marker ``ros``): spg_node and
+sim_bridge speak sensor_msgs/JointState, ros2_control's Float64MultiArray or a one-point
+JointTrajectory, the last two in the reversed joint order on a controller's topic. The force
+is regulated as in the single-interface e2e test (after 2.9 s every sample within 1 N)."""
+
+import re
+import signal
+
+from helpers import CONFIG
+import numpy as np
+import pytest
+import yaml
+
+from ifc_spg.model import RobotModel
+from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
+
+pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.slow]
+
+SIM_SECONDS = 5.0
+SETTLE, TARGET_N, IMPACT_MAX_N = 2.9, 8.0, 12.0
+REVERSED = list(reversed(RobotModel.from_config('lbr_iiwa14').joint_names))
+CASES = {
+    'joint_state': ('command/joint_position', None),
+    'float64_multi_array': ('forward_position_controller/commands', REVERSED),
+    'joint_trajectory': ('joint_trajectory_controller/joint_trajectory', REVERSED),
+}
+
+
+def _wait(cond, timeout):
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not cond():
+        time.sleep(0.05)
+    return bool(cond())
+
+
+@pytest.mark.parametrize('interface', list(CASES))
+def test_press_task_through_each_command_interface(tmp_path, interface):
+    from ifc_spg.bag import BagReader
+
+    topic, joints = CASES[interface]
+    doc = yaml.safe_load((CONFIG / 'scenarios' / 'demo_lbr.yaml').read_text())
+    stack = tmp_path / 'press.yaml'
+    stack.write_text(yaml.safe_dump(doc['stacks'][0]['stack'], sort_keys=False))
+    command = ['-p', f'command.interface:={interface}', '-p', f'topics.command:={topic}']
+    bridge_command = ['-p', f'command_interface:={interface}', '-p', f'command_topic:={topic}']
+    if joints:
+        command += ['-p', f'command.joints:={joints}']
+        bridge_command += ['-p', f'command_joints:={joints}']
+    procs = ProcessGroup(tmp_path, loopback_env())
+    bag_path = tmp_path / 'bag'
+    try:
+        rec = procs.start('recorder', 'bag', 'record', '-o', str(bag_path), 'joint_states',
+                          'sim/contact_wrench', exe='ifc-spg')
+        assert _wait(lambda: 'recording' in procs.log('recorder') or rec.poll() is not None,
+                     60) and rec.poll() is None, procs.log('recorder')
+        spg = procs.start('spg_node', '--ros-args', '--params-file',
+                          str(CONFIG / 'lbr_iiwa14.yaml'), '-p', f'task_stack_file:={stack}',
+                          *command)
+        assert _wait(lambda: 'waiting for' in procs.log('spg_node') or spg.poll() is not None,
+                     60) and spg.poll() is None, procs.log('spg_node')
+        bridge = procs.start(
+            'sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=table',
+            '-p', 'scene_options:=\'{"gap": 0.01}\'', '-p', 'mode:=lockstep',
+            '-p', f'duration:={SIM_SECONDS}', '-p', 'wait_for_subscribers:=2', *bridge_command)
+        assert _wait(lambda: bridge.poll() is not None, 240), procs.log('sim_bridge')
+        assert bridge.returncode == 0, procs.log('sim_bridge')
+        _wait(lambda: False, 1.0)
+        assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
+        assert procs.stop('spg_node') == 0, procs.log('spg_node')
+    finally:
+        procs.close()
+    match = re.search(r'spg_node: (\d+) ticks, (\d+) commands', procs.log('spg_node'))
+    assert match and int(match.group(2)) >= round(SIM_SECONDS / 0.002), procs.log('spg_node')
+    assert 'rejected' not in procs.log('sim_bridge'), procs.log('sim_bridge')
+    with BagReader(bag_path) as bag:
+        wrench = [(stamp_ns(m) * 1e-9, -m.wrench.force.z)
+                  for _, _, m in bag.messages({'/sim/contact_wrench'})]
+    t, f = np.array(wrench).T
+    assert np.max(np.abs(f)) <= IMPACT_MAX_N
+    err = f[t >= SETTLE] + TARGET_N
+    print(f'\n{interface}: force error after {SETTLE} s: max {np.max(np.abs(err)):.3f} N, '
+          f'RMS {np.sqrt(np.mean(err ** 2)):.3f} N over {err.size} samples')
+    assert err.size > 500 and np.max(np.abs(err)) <= 1.0
