@@ -102,6 +102,8 @@ class SpgNode:
         self.runner = SpgRunner(c, clock=clock)
         self.log = node.get_logger()
         self._command_order = _command_order(c, self.runner.joint_names)
+        #: the joint order of the commands (``command.joints``, default the robot's)
+        self.command_joints = tuple(self.runner.joint_names[i] for i in self._command_order)
         self._write = {'joint_state': self._joint_state_command,
                        'float64_multi_array': self._float64_multi_array_command,
                        'joint_trajectory': self._joint_trajectory_command}[c.command_interface]
@@ -113,6 +115,12 @@ class SpgNode:
                                                    ros.latched(1))
         self.pub_status = node.create_publisher(msg.String, c.status_topic, 10)
         self.pub_diag = node.create_publisher(msg.DiagnosticArray, c.diagnostics_topic, 10)
+        # what a bag recorded from any tick on needs to recompute q_v (ifc-spg replay): the
+        # configuration and running stack, and the state after the last tick, both latched
+        self.pub_config = node.create_publisher(msg.String, 'spg/config', ros.latched(1))
+        self.pub_state = node.create_publisher(msg.Float64MultiArray, 'spg/state',
+                                               ros.latched(1))
+        self._config_version = None
         self.sub_states = node.create_subscription(msg.JointState, c.joint_states_topic,
                                                    self.on_joint_state, 10)
         self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
@@ -132,6 +140,7 @@ class SpgNode:
                              'take seconds (README, Benchmarks); use daqp on a robot')
         if c.task_stack_file:
             self.load_file(c.task_stack_file)
+        self.publish_config()
 
     def _start_timers(self):
         c, node = self.config, self.node
@@ -246,6 +255,9 @@ class SpgNode:
             return
         self._write(message.header.stamp, cmd.position, cmd.velocity)
         self.commands_sent += 1
+        if runner.config_version != self._config_version:
+            self.publish_config()
+        self.pub_state.publish(self._msg.Float64MultiArray(data=runner.state_vector().tolist()))
         if cmd.resumed and cmd.tick > 1:
             text = (f'joint states are back (stamp {cmd.stamp_ns * 1e-9:.3f} s): restarted from '
                     f'the measured q (restart {runner.resumes})')
@@ -320,6 +332,11 @@ class SpgNode:
     def publish_status(self, event=None):
         """Publish the runner's status JSON on the status topic."""
         self.pub_status.publish(self._msg.String(data=status_json(self.runner.status(event))))
+
+    def publish_config(self):
+        """Publish the runner's :meth:`~ifc_spg.spg_runner.SpgRunner.config_doc` (latched)."""
+        self._config_version = self.runner.config_version
+        self.pub_config.publish(self._msg.String(data=status_json(self.runner.config_doc())))
 
     def publish_diagnostics(self):
         """Publish one DiagnosticArray with the runner's summary."""

@@ -371,3 +371,20 @@ def test_command_joints_must_be_the_robots(domain, capsys):
                  '-p', "command.joints:=['A1', 'A2']"]) == 2
     err = capsys.readouterr().err
     assert "parameter 'command.joints'" in err
+
+
+@pytest.mark.parametrize('path', sorted((CONFIG / 'real').glob('*.yaml')), ids=lambda p: p.name)
+def test_real_robot_configs_start_disabled_on_a_controller_topic(domain, path):
+    """config/real/*.yaml load as written, start disabled, command a ros2_control controller
+    in its joint order; enabling them is a live parameter change."""
+    written = yaml.safe_load(path.read_text())['/**']['ros__parameters']
+    ros.init(['spg_node', '--ros-args', '--params-file', str(path)])
+    spg = SpgNode(ros.Node('spg_node'))
+    c = spg.config
+    assert c.enable is False and c.dt == written['dt']
+    assert c.command_interface == written['command']['interface'] == 'float64_multi_array'
+    assert list(spg.command_joints) == written['command']['joints']
+    assert c.command_topic == written['topics']['command']
+    assert c.pspm_max_power == 0.0   # strictly passive until a safety engineer allows more
+    [result] = spg.node.set_parameters([ros.Parameter('enable', value=True)])
+    assert result.successful and spg.config.enable
