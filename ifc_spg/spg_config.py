@@ -69,6 +69,9 @@ class SpgConfig:
             (trajectory_msgs/JointTrajectory, one point at dT, for trajectory controllers).
         command_joints: Joint order of the command (ros2_control's ``joints``); () keeps
             the robot configuration's.
+        tick: 'joint_states' (one tick per joint state: lockstep simulation, FRI at the
+            SPG's rate) or 'timer' (a tick every ``dt`` with the latest joint state, for
+            robots whose states come at another rate; nothing is extrapolated).
     """
 
     robot: str = 'lbr_iiwa14'
@@ -97,6 +100,7 @@ class SpgConfig:
     hold_when_disabled: bool = False
     command_interface: str = 'joint_state'
     command_joints: tuple = ()
+    tick: str = 'joint_states'
 
     def __post_init__(self):
         for p in PARAMETERS:
@@ -130,6 +134,9 @@ class SpgConfig:
         if self.solver not in SOLVERS:
             raise ParameterError(f"parameter 'solver': '{self.solver}' is not one of "
                                  f"{', '.join(SOLVERS)}{did_you_mean(self.solver, SOLVERS)}")
+        if self.tick not in TICKS:
+            raise ParameterError(f"parameter 'tick': '{self.tick}' is not one of "
+                                 f"{', '.join(TICKS)}{did_you_mean(self.tick, TICKS)}")
         if self.command_interface not in COMMAND_INTERFACES:
             raise ParameterError(
                 f"parameter 'command.interface': '{self.command_interface}' is not one of "
@@ -217,8 +224,11 @@ PARAMETERS = (
           'JointGroupPositionController) or joint_trajectory (one point at dT)'),
     Param('command.joints', 'command_joints',
           "Joint order of the command (ros2_control's 'joints'; default: the robot's)"),
+    Param('tick', 'tick', 'joint_states (one tick per joint state) or timer (a tick every dt '
+          'with the latest joint state; a state older than watchdog.timeout stops commanding)'),
 )
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
+TICKS = ('joint_states', 'timer')
 
 _DEFAULTS = {f.name: f.default for f in fields(SpgConfig)}
 _BY_NAME = {p.name: p for p in PARAMETERS}

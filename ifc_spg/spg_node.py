@@ -26,6 +26,7 @@ The logic lives in :class:`ifc_spg.spg_runner.SpgRunner` (no ROS); this module o
 it to topics and timers.
 """
 
+from collections import deque
 import signal
 import sys
 import time
@@ -126,6 +127,10 @@ class SpgNode:
         self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
                                                   self.on_task_stack, ros.latched(1))
         self._watchdog_timer = self._diag_timer = None
+        self._latest, self._last_tick_ns = None, -1   # tick: timer
+        self._ages = deque(maxlen=1000)                # [s] state age at each timer tick
+        if c.tick == 'timer':
+            node.create_timer(c.dt, self.on_timer_tick)
         self._start_timers()
         node.add_on_set_parameters_callback(self.on_set_parameters)
         self._logged = {}
@@ -222,7 +227,7 @@ class SpgNode:
                 ' (holding the measured q)' if self.config.hold_when_disabled else ''))
             self.publish_status(('disabled', 'no commands'))
 
-    def _hold(self, message):
+    def _hold(self, message, stamp):
         """While disabled: the measured q, in the command's joint order (if asked to)."""
         if not self.config.hold_when_disabled:
             return
@@ -234,26 +239,58 @@ class SpgNode:
         if not np.all(np.isfinite(q)):
             return
         robot = self.runner.robot
-        self._write(message.header.stamp, np.clip(q, robot.q_min, robot.q_max),
-                    np.zeros(q.size))
+        self._write(stamp, np.clip(q, robot.q_min, robot.q_max), np.zeros(q.size))
 
     def on_joint_state(self, message):
+        """A joint state: a tick (``tick: joint_states``), or the latest state for the timer."""
+        if self.config.tick == 'timer':
+            self._latest = (message, time.monotonic())
+            return
+        self._tick(message, message.header.stamp)
+
+    def on_timer_tick(self):
+        """``tick: timer``: one tick with the latest joint state, stamped with its stamp plus
+        its age (task time runs on; q is not extrapolated). A state older than
+        watchdog.timeout stops commanding, as a stopped stream does."""
+        if self._latest is None:
+            return
+        message, arrived = self._latest
+        age = time.monotonic() - arrived
+        timeout = self.config.watchdog_timeout
+        if timeout and age > timeout:
+            if self.config.enable and self.runner.started and not self.runner.stale:
+                text = (f'the latest joint state is {age * 1e3:.0f} ms old > watchdog.timeout '
+                        f'{timeout * 1e3:.0f} ms: commanding stopped')
+                self.runner.mark_stale(text)
+                self.log.warning(text)
+                self.publish_status(('watchdog', text))
+            return
+        stamp_ns = _stamp_ns(message.header.stamp) + round(age * 1e9)
+        if stamp_ns <= self._last_tick_ns:
+            return
+        self._last_tick_ns = stamp_ns
+        self._ages.append(age)
+        stamp = self._msg.Time()
+        stamp.sec, stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        self._tick(message, stamp)
+
+    def _tick(self, message, stamp):
         """Tick: validate, step the SPG, publish the command (and status every N ticks)."""
         if not self.config.enable:
-            self._hold(message)
+            self._hold(message, stamp)
             return
         runner = self.runner
         rejected, trips = sum(runner.rejected.values()), runner.watchdog_trips
         was_stale, stalls = runner.stale, runner.pspm_stalls
         cmd = runner.handle_joint_state(message.name, message.position, message.velocity,
-                                        _stamp_ns(message.header.stamp))
+                                        _stamp_ns(stamp))
         if sum(runner.rejected.values()) != rejected:
             self._log_throttled('error', runner.last_error)
         if runner.watchdog_trips != trips:  # a stamp gap tripped it
             self.log.warning(runner.last_error)
         if cmd is None:
             return
-        self._write(message.header.stamp, cmd.position, cmd.velocity)
+        self._write(stamp, cmd.position, cmd.velocity)
         self.commands_sent += 1
         if runner.config_version != self._config_version:
             self.publish_config()
@@ -330,8 +367,15 @@ class SpgNode:
 
     # -- outputs ------------------------------------------------------------------------
     def publish_status(self, event=None):
-        """Publish the runner's status JSON on the status topic."""
-        self.pub_status.publish(self._msg.String(data=status_json(self.runner.status(event))))
+        """Publish the runner's status JSON on the status topic (with ``tick: timer``, also
+        the joint states' age at the ticks: ``state_age`` p50/p99/max [s])."""
+        status = self.runner.status(event)
+        if self._ages:
+            ages = np.sort(np.array(self._ages))
+            status['state_age'] = {'p50': float(np.percentile(ages, 50)),
+                                   'p99': float(np.percentile(ages, 99)),
+                                   'max': float(ages[-1]), 'n': int(ages.size)}
+        self.pub_status.publish(self._msg.String(data=status_json(status)))
 
     def publish_config(self):
         """Publish the runner's :meth:`~ifc_spg.spg_runner.SpgRunner.config_doc` (latched)."""

@@ -63,11 +63,15 @@ class BridgeParams:
     command_interface: str = 'joint_state'
     command_topic: str = 'command/joint_position'
     command_joints: tuple = ()
+    state_rate: float = 0.0
 
 
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 
 _DESCRIPTIONS = {
+    'state_rate': 'joint_states rate in [Hz] in realtime mode (0: the command rate); rate / '
+                  'state_rate must be a whole number, e.g. 100 at rate 500, or 1000 at rate '
+                  '1000 with an SPG ticking at 500 Hz on its timer',
     'command_interface': 'The command message the emulated controller takes: joint_state '
                          '(sensor_msgs/JointState), float64_multi_array (ros2_control '
                          'JointGroupPositionController) or joint_trajectory (the last point '
@@ -128,6 +132,14 @@ def validate(p):
         raise ParameterError(f"command_interface '{p.command_interface}' is not one of "
                              f"{', '.join(COMMAND_INTERFACES)}"
                              f'{did_you_mean(p.command_interface, COMMAND_INTERFACES)}')
+    if p.state_rate < 0 or (p.state_rate and (
+            abs(p.rate / p.state_rate - round(p.rate / p.state_rate)) > 1e-9 or
+            p.state_rate > p.rate)):
+        raise ParameterError(f'state_rate {p.state_rate} Hz must divide rate {p.rate} Hz (0: '
+                             'the command rate)')
+    if p.state_rate and p.state_rate != p.rate and p.mode == 'lockstep':
+        raise ParameterError('state_rate other than rate needs mode realtime (lockstep answers '
+                             'each state with one command)')
     if p.mode not in MODES:
         raise ParameterError(f"mode '{p.mode}' is not one of {', '.join(MODES)}"
                              f'{did_you_mean(p.mode, MODES)}')
@@ -393,8 +405,11 @@ class SimBridge:
 
         pacer = DeadlinePacer(1.0 / self.params.rate)
         pacer.start()
+        every = round(self.params.rate / self.params.state_rate) if self.params.state_rate \
+            else 1
         while ok() and not self._done(max_ticks):
-            self.publish_state()
+            if self.ticks % every == 0:
+                self.publish_state()
             pacer.wait(idle=self._spin)
             self._advance()
         self.pacing = pacer.stats()
