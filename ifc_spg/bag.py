@@ -56,6 +56,8 @@ TOPICS = {
     'command/joint_position': ('sensor_msgs/msg/JointState', QoSProfile(depth=10)),
     'spg/task_stack': ('std_msgs/msg/String', latched(1)),
     'spg/status': ('std_msgs/msg/String', QoSProfile(depth=10)),
+    'spg/config': ('std_msgs/msg/String', latched(1)),
+    'spg/state': ('std_msgs/msg/Float64MultiArray', latched(1)),
     'spg/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', QoSProfile(depth=10)),
     'ft_sensor/wrench': ('geometry_msgs/msg/WrenchStamped', qos_profile_sensor_data),
     'sim/contact_wrench': ('geometry_msgs/msg/WrenchStamped', qos_profile_sensor_data),
@@ -593,8 +595,9 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
     from ifc_spg import ros
 
     stop = _Stop()
-    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     ros.init(args=['ifc-spg', *(args or [])])
+    # after init: rclpy's own SIGINT handler would invalidate the context mid-spin
+    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     node = ros.Node('bag_recorder')
     writer = BagWriter(path)
     try:

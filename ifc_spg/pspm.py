@@ -127,6 +127,14 @@ class EnergyTanks:
         self.refilled = np.zeros(self.K.size)
         self._q_prev = np.array(q, dtype=float)
 
+    def restore(self, q, energy, shuffled=None):
+        """Continue from energies ``energy`` [J] and shuffled totals ``shuffled`` [J] with
+        ``q`` [rad] as the last measurement (a replay that starts mid-run)."""
+        self.energy = np.array(energy, dtype=float)
+        self.shuffled = np.zeros(self.K.size) if shuffled is None else \
+            np.array(shuffled, dtype=float)
+        self._q_prev = np.array(q, dtype=float)
+
     def power_error(self, power):
         """Why ``power`` [W] is not an allowed refill rate, or '' if it is (<= the ceiling)."""
         ceiling = self.config.max_power

@@ -2,8 +2,17 @@
 
     ifc-spg replay BAG [--tolerance 1e-9] [--robot NAME] [--json]
 
-The SPG configuration comes from the bag (metadata ``custom_data['ifc_spg.spg_config']``,
-else the first ``spg/status`` message carrying ``config``; ``--robot`` is the last resort,
+A live bag (``ifc-spg bag record`` or ``ros2 bag record`` of the product topics, started at
+any time) holds the SPG's latched ``spg/config`` and its per-tick ``spg/state``: the replay
+starts from the first recorded state, with that configuration and running stack (its
+``init`` values captured where the live run captured them), and recomputes every later q_v
+exactly (max |dq_v| 0 in the test; the default tolerance 1e-9 rad covers a differently
+warm-started solver). Joint states recorded before it and states whose command the
+recorder stopped before receiving are the recording's edges and do not fail the replay.
+
+Otherwise the replay starts from the first tick. The SPG configuration comes from the bag
+(metadata ``custom_data['ifc_spg.spg_config']``, else ``spg/config``, else the first
+``spg/status`` message carrying ``config``; ``--robot`` is the last resort,
 with default parameters), and so do the robot's IFC gains K, D the run used (a scenario's
 ``sim: {stiffness, damping}``): ``custom_data['ifc_spg.robot_params']``, else ``robot_params``
 in ``spg/status``. A bag without them (recorded before they were stored) is replayed with
@@ -52,6 +61,11 @@ class ReplayResult:
             :func:`~ifc_spg.spg_runner.robot_params`: K, D, limits).
         gains_recorded: True when K, D came from the bag, False for the defaults.
         warnings: What the replay could not take from the bag (messages).
+        skipped: Recorded joint states before the first recorded SPG state (a bag recorded
+            mid-run): not replayed.
+        unanswered: Joint states after the last recorded command (the recorder stopped
+            first): replayed, not compared, not a failure.
+        resumed: True when the replay started from a recorded ``spg/state``.
     """
 
     max_abs_diff: float
@@ -65,10 +79,14 @@ class ReplayResult:
     robot_params: dict = None
     gains_recorded: bool = False
     warnings: list = dataclasses.field(default_factory=list)
+    skipped: int = 0
+    unanswered: int = 0
+    resumed: bool = False
 
 
-def read_spg_config(bag, statuses, robot=None):
-    """The :class:`~ifc_spg.spg_config.SpgConfig` a bag was recorded with."""
+def read_spg_config(bag, statuses, robot=None, configs=()):
+    """The :class:`~ifc_spg.spg_config.SpgConfig` a bag was recorded with (``configs``: the
+    recorded ``spg/config`` documents)."""
     from ifc_spg.runner import CONFIG_KEY
     from ifc_spg.spg_config import SpgConfig
 
@@ -76,13 +94,13 @@ def read_spg_config(bag, statuses, robot=None):
     if CONFIG_KEY in bag.custom_data:
         doc = json.loads(bag.custom_data[CONFIG_KEY])
     else:
-        doc = next((s['config'] for _, s in statuses if isinstance(s.get('config'), dict)),
-                   None)
+        doc = next((s['config'] for _, s in list(configs) + list(statuses)
+                    if isinstance(s.get('config'), dict)), None)
     if doc is None:
         if robot is None:
             raise ParameterError(f"bag '{bag.path}' holds no SPG configuration (no custom_data "
-                                 f"'{CONFIG_KEY}', no spg/status with 'config'); pass --robot "
-                                 'NAME to replay with default parameters')
+                                 f"'{CONFIG_KEY}', no spg/config, no spg/status with 'config');"
+                                 ' pass --robot NAME to replay with default parameters')
         return SpgConfig(robot=robot)
     known = {f.name for f in dataclasses.fields(SpgConfig)}
     doc = {k: v for k, v in doc.items() if k in known}
@@ -93,7 +111,7 @@ def read_spg_config(bag, statuses, robot=None):
     return SpgConfig(**doc)
 
 
-def read_robot_params(bag, statuses):
+def read_robot_params(bag, statuses, configs=()):
     """The robot-parameter record of a bag (dict), or None for bags without one."""
     from ifc_spg.runner import ROBOT_PARAMS_KEY
 
@@ -107,7 +125,7 @@ def read_robot_params(bag, statuses):
             raise ParameterError(f"bag '{bag.path}': custom_data '{ROBOT_PARAMS_KEY}' must be a "
                                  f'JSON object, got {type(doc).__name__}')
         return doc
-    return next((s['robot_params'] for _, s in statuses
+    return next((s['robot_params'] for _, s in list(configs) + list(statuses)
                  if isinstance(s, dict) and isinstance(s.get('robot_params'), dict)), None)
 
 
@@ -211,8 +229,44 @@ def _activation_times(stack_msgs, statuses, accepted):
     return out
 
 
+def _resume_point(snapshots, state_stamps):
+    """The recorded ``spg/state`` to start from: the earliest tick j whose successor j+1 has
+    a snapshot too, stamped like a recorded joint state (so no tick between them is lost).
+
+    Returns:
+        The snapshot vector of tick j, or None.
+    """
+    by_tick = {}
+    for vec in snapshots:
+        by_tick.setdefault(int(vec[0]), vec)
+    for tick in sorted(by_tick):
+        nxt = by_tick.get(tick + 1)
+        if nxt is not None and int(nxt[1]) * 1_000_000_000 + int(nxt[2]) in state_stamps:
+            return by_tick[tick]
+    return None
+
+
+def _config_at(configs, stamp_s):
+    """The ``spg/config`` document in force after the tick at ``stamp_s`` [s]: the one whose
+    stack's latest activation is the newest not after it (None: no document)."""
+    best, best_t = None, None
+    for _, doc in configs:
+        stack = doc.get('stack')
+        t = stack['activations'][-1]['t'] if stack and stack.get('activations') else -np.inf
+        if t <= stamp_s + 1e-10 and (best_t is None or t >= best_t):
+            best, best_t = doc, t
+    return best
+
+
 def replay(path, robot=None):
-    """Recompute the commands of a bag; returns a :class:`ReplayResult`."""
+    """Recompute the commands of a bag; returns a :class:`ReplayResult`.
+
+    A bag with ``spg/state`` (a live run, recorded from any tick on) is replayed from the
+    first recorded state the SPG published, with the configuration and running stack of
+    ``spg/config``; later stacks are handed to it at the tick each became active. Recorded
+    joint states before that point (``skipped``) and after the last recorded command
+    (``unanswered``: the recorder stopped first) are the recording's edges, not failures.
+    """
     from ifc_spg.bag import BagReader, stamp_ns
     from ifc_spg.spg_runner import SpgRunner, parse_task_stack, robot_params
 
@@ -223,8 +277,9 @@ def replay(path, robot=None):
                 raise ParameterError(f"bag '{path}' has no '{need}' topic; topics: "
                                      f"{', '.join(sorted(bag.topics)) or 'none'}")
         states, commands, stack_msgs, statuses = [], {}, [], []
+        configs, snapshots = [], []
         wanted = {topics[k] for k in ('joint_states', 'command/joint_position', 'spg/task_stack',
-                                      'spg/status') if k in topics}
+                                      'spg/status', 'spg/config', 'spg/state') if k in topics}
         for topic, t_log, msg in bag.messages(wanted):
             name = topic.lstrip('/')
             if name == 'joint_states':
@@ -233,14 +288,18 @@ def replay(path, robot=None):
                 commands.setdefault(stamp_ns(msg.header.stamp), msg)
             elif name == 'spg/task_stack':
                 stack_msgs.append((t_log, msg.data))
+            elif name == 'spg/state':
+                snapshots.append(np.asarray(msg.data, dtype=float))
             else:
                 try:
-                    statuses.append((t_log, json.loads(msg.data)))
+                    doc = json.loads(msg.data)
                 except json.JSONDecodeError:
-                    pass
-        config = read_spg_config(bag, statuses, robot)
+                    continue
+                if isinstance(doc, dict):
+                    (configs if name == 'spg/config' else statuses).append((t_log, doc))
+        config = read_spg_config(bag, statuses, robot, configs)
         model, gains_recorded, warnings = replay_robot(
-            config, read_robot_params(bag, statuses), where=f"bag '{bag.path}'")
+            config, read_robot_params(bag, statuses, configs), where=f"bag '{bag.path}'")
     # a fixed clock: the runner never trips by itself; the live node's timer trips are
     # replayed at the tick count their 'watchdog' status event recorded
     spg = SpgRunner(config, robot=model, clock=lambda: 0.0)
@@ -248,23 +307,48 @@ def replay(path, robot=None):
                     if isinstance(doc, dict) and isinstance(doc.get('event'), dict)
                     and doc['event'].get('type') == 'watchdog'
                     and isinstance(doc.get('tick'), int)})
-    accepted = []
-    for _, text in stack_msgs:
-        try:
-            parse_task_stack(text).build(spg.robot)
-            accepted.append(True)
-        except IfcSpgError:
-            accepted.append(False)
-    when = _activation_times(stack_msgs, statuses, accepted)
-    pending = sorted(((w, i) for i, w in enumerate(when) if w is not None))
     states.sort(key=lambda x: x[0])
+    start = _resume_point(snapshots, {stamp for stamp, _ in states}) if snapshots else None
+    after = None
+    if start is not None:
+        start_s = (int(start[1]) * 1_000_000_000 + int(start[2])) * 1e-9
+        doc = _config_at(configs, start_s)
+        if doc is None:
+            raise ParameterError(f"bag '{path}' has spg/state but no spg/config in force at "
+                                 f'{start_s:.3f} s; record spg/config (latched) too')
+        after = spg.restore(start, doc)
+        running = (doc.get('stack') or {}).get('id')
+        # later stacks, from the spg/config documents: each at its first tick
+        stack_msgs, seen_ids = [], {running}
+        for _, later in configs:
+            st = later.get('stack')
+            if st and st.get('id') not in seen_ids and st.get('since') is not None and \
+                    st['since'] > start_s:
+                seen_ids.add(st['id'])
+                stack_msgs.append((st['since'], st['text']))
+        pending = sorted((w, i) for i, (w, _) in enumerate(stack_msgs))
+        trips = [t for t in trips if t > spg.ticks]
+    else:
+        accepted = []
+        for _, text in stack_msgs:
+            try:
+                parse_task_stack(text).build(spg.robot)
+                accepted.append(True)
+            except IfcSpgError:
+                accepted.append(False)
+        when = _activation_times(stack_msgs, statuses, accepted)
+        pending = sorted(((w, i) for i, w in enumerate(when) if w is not None))
+    last_command = max(commands, default=None)
     worst, worst_stamp, worst_joint = 0.0, None, ''
-    compared = missing = handed = 0
+    compared = missing = handed = skipped = unanswered = 0
     seen = set()
     for stamp, msg in states:
         if stamp in seen:  # a lockstep bridge re-publishes a state it got no answer for
             continue
         seen.add(stamp)
+        if after is not None and stamp <= after:
+            skipped += 1  # before the first recorded SPG state: not reproducible
+            continue
         while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
             _, i = pending.pop(0)
             spg.handle_task_stack(stack_msgs[i][1])
@@ -274,6 +358,9 @@ def replay(path, robot=None):
             if trips.pop(0) == spg.ticks:
                 spg.mark_stale('watchdog event recorded in the bag')
         rec = commands.get(stamp)
+        if rec is None and cmd is not None and (last_command is None or stamp > last_command):
+            unanswered += 1  # the recorder stopped before this state's command arrived
+            continue
         if cmd is None or rec is None:
             missing += 1
             continue
@@ -287,8 +374,9 @@ def replay(path, robot=None):
         if d > worst or worst_stamp is None:
             worst, worst_stamp, worst_joint = d, stamp * 1e-9, cmd.names[j]
     return ReplayResult(worst if compared else float('inf'), worst_stamp, worst_joint,
-                        len(seen), compared, missing, handed, dataclasses.asdict(config),
-                        robot_params(model), gains_recorded, warnings)
+                        len(seen) - skipped, compared, missing, handed,
+                        dataclasses.asdict(config), robot_params(model), gains_recorded,
+                        warnings, skipped, unanswered, start is not None)
 
 
 def _in_order(msg, names):
@@ -319,9 +407,16 @@ def main(argv=None):
         print(json.dumps({**dataclasses.asdict(res), 'tolerance': opts.tolerance, 'ok': ok}))
     else:
         gains = 'K, D from the bag' if res.gains_recorded else 'default K, D'
+        edges = ''
+        if res.resumed:
+            edges += (f'; from the first recorded spg/state ({res.skipped} earlier joint '
+                      'state(s) not replayed)')
+        if res.unanswered:
+            edges += (f'; {res.unanswered} joint state(s) after the last recorded command '
+                      '(recording ended)')
         print(f'replayed {res.ticks} ticks ({res.stacks} task stack(s), robot '
               f"'{res.config['robot']}' with {gains}, solver {res.config['solver']}); compared "
-              f'{res.compared} commands, {res.missing} missing')
+              f'{res.compared} commands, {res.missing} missing{edges}')
         where = '' if res.worst_stamp is None else \
             f' (t = {res.worst_stamp:.3f} s, joint {res.worst_joint})'
         print(f'max |dq_v| = {res.max_abs_diff:.3e} rad{where}; tolerance {opts.tolerance:g}: '

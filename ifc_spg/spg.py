@@ -19,6 +19,7 @@ measurements) stops that joint.
 
 import math
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,7 +33,33 @@ from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.nullspace import NullspaceCascade
 from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, stall_message
 
-__all__ = ['SetPointGenerator', 'SpgInfo']
+__all__ = ['Activation', 'SetPointGenerator', 'SpgInfo', 'SpgState']
+
+
+class SpgState(NamedTuple):
+    """What the next tick starts from (:meth:`SetPointGenerator.snapshot`).
+
+    Attributes:
+        q_v: Virtual joint positions [rad] (None before the first tick).
+        qdot_v: The last tick's virtual joint velocity [rad/s] (the acceleration limit).
+        tank_energy: PSPM tank energies [J] (None without PSPM).
+        shuffled: Energy shuffled into each tank so far [J] (None without PSPM).
+    """
+
+    q_v: np.ndarray
+    qdot_v: np.ndarray
+    tank_energy: np.ndarray
+    shuffled: np.ndarray
+
+
+class Activation(NamedTuple):
+    """The tick at which a stack's tasks captured their ``init`` values: measured q [rad],
+    qdot [rad/s], the virtual q_v [rad] before the tick and the stamp t [s]."""
+
+    q: np.ndarray
+    qdot: np.ndarray
+    q_v: np.ndarray
+    t: float
 
 
 class SpgInfo:
@@ -176,6 +203,9 @@ class SetPointGenerator:
         self._pending = None
         self._t0 = None
         self.stack = None
+        #: ``[first, latest]`` :class:`Activation` of the running stack's tasks (the first
+        #: fixes orientation references, the latest the ``init`` values after a restart)
+        self.activations = []
         self.info = SpgInfo(status='idle', solver=self._solver.name, tanks=self.tanks,
                             power_budget=0.0, joint_names=tuple(robot.joint_names))
         if stack is not None:
@@ -218,6 +248,51 @@ class SetPointGenerator:
         for task in self.tasks:
             task._active_lower = task._active_upper = None
 
+    def snapshot(self):
+        """The state the next tick starts from (:class:`SpgState`, copies)."""
+        tanks = self.tanks
+        return SpgState(None if self.q_v is None else self.q_v.copy(), self.qdot_v.copy(),
+                        None if tanks is None else tanks.energy.copy(),
+                        None if tanks is None else tanks.shuffled.copy())
+
+    def restore(self, state, q, activations=()):
+        """Continue from a :meth:`snapshot` taken by another SPG of the same robot, stack and
+        parameters (a replay that starts mid-run).
+
+        Args:
+            state: The :class:`SpgState` after the last tick.
+            q: The measured joint positions [rad] of that tick.
+            activations: The running stack's ``[first, latest]`` :class:`Activation` (set the
+                stack with :meth:`set_stack` first): its tasks are activated at them, and task
+                time counts from the latest one's stamp.
+        """
+        self._take_pending()
+        self.q_v = np.array(state.q_v, dtype=float)
+        self.qdot_v = np.array(state.qdot_v, dtype=float)
+        if self.tanks is not None:
+            self.tanks.restore(q, state.tank_energy, state.shuffled)
+            self._stall.reset()
+        self._t0 = None
+        for i, act in enumerate(activations):
+            self.kin.update(np.asarray(act.q, dtype=float), np.asarray(act.qdot, dtype=float),
+                            np.asarray(act.q_v, dtype=float))
+            for task in self.tasks:
+                if i:
+                    task._active_lower = task._active_upper = None
+                task.activate(self.kin)
+            self._t0 = float(act.t)
+        self.activations = list(activations)[:1] + list(activations)[1:][-1:]
+
+    def _take_pending(self):
+        if self._pending is not None:
+            self.stack, self.tasks, budget = self._pending
+            self._pending = None
+            self._t0 = None
+            self.activations = []
+            if self.tanks is not None:
+                self.tanks.set_power(budget)
+                self._stall.reset()
+
     # -- the tick -------------------------------------------------------------------
     def step(self, q, qdot, t):
         """One SPG tick.
@@ -247,14 +322,12 @@ class SetPointGenerator:
         if not (math.isfinite(t) and math.isfinite(q @ self._zeros + qdot @ self._zeros)):
             return self._hold('bad_input', 'non-finite joint state or time stamp', t_start)
         if self._pending is not None:
-            self.stack, self.tasks, budget = self._pending
-            self._pending = None
-            self._t0 = None
-            if self.tanks is not None:
-                self.tanks.set_power(budget)
-                self._stall.reset()
+            self._take_pending()
         if self._t0 is None:
             self._t0 = float(t)
+            if self.tasks:  # the tasks capture their init values at this tick
+                act = Activation(q.copy(), qdot.copy(), self.q_v.copy(), float(t))
+                self.activations = self.activations[:1] + [act]
         task_time = float(t) - self._t0
         robot = self.robot
         q_v = self.q_v

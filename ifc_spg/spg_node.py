@@ -8,7 +8,12 @@ it). It starts from the measured q; task stacks (YAML/JSON text) arrive latched 
 ``spg/task_stack`` — a bad one is rejected with the field named on ``spg/status`` and the
 running one continues. ``spg/status`` (JSON) is published every ``status.decimation``
 ticks and immediately on stack and watchdog events; ``spg/diagnostics`` every
-``diagnostics.period`` seconds. Without joint states for ``watchdog.timeout`` seconds the
+``diagnostics.period`` seconds. Latched (transient local, depth 1), so a recorder started at
+any time has them: ``spg/config`` (JSON: SPG settings, robot K, D and limits, the running
+stack's text and the ticks its tasks captured their ``init`` values; republished when a
+stack becomes active or the SPG restarts) and ``spg/state`` (Float64MultiArray after every
+tick: tick, stamp, measured q, q_v, qdot_v, tank energies; layout in ``spg/config``), from
+which ``ifc-spg replay`` recomputes q_v of a bag recorded mid-run. Without joint states for ``watchdog.timeout`` seconds the
 node stops commanding and reports it; when states return with stamps that jumped (or
 restarted) it restarts from the measured q (see :mod:`ifc_spg.spg_runner`).
 

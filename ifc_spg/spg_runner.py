@@ -221,6 +221,10 @@ class SpgRunner:
         self.stack_name = ''
         self._stack_since = None
         self._config_sent = False
+        self.stack_text = None          # the running stack's document (spg/config)
+        self._pending_text = None
+        self.config_version = 0         # grows when config_doc() changes (stack, restart)
+        self._activation = None
         self._next_id = 0
         self._pending_name = None
         self._last_stamp = None
@@ -252,6 +256,7 @@ class SpgRunner:
             return StackEvent(False, self.stack_id, self.stack_name, message)
         self._next_id += 1
         self._pending_name = str(getattr(stack, 'name', '') or f'stack_{self._next_id}')
+        self._pending_text = text
         written_for = getattr(stack, 'robot', None)
         note = f" (written for '{written_for}')" if written_for not in (
             None, self.robot.name) else ''
@@ -336,8 +341,12 @@ class SpgRunner:
         if self._pending_name is not None and self.spg.stack is not None and \
                 self.spg._pending is None:
             self.stack_id, self.stack_name = self._next_id, self._pending_name
+            self.stack_text = self._pending_text
             self._pending_name = None
             self._stack_since = stamp_ns * 1e-9
+        if self.spg.activations and self.spg.activations[-1] is not self._activation:
+            self._activation = self.spg.activations[-1]  # a new stack, or a restart
+            self.config_version += 1
         info = self.spg.info
         if info.status in ('fallback', 'hold', 'bad_input'):
             self._error('spg', f'{info.status}: {info.message}')
@@ -483,6 +492,91 @@ class SpgRunner:
             doc['robot_params'] = robot_params(self.robot)   # ... with these K, D
             self._config_sent = True
         return doc
+
+    def config_doc(self):
+        """The ``spg/config`` document (JSON-ready): what a replay needs besides the
+        recorded joint states to recompute q_v from any tick on.
+
+        Keys: config (the :class:`SpgConfig` as a dict), robot_params (:func:`robot_params`),
+        stack (None, or {id, name, text (the document as received), since [s] (stamp of its
+        first tick), activations: [first, latest] ticks at which its tasks captured their
+        ``init`` values, each {q, qdot, q_v [rad, rad/s], t [s]}}), state_layout (the fields
+        of ``spg/state``: [name, length] in order).
+        """
+        def floats(x):
+            return [float(v) for v in np.ravel(x)]
+
+        stack = None
+        if self.stack_id and self.stack_text is not None:
+            stack = {'id': self.stack_id, 'name': self.stack_name, 'text': self.stack_text,
+                     'since': self._stack_since,
+                     'activations': [{'q': floats(a.q), 'qdot': floats(a.qdot),
+                                      'q_v': floats(a.q_v), 't': float(a.t)}
+                                     for a in self.spg.activations]}
+        return {'config': dataclasses.asdict(self.config),
+                'robot_params': robot_params(self.robot), 'stack': stack,
+                'state_layout': [[name, size] for name, size in self._state_layout()]}
+
+    def _state_layout(self):
+        n = self._n
+        return (('tick', 1), ('stamp_sec', 1), ('stamp_nanosec', 1), ('q', n), ('q_v', n),
+                ('qdot_v', n), ('tank_energy', n), ('shuffled', n))
+
+    def state_vector(self):
+        """The ``spg/state`` data after the last tick (floats, layout ``state_layout`` of
+        :meth:`config_doc`; NaN where there are no tanks): the tick count, its stamp, the
+        measured q and the SPG's state the next tick starts from."""
+        snap = self.spg.snapshot()
+        nan = np.full(self._n, np.nan)
+        sec, nsec = divmod(int(self._last_stamp or 0), 1_000_000_000)
+        return np.concatenate((
+            [float(self.ticks), float(sec), float(nsec)], self._last_q, snap.q_v, snap.qdot_v,
+            nan if snap.tank_energy is None else snap.tank_energy,
+            nan if snap.shuffled is None else snap.shuffled))
+
+    def restore(self, vector, doc):
+        """Continue from a recorded ``spg/state`` ``vector`` and ``spg/config`` ``doc`` (a
+        replay that starts mid-run); the stack of ``doc`` becomes the running one.
+
+        Returns:
+            The stamp [ns] of the restored tick (the next state must be newer).
+
+        Raises:
+            ParameterError: A vector or document that does not fit this robot.
+        """
+        from ifc_spg.spg import Activation, SpgState
+
+        vector = np.asarray(vector, dtype=float)
+        parts, i = {}, 0
+        for name, size in self._state_layout():
+            parts[name] = vector[i:i + size]
+            i += size
+        if vector.size != i:
+            raise ParameterError(f'spg/state has {vector.size} values, expected {i} for the '
+                                 f'{self._n} joints of {self.robot.name!r}')
+        stack = doc.get('stack')
+        acts = []
+        if stack:
+            event = self.handle_task_stack(stack['text'])
+            if not event.accepted:
+                raise ParameterError(f"spg/config: the recorded stack does not build here: "
+                                     f'{event.message}')
+            acts = [Activation(np.array(a['q']), np.array(a['qdot']), np.array(a['q_v']),
+                               float(a['t'])) for a in stack['activations']]
+        tanks = None if np.isnan(parts['tank_energy']).any() else parts['tank_energy']
+        self.spg.restore(SpgState(parts['q_v'], parts['qdot_v'], tanks,
+                                  None if tanks is None else parts['shuffled']),
+                         parts['q'], acts)
+        stamp = int(parts['stamp_sec'][0]) * 1_000_000_000 + int(parts['stamp_nanosec'][0])
+        if stack:
+            self.stack_id, self.stack_name = int(stack['id']), str(stack['name'])
+            self.stack_text, self._stack_since = stack['text'], stack.get('since')
+            self._next_id, self._pending_name = self.stack_id, None
+            self._activation = self.spg.activations[-1] if self.spg.activations else None
+        self.ticks = int(parts['tick'][0])
+        self.started, self.stale = True, False
+        self._last_stamp, self._last_q = stamp, parts['q'].copy()
+        return stamp
 
     def _pspm_status(self, info):
         doc = info.pspm

@@ -1,0 +1,102 @@
+"""A live bag recorded mid-run replays with ``ifc-spg replay BAG`` and no flags.
+
+``sim_bridge`` (lockstep, table scene), ``spg_node`` and ``task_publisher`` run over DDS; the
+recorder (``ifc-spg bag record``, default topics) starts after the stack is running, a
+second stack arrives while it records, and it stops before the run ends. The bag is
+self-contained: the SPG's latched ``spg/config`` (settings, K, D, limits, the running stack
+and where its tasks captured their ``init`` values) and ``spg/state`` (the state after each
+tick). The replay starts from the first recorded state and must reproduce every recorded
+q_v after it to 1e-9 rad (DAQP is warm-started differently there: measured 0 here).
+"""
+
+import json
+import sys
+import signal
+
+from helpers import CONFIG, reach_stack, use_loopback
+import pytest
+
+from ifc_spg import ros
+from ifc_spg.bag import BagReader
+from ifc_spg.ros import msg as ros_msg
+from ifc_spg.ros.testing import ProcessGroup, stamp_ns
+
+pytestmark = [pytest.mark.dds, pytest.mark.ros]
+
+TOLERANCE = 1e-9  # [rad]
+
+
+def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
+    from ifc_spg.replay import main, replay
+
+    env = use_loopback(monkeypatch)
+    first = tmp_path / 'first.yaml'
+    first.write_text(reach_stack('lbr_iiwa14', name='reach'))
+    second = tmp_path / 'second.yaml'
+    second.write_text(reach_stack('lbr_iiwa14', name='reach_again'))
+    bag = tmp_path / 'bag'
+    procs = ProcessGroup(tmp_path, env)
+    ros.init(['test'])
+    node = ros.Node('listener')
+    status, sim_t = [], [0.0]
+    node.create_subscription(ros_msg.String, 'spg/status',
+                             lambda m: status.append(json.loads(m.data)), 10000)
+    node.create_subscription(ros_msg.JointState, 'joint_states',
+                             lambda m: sim_t.__setitem__(0, stamp_ns(m) * 1e-9), 100)
+
+    def spin_until(condition, timeout):
+        return ros.spin_until(condition, timeout, nodes=node)
+
+    def accepted(n):
+        return sum(s.get('event', {}).get('type') == 'stack_accepted' for s in status) >= n
+
+    try:
+        spg = procs.start('spg_node', '--ros-args', '--params-file',
+                          str(CONFIG / 'lbr_iiwa14.yaml'))
+        assert spin_until(lambda: node.count_publishers('spg/status') >= 1 or
+                          spg.poll() is not None, 60.0), procs.log('spg_node')
+        procs.start('publisher_1', str(first), '--robot', 'lbr_iiwa14', exe='task_publisher')
+        assert spin_until(lambda: accepted(1) or spg.poll() is not None, 60.0), \
+            procs.log('spg_node')
+        bridge = procs.start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
+                             'interface:=lbr_fri', '-p', 'scene:=table', '-p',
+                             'mode:=lockstep', '-p', 'duration:=30.0', '-p',
+                             'wait_for_subscribers:=2')
+        assert spin_until(lambda: sim_t[0] >= 1.0 or bridge.poll() is not None, 120.0), \
+            procs.log('sim_bridge')
+        # mid-run: the stack has been running for a second of sim time
+        rec = procs.start('recorder', 'bag', 'record', '-o', str(bag), exe='ifc-spg')
+        assert spin_until(lambda: 'recording' in procs.log('recorder') or
+                          rec.poll() is not None, 60.0) and rec.poll() is None, \
+            procs.log('recorder')
+        # the recorder matches the SPG's latched topics within a discovery period (Fast DDS
+        # announces every 3 s); then a second stack, while it records
+        t_rec = sim_t[0]
+        assert spin_until(lambda: sim_t[0] >= t_rec + 4.0 or bridge.poll() is not None,
+                          120.0)
+        procs.start('publisher_2', str(second), '--robot', 'lbr_iiwa14', exe='task_publisher')
+        assert spin_until(lambda: accepted(2) or spg.poll() is not None, 60.0), \
+            procs.log('spg_node')
+        t2 = sim_t[0]
+        assert spin_until(lambda: sim_t[0] >= t2 + 1.0 or bridge.poll() is not None, 120.0)
+        # and it stops while the loop still runs: the last state's command may be missing
+        assert procs.stop('recorder', signal.SIGINT, 30.0) == 0, procs.log('recorder')
+        assert bridge.poll() is None, procs.log('sim_bridge')
+    finally:
+        procs.close()
+        ros.shutdown()
+    with BagReader(bag) as reader:
+        counts = {t: c for t, (_, c, _) in reader.topics.items()}
+        assert reader.custom_data == {}  # nothing but the topics
+    assert counts.get('/spg/config', 0) >= 2, counts  # latched one + the second stack
+    assert counts.get('/spg/state', 0) > 100, counts
+    res = replay(bag)
+    assert res.resumed and res.missing == 0 and res.stacks == 1, res
+    # every command after the first recorded SPG state is compared
+    assert res.compared >= counts['/command/joint_position'] - res.skipped, (res, counts)
+    assert res.max_abs_diff <= TOLERANCE, res
+    print(f'mid-run replay: {res.compared} commands, {res.skipped} states before the first '
+          f'spg/state, {res.unanswered} unanswered, max |dq_v| {res.max_abs_diff:.3e} rad',
+          file=sys.stderr)
+    assert main([str(bag)]) == 0
+    assert 'OK' in capsys.readouterr().out
