@@ -18,6 +18,7 @@ VERBS = {
     'bag': ('ifc_spg.bag', 'rosbag2 MCAP record | play | info'),
     'replay': ('ifc_spg.replay', 'recompute the SPG output from a bag'),
     'plot': ('ifc_spg.plot', 'figures from a bag'),
+    'render': ('ifc_spg.render', 'video of a bag: the robot in its MuJoCo scene'),
     'bench': ('ifc_spg.bench', 'benchmark the SPG tick per solver'),
     'dynamics': ('ifc_spg.dynamics.cli', 'Popov-Vereshchagin solver scenarios'),
     'ros': ('ifc_spg.ros.tools', 'ROS 2 layer tools: talker, listener, topic echo'),

@@ -464,7 +464,9 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
     writer.set_custom_data(ROBOT_PARAMS_KEY, json.dumps(robot_doc))
     writer.set_custom_data(SCENARIO_KEY, json.dumps({
         'name': scenario.name, 'path': scenario.path, 'scene': scenario.scene,
-        'interface': sim.interface, 'duration': duration}))
+        'interface': sim.interface, 'duration': duration,
+        # ifc-spg render rebuilds the scene: it is anchored at the tool pose of q0
+        'scene_options': scenario.scene_options or {}, 'q0': [float(x) for x in sim.q0]}))
     topics = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
               'sim/contact_wrench']
     if sim.read_state().ft_wrench:

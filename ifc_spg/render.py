@@ -1,0 +1,334 @@
+"""Video of a run: the measured robot of a bag in its MuJoCo scene (``ifc-spg render``).
+
+    ifc-spg render BAG -o run.mp4|run.gif|run.webp [--fps 25] [--size 640x480]
+                   [--start S] [--duration S] [--scene NAME] [--no-ghost]
+
+Each frame shows the recorded ``joint_states`` (positions) at its time, the environment's
+joints (doors, drawers: ``sim/env_joint_states``), the contact force on the tool
+(``sim/contact_wrench``) as a red arrow (2 cm per N, at the tool) and the virtual robot q_v
+(``command/joint_position``) as a translucent green ghost. The robot comes from the bag's
+SPG configuration (``custom_data`` or ``spg/config``), the scene, its options and q0 (the
+scene is anchored at the tool pose of q0) from the run's scenario record (``ifc-spg run``);
+a live bag does not know the bridge's scene: pass ``--scene`` (default ``free``).
+
+Rendering is offscreen (``MUJOCO_GL=egl`` unless set: EGL with the GPU or software Mesa,
+no display needed). ``.gif`` and ``.webp`` are encoded with Pillow; ``.mp4`` (H.264) needs
+an ``ffmpeg`` executable: the one ``imageio-ffmpeg`` ships, else ``ffmpeg`` on the PATH.
+A progress line is printed every 10 % of the frames.
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError, ParameterError
+
+__all__ = ['RenderResult', 'main', 'render']
+
+FORCE_SCALE = 0.02  # [m/N] arrow length per newton
+_GHOST_RGBA = (0.2, 0.9, 0.3, 0.35)
+_ARROW_RGBA = (0.9, 0.1, 0.1, 1.0)
+
+
+class RenderResult(dict):
+    """What :func:`render` wrote: path, frames, fps, size (w, h), seconds (wall), bytes."""
+
+
+def _gl_error(exc):
+    return IfcSpgError(
+        f'cannot render offscreen with MUJOCO_GL={os.environ.get("MUJOCO_GL")!r} ({exc}); '
+        'install an EGL or OSMesa backend (Debian/Ubuntu: apt install libegl1 libgl1-mesa-dri '
+        'for EGL with software Mesa, or libosmesa6 and MUJOCO_GL=osmesa)')
+
+
+def _nearest_before(stamps, t):
+    """Index of the last stamp <= t (0 if none)."""
+    i = int(np.searchsorted(stamps, t, side='right')) - 1
+    return max(i, 0)
+
+
+class _Series:
+    """Recorded samples of one topic: stamps [ns] (sorted) and values by joint name."""
+
+    def __init__(self, samples):
+        samples.sort(key=lambda s: s[0])
+        self.stamps = np.array([s[0] for s in samples], dtype=np.int64)
+        self.values = [s[1] for s in samples]
+
+    def __bool__(self):
+        return bool(self.values)
+
+    def at(self, t_ns):
+        return self.values[_nearest_before(self.stamps, t_ns)]
+
+
+def _read_bag(path):
+    from ifc_spg.bag import BagReader, stamp_ns
+    from ifc_spg.replay import read_robot_params, read_spg_config
+    from ifc_spg.runner import SCENARIO_KEY
+
+    states, commands, wrenches, env, configs = [], [], [], [], []
+    with BagReader(path) as bag:
+        topics = {t.lstrip('/'): t for t in bag.topics}
+        if 'joint_states' not in topics:
+            raise ParameterError(f"bag '{path}' has no 'joint_states' topic; topics: "
+                                 f"{', '.join(sorted(bag.topics)) or 'none'}")
+        wanted = {topics[k] for k in ('joint_states', 'command/joint_position',
+                                      'sim/contact_wrench', 'sim/env_joint_states',
+                                      'spg/config') if k in topics}
+        for topic, _, msg in bag.messages(wanted):
+            name = topic.lstrip('/')
+            if name == 'spg/config':
+                try:
+                    configs.append((0, json.loads(msg.data)))
+                except json.JSONDecodeError:
+                    pass
+                continue
+            t = stamp_ns(msg.header.stamp)
+            if name == 'joint_states':
+                states.append((t, dict(zip(msg.name, map(float, msg.position)))))
+            elif name == 'command/joint_position':
+                commands.append((t, dict(zip(msg.name, map(float, msg.position)))))
+            elif name == 'sim/env_joint_states':
+                env.append((t, dict(zip(msg.name, map(float, msg.position)))))
+            else:
+                f = msg.wrench.force
+                wrenches.append((t, np.array([f.x, f.y, f.z], dtype=float)))
+        config = read_spg_config(bag, [], None, configs)
+        params = read_robot_params(bag, [], configs)
+        scenario = json.loads(bag.custom_data.get(SCENARIO_KEY, 'null') or 'null')
+    return config, params, scenario, _Series(states), _Series(commands), _Series(wrenches), \
+        _Series(env)
+
+
+def _robot_bodies(model, qpos_adr):
+    """Bodies moved by the robot's joints (their ghost is drawn)."""
+    robot_joints = {j for j in range(model.njnt) if model.jnt_qposadr[j] in set(qpos_adr)}
+    moved = set()
+    for b in range(model.nbody):
+        c = b
+        while c > 0:
+            start, num = model.body_jntadr[c], model.body_jntnum[c]
+            if num > 0 and any(j in robot_joints for j in range(start, start + num)):
+                moved.add(b)
+                break
+            c = model.body_parentid[c]
+    return moved
+
+
+def _writer(path, fps, size):
+    """A frame sink for ``path`` by suffix: (write(frame), close() -> bytes written)."""
+    suffix = path.suffix.lower()
+    if suffix in ('.gif', '.webp'):
+        from PIL import Image
+
+        frames = []
+
+        def write(img):
+            frames.append(Image.fromarray(img))
+
+        def close():
+            if not frames:
+                raise ParameterError('no frames to write')
+            opts = {'save_all': True, 'append_images': frames[1:],
+                    'duration': round(1000 / fps), 'loop': 0}
+            if suffix == '.gif':
+                frames[:] = [f.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+                             for f in frames]
+                opts['append_images'] = frames[1:]
+                opts['optimize'] = False
+            else:
+                opts.update(quality=80, method=4)
+            frames[0].save(path, **opts)
+            return path.stat().st_size
+        return write, close
+    if suffix == '.mp4':
+        exe = None
+        try:
+            import imageio_ffmpeg
+
+            exe = imageio_ffmpeg.get_ffmpeg_exe()
+        except (ImportError, RuntimeError):
+            exe = shutil.which('ffmpeg')
+        if exe is None:
+            raise ParameterError(f"'{path}': .mp4 needs ffmpeg (pip install imageio-ffmpeg, "
+                                 'whose wheel ships it, or apt install ffmpeg); .gif and '
+                                 '.webp need nothing more')
+        w, h = size
+        proc = subprocess.Popen(
+            [exe, '-y', '-loglevel', 'error', '-f', 'rawvideo', '-pix_fmt', 'rgb24', '-s',
+             f'{w}x{h}', '-r', f'{fps}', '-i', '-', '-an', '-vcodec', 'libx264', '-pix_fmt',
+             'yuv420p', '-crf', '23', str(path)], stdin=subprocess.PIPE)
+
+        def write(img):
+            proc.stdin.write(np.ascontiguousarray(img).tobytes())
+
+        def close():
+            proc.stdin.close()
+            if proc.wait() != 0:
+                raise IfcSpgError(f"ffmpeg failed writing '{path}' (exit {proc.returncode})")
+            return path.stat().st_size
+        return write, close
+    raise ParameterError(f"'{path}': unknown video format '{suffix}'; choose .mp4, .gif or "
+                         '.webp')
+
+
+def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, scene=None,
+           ghost=True, quiet=False, stream=None):
+    """Render a bag's recorded motion to ``output`` (.mp4, .gif, .webp).
+
+    Args:
+        bag: Bag directory.
+        output: Video file to write.
+        fps: Frames per second of recorded (stamp) time.
+        size: (width, height) in pixels.
+        start: Seconds after the first joint state to begin at.
+        duration: Seconds to render (None: to the end).
+        scene: Scene name (None: the bag's scenario record, else ``free``).
+        ghost: Draw the virtual robot q_v.
+        quiet: No progress lines.
+        stream: Where progress goes (default stderr).
+
+    Returns:
+        :class:`RenderResult`.
+    """
+    os.environ.setdefault('MUJOCO_GL', 'egl')
+    import mujoco
+
+    from sim_bridge.simulation import SimConfig, Simulation
+
+    stream = stream or sys.stderr
+    output = Path(output)
+    if not fps > 0:
+        raise ParameterError(f'--fps must be > 0, got {fps}')
+    config, params, scenario, states, commands, wrenches, env = _read_bag(bag)
+    if not states:
+        raise ParameterError(f"bag '{bag}' has no joint states to render")
+    scenario = scenario or {}
+    from ifc_spg.replay import replay_robot
+
+    robot, _, _ = replay_robot(config, params, where=f"bag '{bag}'")
+    sim = Simulation(SimConfig(
+        robot=robot, interface=scenario.get('interface'),
+        scene=scene or scenario.get('scene') or 'free',
+        scene_options=scenario.get('scene_options') or {}, q0=scenario.get('q0')))
+    m = sim.model
+    names = list(sim.joint_names)
+    qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in names])
+    env_adr = {j: m.jnt_qposadr[m.joint(j).id] for j in sim.env_joint_names}
+    data, ghost_data = mujoco.MjData(m), mujoco.MjData(m)
+    ghost_data.qpos[:] = data.qpos[:] = sim.data.qpos
+    moved = _robot_bodies(m, qadr)
+    tool_site = sim.site_id(sim.contact_chain)
+    w, h = int(size[0]), int(size[1])
+    m.vis.global_.offwidth = max(m.vis.global_.offwidth, w)
+    m.vis.global_.offheight = max(m.vis.global_.offheight, h)
+    try:
+        renderer = mujoco.Renderer(m, h, w)
+    except Exception as exc:  # noqa: BLE001 -- MuJoCo raises plain errors for GL failures
+        raise _gl_error(exc) from None
+    cam = mujoco.MjvCamera()
+    mujoco.mj_forward(m, data)
+    p_tool = data.site_xpos[tool_site].copy()
+    base = data.xpos[m.body_rootid[m.jnt_bodyid[m.joint(names[0]).id]]].copy()
+    cam.lookat[:] = 0.5 * (p_tool + base)
+    cam.distance = max(1.2, 2.5 * float(np.linalg.norm(p_tool - base)))
+    cam.azimuth, cam.elevation = 140.0, -20.0
+    opt = mujoco.MjvOption()
+    pert = mujoco.MjvPerturb()
+
+    t0 = int(states.stamps[0]) + int(round(start * 1e9))
+    t_end = int(states.stamps[-1])
+    if duration is not None:
+        t_end = min(t_end, t0 + int(round(duration * 1e9)))
+    n_frames = max(1, int((t_end - t0) * 1e-9 * fps) + 1)
+    write, close = _writer(output, fps, (w, h))
+    wall = time.monotonic()
+    every = max(1, n_frames // 10)
+    for k in range(n_frames):
+        t = t0 + int(round(k * 1e9 / fps))
+        q = states.at(t)
+        data.qpos[qadr] = [q.get(j, 0.0) for j in names]
+        if env:
+            for j, value in env.at(t).items():
+                if j in env_adr:
+                    data.qpos[env_adr[j]] = value
+        mujoco.mj_kinematics(m, data)
+        renderer.update_scene(data, cam)
+        scn = renderer.scene
+        if ghost and commands:
+            q_v = commands.at(t)
+            ghost_data.qpos[:] = data.qpos
+            ghost_data.qpos[qadr] = [q_v.get(j, q.get(j, 0.0)) for j in names]
+            mujoco.mj_kinematics(m, ghost_data)
+            first = scn.ngeom
+            mujoco.mjv_addGeoms(m, ghost_data, opt, pert, mujoco.mjtCatBit.mjCAT_DYNAMIC, scn)
+            for i in range(first, scn.ngeom):
+                g = scn.geoms[i]
+                robot_geom = g.objtype == mujoco.mjtObj.mjOBJ_GEOM and \
+                    m.geom_bodyid[g.objid] in moved
+                g.rgba[:] = _GHOST_RGBA if robot_geom else (0.0, 0.0, 0.0, 0.0)
+                if robot_geom and g.type != mujoco.mjtGeom.mjGEOM_MESH:
+                    g.size[:] = np.asarray(g.size) * 1.03  # no z-fighting where q_v ~ q
+        if wrenches and scn.ngeom < scn.maxgeom:
+            force = wrenches.at(t)
+            if np.linalg.norm(force) > 0.2:
+                p = data.site_xpos[tool_site]
+                geom = scn.geoms[scn.ngeom]
+                mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3),
+                                    np.zeros(3), np.eye(3).reshape(-1), _ARROW_RGBA)
+                # the arrow points along the force the environment exerts on the tool
+                mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, 0.008, p,
+                                     p + FORCE_SCALE * force)
+                scn.ngeom += 1
+        write(renderer.render())
+        if not quiet and ((k + 1) % every == 0 or k + 1 == n_frames):
+            el = time.monotonic() - wall
+            print(f'render: {k + 1}/{n_frames} frames ({100 * (k + 1) // n_frames}%), '
+                  f'{(k + 1) / el:.1f} frames/s', file=stream, flush=True)
+    renderer.close()
+    sim.close()
+    size_b = close()
+    return RenderResult(path=str(output), frames=n_frames, fps=fps, size=(w, h),
+                        seconds=time.monotonic() - wall, bytes=size_b)
+
+
+def main(argv=None):
+    """``ifc-spg render BAG -o FILE``."""
+    parser = argparse.ArgumentParser(prog='ifc-spg render', description=__doc__.split('\n')[0])
+    parser.add_argument('bag', help='bag directory')
+    parser.add_argument('-o', '--output', required=True, help='video file (.mp4, .gif, .webp)')
+    parser.add_argument('--fps', type=float, default=25.0, help='frames per second (25)')
+    parser.add_argument('--size', default='640x480', help='WIDTHxHEIGHT (640x480)')
+    parser.add_argument('--start', type=float, default=0.0, help='begin S seconds in')
+    parser.add_argument('--duration', type=float, default=None, help='render S seconds')
+    parser.add_argument('--scene', default=None, help="scene (default: the bag's, or free)")
+    parser.add_argument('--no-ghost', action='store_true', help='do not draw q_v')
+    parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
+    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        w, h = (int(x) for x in opts.size.lower().split('x'))
+    except ValueError:
+        print(f"ifc-spg render: --size must be WIDTHxHEIGHT, got '{opts.size}'", file=sys.stderr)
+        return 2
+    try:
+        res = render(opts.bag, opts.output, opts.fps, (w, h), opts.start, opts.duration,
+                     opts.scene, not opts.no_ghost, opts.quiet)
+    except IfcSpgError as exc:
+        print(f'ifc-spg render: {exc}', file=sys.stderr)
+        return 2
+    print(f"wrote {res['path']}: {res['frames']} frames at {res['fps']:g} fps, "
+          f"{res['size'][0]}x{res['size'][1]}, {res['bytes'] / 1e3:.0f} kB in "
+          f"{res['seconds']:.1f} s ({res['frames'] / max(res['seconds'], 1e-9):.1f} frames/s)")
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
