@@ -174,3 +174,33 @@ def test_gains_from_the_status_when_the_metadata_lacks_them(tuned_bag, tmp_path)
     _copy(tuned_bag, tmp_path / 'live', custom=lambda k, v: None if k == ROBOT_PARAMS_KEY else v)
     res = replay(tmp_path / 'live')
     assert res.max_abs_diff <= 1e-12 and res.warnings == [] and res.gains_recorded
+
+
+def test_a_last_state_without_its_command_is_the_recordings_edge(bag, tmp_path, capsys):
+    """The recorder stopped after the last joint state but before its command: not a failure
+    (a command missing in the middle still is)."""
+    with BagReader(bag) as r:
+        n = r.topics['/command/joint_position'][1]
+
+    def drop(index):
+        dst = tmp_path / f'drop_{index}'
+        with BagReader(bag) as r, BagWriter(dst) as w:
+            for key, value in r.custom_data.items():
+                w.set_custom_data(key, value)
+            for topic, (msgtype, _, profiles) in r.topics.items():
+                w.add_topic(topic, msgtype, profiles)
+            seen = -1
+            for topic, _, t, data in r.raw():
+                if topic == '/command/joint_position':
+                    seen += 1
+                    if seen == index:
+                        continue
+                w.write(topic, t, data)
+        return dst
+
+    res = replay(drop(n - 1))
+    assert res.unanswered == 1 and res.missing == 0 and res.compared == n - 1
+    assert main([str(tmp_path / f'drop_{n - 1}')]) == 0
+    assert 'recording ended' in capsys.readouterr().out
+    res = replay(drop(100))
+    assert res.missing == 1 and main([str(tmp_path / 'drop_100')]) == 1
