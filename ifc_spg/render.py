@@ -1,7 +1,7 @@
 """Video of a run: the measured robot of a bag in its MuJoCo scene (``ifc-spg render``).
 
     ifc-spg render BAG -o run.mp4|run.gif|run.webp [--fps 25] [--size 640x480]
-                   [--start S] [--duration S] [--scene NAME] [--no-ghost]
+                   [--start S] [--duration S] [--scene NAME] [--no-ghost] [--shadows]
 
 Each frame shows the recorded ``joint_states`` (positions) at its time, the environment's
 joints (doors, drawers: ``sim/env_joint_states``), the contact force on the tool
@@ -181,7 +181,7 @@ def _writer(path, fps, size):
 
 
 def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, scene=None,
-           ghost=True, quiet=False, stream=None):
+           ghost=True, quiet=False, stream=None, shadows=False):
     """Render a bag's recorded motion to ``output`` (.mp4, .gif, .webp).
 
     Args:
@@ -195,6 +195,7 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         ghost: Draw the virtual robot q_v.
         quiet: No progress lines.
         stream: Where progress goes (default stderr).
+        shadows: Render shadows and reflections (slower on software GL).
 
     Returns:
         :class:`RenderResult`.
@@ -263,6 +264,9 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         mujoco.mj_kinematics(m, data)
         renderer.update_scene(data, cam)
         scn = renderer.scene
+        if not shadows:  # software GL: shadows and reflections are half the frame time
+            scn.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
+            scn.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
         if ghost and commands:
             q_v = commands.at(t)
             ghost_data.qpos[:] = data.qpos
@@ -311,6 +315,8 @@ def main(argv=None):
     parser.add_argument('--duration', type=float, default=None, help='render S seconds')
     parser.add_argument('--scene', default=None, help="scene (default: the bag's, or free)")
     parser.add_argument('--no-ghost', action='store_true', help='do not draw q_v')
+    parser.add_argument('--shadows', action='store_true',
+                        help='shadows and reflections (slower on software GL)')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
@@ -320,7 +326,7 @@ def main(argv=None):
         return 2
     try:
         res = render(opts.bag, opts.output, opts.fps, (w, h), opts.start, opts.duration,
-                     opts.scene, not opts.no_ghost, opts.quiet)
+                     opts.scene, not opts.no_ghost, opts.quiet, shadows=opts.shadows)
     except IfcSpgError as exc:
         print(f'ifc-spg render: {exc}', file=sys.stderr)
         return 2
