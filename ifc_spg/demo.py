@@ -1,13 +1,15 @@
 """The simulated LBR demo (``ifc-spg demo``): surface tracking on a table, bag, metrics, plots.
 
-    ifc-spg demo [--duration S] [-o DIR] [--no-plots]
+    ifc-spg demo [--duration S] [-o DIR] [--no-plots] [--no-video]
 
 Runs ``config/scenarios/demo_lbr.yaml`` offline in lockstep (sim_bridge LBR FRI joint
 impedance + the SPG in one process): a KUKA LBR iiwa 14 starts 1 cm above a table,
 approaches it at 1 cm/s (guarded) and presses with 8 N, then draws a 5 cm circle on the
 surface while keeping the force (Table 3.2-like). Writes ``DIR/bag`` (rosbag2 MCAP),
-``DIR/metrics.json`` and ``DIR/plots/index.html`` (default ``DIR`` = ``out/demo``, replaced
-if it holds an old demo) and prints a short summary.
+``DIR/metrics.json``, a video ``DIR/run.mp4`` (``DIR/run.gif`` without ffmpeg; skipped with a
+one-line notice where no offscreen GL exists) and ``DIR/plots/index.html`` (the video above
+the figures; default ``DIR`` = ``out/demo``, replaced if it holds an old demo) and prints a
+short summary.
 """
 
 import argparse
@@ -22,7 +24,35 @@ __all__ = ['main', 'run_demo', 'summary']
 SCENARIO = 'demo_lbr.yaml'
 
 
-def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False):
+def _render_video(bag, out, quiet):
+    """``out/run.mp4`` (``run.gif`` without ffmpeg) of the bag, or None with a notice.
+
+    A child process: MuJoCo picks its GL backend (``MUJOCO_GL=egl``) when it is imported,
+    and this process imported it for the simulation already.
+    """
+    import os
+    import subprocess
+
+    from ifc_spg.render import ffmpeg_exe
+
+    # without ffmpeg a smaller GIF: Pillow holds its frames in memory until it writes
+    video, size = (out / 'run.mp4', []) if ffmpeg_exe() else \
+        (out / 'run.gif', ['--size', '480x360', '--fps', '12.5'])
+    for old in (out / 'run.mp4', out / 'run.gif'):
+        old.unlink(missing_ok=True)
+    env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.render', str(bag), '-o', str(video),
+                           '-q', *size], capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        reason = (proc.stderr.strip().splitlines() or ['failed'])[-1]
+        print(f'ifc-spg demo: no video ({reason})', file=sys.stderr)
+        return None
+    if not quiet:
+        print(proc.stdout.strip(), flush=True)
+    return video
+
+
+def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False, video=True):
     """Run the demo scenario; returns ``(RunResult, list of PNG paths)``."""
     from ifc_spg.runner import find_config_dir, run_scenario
 
@@ -35,12 +65,13 @@ def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False):
         shutil.rmtree(out / 'plots', ignore_errors=True)
     result = run_scenario(find_config_dir() / 'scenarios' / SCENARIO, out, duration=duration,
                           quiet=quiet)
+    clip = _render_video(result.bag, out, quiet) if video else None
     pngs = []
     if plots:
         from ifc_spg.plot import plot_bag
 
         pngs = plot_bag(result.bag, out / 'plots', title='ifc_spg demo: LBR iiwa 14 surface '
-                        'tracking (simulated)')
+                        'tracking (simulated)', video=clip)
     return result, pngs
 
 
@@ -79,6 +110,10 @@ def summary(result, pngs):
     lines.append(f'  bag:     {result.bag}   '
                  '(ifc-spg bag info / replay / plot; Foxglove opens it)')
     lines.append(f'  metrics: {result.metrics_path}')
+    video = next((p for p in (Path(result.bag).parent / n for n in ('run.mp4', 'run.gif'))
+                  if p.is_file()), None)
+    if video is not None:
+        lines.append(f'  video:   {video}   (ifc-spg render BAG -o FILE)')
     if pngs:
         lines.append(f'  plots:   {Path(pngs[0]).parent / "index.html"} ({len(pngs)} figures)')
     return '\n'.join(line for line in lines if line)
@@ -91,10 +126,12 @@ def main(argv=None):
                         help='simulated seconds (default: the scenario, 20 s)')
     parser.add_argument('-o', '--output', default='out/demo', help='output directory')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
+    parser.add_argument('--no-video', action='store_true', help='skip the video')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
-        result, pngs = run_demo(opts.output, opts.duration, not opts.no_plots, opts.quiet)
+        result, pngs = run_demo(opts.output, opts.duration, not opts.no_plots, opts.quiet,
+                                not opts.no_video)
     except IfcSpgError as exc:
         print(f'ifc-spg demo: {exc}', file=sys.stderr)
         return 2

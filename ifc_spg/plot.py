@@ -21,6 +21,7 @@ Vertical dotted lines mark task-stack switches. Rendering uses matplotlib's Agg 
 import argparse
 import html
 import json
+import os
 from pathlib import Path
 import sys
 
@@ -220,8 +221,11 @@ def _per_joint(plt, s, t_a, a, t_b, b, labels, ylabel, title, path, scale=1.0):
     plt.close(fig)
 
 
-def plot_bag(bag, out_dir, title=None):
-    """Write the figures and ``index.html`` into ``out_dir``; returns the PNG paths."""
+def plot_bag(bag, out_dir, title=None, video=None):
+    """Write the figures and ``index.html`` into ``out_dir``; returns the PNG paths.
+
+    ``video``: a video file of the run (``ifc-spg render``) shown above the figures.
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -312,11 +316,26 @@ def plot_bag(bag, out_dir, title=None):
         fig.savefig(path)
         plt.close(fig)
         written.append((path, 'SPG tick and solve time'))
-    _index(out, written, Path(bag), title)
+    _index(out, written, Path(bag), title, video)
     return [p for p, _ in written]
 
 
-def _index(out, written, bag, title):
+def _video_html(out, video):
+    if video is None:
+        return ''
+    video = Path(video)
+    try:
+        src = Path(os.path.relpath(video.resolve(), out.resolve())).as_posix()
+    except ValueError:  # another drive (Windows)
+        src = video.resolve().as_uri()
+    src = html.escape(src)
+    if video.suffix.lower() == '.mp4':
+        return (f'<h2>the run</h2><video src="{src}" controls loop muted autoplay '
+                'style="max-width:100%"></video>')
+    return f'<h2>the run</h2><img src="{src}" alt="video of the run">'
+
+
+def _index(out, written, bag, title, video=None):
     metrics = bag.parent / 'metrics.json'
     rows = ''
     if metrics.is_file():
@@ -329,7 +348,8 @@ def _index(out, written, bag, title):
         f'<!doctype html><html><head><meta charset="utf-8"><title>{title}</title>'
         '<style>body{font-family:sans-serif;max-width:900px;margin:auto}img{max-width:100%}'
         f'</style></head><body><h1>{title}</h1><p>bag: <code>{html.escape(str(bag))}</code></p>'
-        f'<ul>{links}</ul>{items}{rows}</body></html>\n', encoding='utf8')
+        f'{_video_html(out, video)}<ul>{links}</ul>{items}{rows}</body></html>\n',
+        encoding='utf8')
 
 
 def main(argv=None):

@@ -12,7 +12,9 @@ scene is anchored at the tool pose of q0) from the run's scenario record (``ifc-
 a live bag does not know the bridge's scene: pass ``--scene`` (default ``free``).
 
 Rendering is offscreen (``MUJOCO_GL=egl`` unless set: EGL with the GPU or software Mesa,
-no display needed). ``.gif`` and ``.webp`` are encoded with Pillow; ``.mp4`` (H.264) needs
+no display needed). ``.gif`` and ``.webp`` are encoded with Pillow, which holds every frame
+until it writes the file (GIF 0.3 MB, WebP 0.9 MB per 640x480 frame: keep them short or small);
+``.mp4`` (H.264) is streamed and needs
 an ``ffmpeg`` executable: the one ``imageio-ffmpeg`` ships, else ``ffmpeg`` on the PATH.
 A progress line is printed every 10 % of the frames.
 """
@@ -30,7 +32,7 @@ import numpy as np
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 
-__all__ = ['RenderResult', 'main', 'render']
+__all__ = ['RenderResult', 'ffmpeg_exe', 'main', 'render']
 
 FORCE_SCALE = 0.02  # [m/N] arrow length per newton
 _GHOST_RGBA = (0.2, 0.9, 0.3, 0.35)
@@ -123,6 +125,17 @@ def _robot_bodies(model, qpos_adr):
     return moved
 
 
+def ffmpeg_exe():
+    """The ffmpeg executable MP4 is written with (imageio-ffmpeg's, else the PATH's), or
+    None."""
+    try:
+        import imageio_ffmpeg
+
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError):
+        return shutil.which('ffmpeg')
+
+
 def _writer(path, fps, size):
     """A frame sink for ``path`` by suffix: (write(frame), close() -> bytes written)."""
     suffix = path.suffix.lower()
@@ -132,7 +145,10 @@ def _writer(path, fps, size):
         frames = []
 
         def write(img):
-            frames.append(Image.fromarray(img))
+            frame = Image.fromarray(img)
+            if suffix == '.gif':  # 1 byte per pixel from here on (WebP keeps RGB frames)
+                frame = frame.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+            frames.append(frame)
 
         def close():
             if not frames:
@@ -140,9 +156,6 @@ def _writer(path, fps, size):
             opts = {'save_all': True, 'append_images': frames[1:],
                     'duration': round(1000 / fps), 'loop': 0}
             if suffix == '.gif':
-                frames[:] = [f.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
-                             for f in frames]
-                opts['append_images'] = frames[1:]
                 opts['optimize'] = False
             else:
                 opts.update(quality=80, method=4)
@@ -150,13 +163,7 @@ def _writer(path, fps, size):
             return path.stat().st_size
         return write, close
     if suffix == '.mp4':
-        exe = None
-        try:
-            import imageio_ffmpeg
-
-            exe = imageio_ffmpeg.get_ffmpeg_exe()
-        except (ImportError, RuntimeError):
-            exe = shutil.which('ffmpeg')
+        exe = ffmpeg_exe()
         if exe is None:
             raise ParameterError(f"'{path}': .mp4 needs ffmpeg (pip install imageio-ffmpeg, "
                                  'whose wheel ships it, or apt install ffmpeg); .gif and '

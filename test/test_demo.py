@@ -17,6 +17,11 @@ def test_demo_short(tmp_path, capsys):
     assert m['final_task_errors']['contact_force']['virtual'] < 2.0
     assert m['final_task_errors']['contact_force']['physical'] < 2.0
     assert (out / 'plots' / 'index.html').is_file()
+    # the video of the run, shown above the figures (no GL backend: a one-line notice)
+    video = next((out / n for n in ('run.mp4', 'run.gif') if (out / n).is_file()), None)
+    if video is not None:
+        assert 'video:' in text and video.stat().st_size > 10_000
+        assert f'../{video.name}' in (out / 'plots' / 'index.html').read_text()
     # a second run replaces the old demo output
     assert main(['--duration', '0.1', '-o', str(out), '-q', '--no-plots']) == 0
     assert json.loads((out / 'metrics.json').read_text())['ticks'] == 50
