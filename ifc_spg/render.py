@@ -5,7 +5,8 @@
 
 Each frame shows the recorded ``joint_states`` (positions) at its time, the environment's
 joints (doors, drawers: ``sim/env_joint_states``), the contact force on the tool
-(``sim/contact_wrench``) as a red arrow (2 cm per N, at the tool) and the virtual robot q_v
+(``sim/contact_wrench``) as a red arrow (2 cm per N, at the tool, shifted 5 cm towards the
+camera so the tool does not hide it) and the virtual robot q_v
 (``command/joint_position``) as a translucent green ghost. The robot comes from the bag's
 SPG configuration (``custom_data`` or ``spg/config``), the scene, its options and q0 (the
 scene is anchored at the tool pose of q0) from the run's scenario record (``ifc-spg run``);
@@ -35,7 +36,7 @@ from ifc_spg.errors import IfcSpgError, ParameterError
 __all__ = ['RenderResult', 'ffmpeg_exe', 'main', 'render']
 
 FORCE_SCALE = 0.02  # [m/N] arrow length per newton
-_GHOST_RGBA = (0.2, 0.9, 0.3, 0.35)
+_GHOST_RGBA = (0.2, 0.9, 0.3, 0.22)
 _ARROW_RGBA = (0.9, 0.1, 0.1, 1.0)
 
 
@@ -291,7 +292,12 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         if wrenches and scn.ngeom < scn.maxgeom:
             force = wrenches.at(t)
             if np.linalg.norm(force) > 0.2:
-                p = data.site_xpos[tool_site]
+                # beside the tool (5 cm towards the camera), not hidden inside it
+                p = data.site_xpos[tool_site].copy()
+                side = np.asarray(scn.camera[0].pos, dtype=float) - p
+                side[2] = 0.0
+                if np.linalg.norm(side) > 1e-6:
+                    p += 0.05 * side / np.linalg.norm(side)
                 geom = scn.geoms[scn.ngeom]
                 mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3),
                                     np.zeros(3), np.eye(3).reshape(-1), _ARROW_RGBA)
