@@ -251,7 +251,8 @@ def test_metadata_is_what_rosbag2_jazzy_writes(tmp_path):
     for want, have in zip(expected['topics_with_message_count'],
                           got['topics_with_message_count']):
         assert list(have['topic_metadata']) == list(want['topic_metadata'])
-        assert list(have['topic_metadata']['offered_qos_profiles'][0]) == list(qos['/joint_states'])
+        profile = have['topic_metadata']['offered_qos_profiles'][0]
+        assert list(profile) == list(qos['/joint_states'])
     with open(path / 'bag_0.mcap', 'rb') as f:
         reader = make_reader(f)
         summary = reader.get_summary()

@@ -10,8 +10,8 @@ q_v after it to 1e-9 rad (DAQP is warm-started differently there: measured 0 her
 """
 
 import json
-import sys
 import signal
+import sys
 
 from helpers import CONFIG, reach_stack, use_loopback
 import pytest
