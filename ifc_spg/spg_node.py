@@ -14,8 +14,9 @@ stack's text and the ticks its tasks captured their ``init`` values; republished
 stack becomes active or the SPG restarts) and ``spg/state`` (Float64MultiArray after every
 tick: tick, stamp, measured q, q_v, qdot_v, tank energies; layout in ``spg/config``), from
 which ``ifc-spg replay`` recomputes q_v of a bag recorded mid-run. Without joint states for
-``watchdog.timeout`` seconds the node stops commanding and reports it; when states return with stamps that jumped (or
-restarted) it restarts from the measured q (see :mod:`ifc_spg.spg_runner`).
+``watchdog.timeout`` seconds the node stops commanding and reports it; when states return
+with stamps that jumped (or restarted) it restarts from the measured q (see
+:mod:`ifc_spg.spg_runner`).
 
 Parameters (``ros2 param describe`` shows ranges and units): robot, dt, solver, rho,
 torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget},
