@@ -271,3 +271,21 @@ def test_metadata_is_what_rosbag2_jazzy_writes(tmp_path):
         w.add_topic('/joint_states', *TOPICS['joint_states'])
     empty = yaml.safe_load((tmp_path / 'empty' / 'metadata.yaml').read_text())
     assert empty['rosbag2_bagfile_information']['custom_data'] == {}
+
+
+def test_every_product_topic_is_written_with_rosidls_type_hash(tmp_path):
+    """The bag writer's hashes (rosbags' Jazzy typestore) are rosidl's, as our message classes
+    carry them (checked against rosidl in test_ros_type_hashes.py), for every product topic."""
+    import yaml
+
+    from ifc_spg.ros.messages import REGISTRY
+
+    with BagWriter(tmp_path / 'bag') as w:
+        for topic, (msgtype, qos) in TOPICS.items():
+            w.add_topic('/' + topic, msgtype, qos)
+    doc = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())
+    topics = doc['rosbag2_bagfile_information']['topics_with_message_count']
+    assert len(topics) == len(TOPICS)
+    for t in topics:
+        meta = t['topic_metadata']
+        assert meta['type_description_hash'] == REGISTRY[meta['type']]._HASH, meta['name']
