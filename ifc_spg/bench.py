@@ -292,6 +292,46 @@ def bench_pink(ticks):
             'ratio_no_pspm_p99': c['p99_us'] / b['p99_us']}
 
 
+def bench_first_ticks(repeats=20):
+    """The first tick of a stack and the tick of a switch to a stack of another shape, timed
+    apart from the steady ticks (a robot misses a command on any tick over its period).
+
+    Each repeat: a new SPG with the LBR Table 4.1 stack, 100 closed-loop ticks, a switch to the
+    Table 4.2 stack (other levels), 100 more. Returns the first-tick, switch-tick and
+    steady-tick statistics [us] over the repeats, and the max of everything.
+    """
+    from ifc_spg import RobotModel, SetPointGenerator, TaskStack
+    from ifc_spg.runner import find_config_dir
+
+    robot = RobotModel.from_config('lbr_iiwa14')
+    tasks = find_config_dir() / 'tasks'
+    second = TaskStack.from_file(str(tasks / 'table_4_2_orientation_box.yaml'))
+    times = {mode: ([], [], []) for mode in ('prepared', 'lazy')}
+    gc.disable()
+    try:
+        for r in range(2 * repeats):  # the two modes interleaved
+            mode = ('prepared', 'lazy')[r % 2]
+            first_t, switch_t, steady = times[mode]
+            spg = SetPointGenerator(robot, None, dt=0.002)
+            if mode == 'lazy':  # the baseline: models built at the tick that first needs them
+                spg._solver.prepare = None
+            spg.set_stack(lbr_stack(robot))
+            q, qdot = np.array(robot.q_home, dtype=float), np.zeros(robot.n)
+            for k in range(200):
+                if k == 100:
+                    spg.set_stack(second)  # accepted between ticks, as the node does
+                t0 = time.perf_counter()
+                q_v = spg.step(q, qdot, k * 0.002)
+                dt = time.perf_counter() - t0
+                (first_t if k == 0 else switch_t if k == 100 else steady).append(dt)
+                qdot, q = (q_v - q) / 0.002, q_v
+    finally:
+        gc.enable()
+    return {'repeats': repeats, **{
+        mode: {'first': _stats(np.array(f)), 'switch': _stats(np.array(s)),
+               'steady': _stats(np.array(st))} for mode, (f, s, st) in times.items()}}
+
+
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
@@ -316,6 +356,9 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
     if progress:
         print('  pink_ratio ...', file=sys.stderr)
     out['pink'] = bench_pink(ticks)
+    if progress:
+        print('  first and stack-switch ticks ...', file=sys.stderr)
+    out['first_ticks'] = bench_first_ticks()
     return out
 
 
@@ -361,6 +404,23 @@ def format_report(res):
               f"  ours without PSPM (pink has no passivity layer): p50 "
               f"{p['ours_no_pspm']['p50_us']:.1f} us  p99 {p['ours_no_pspm']['p99_us']:.1f} us; "
               f"ratio p50 {p['ratio_no_pspm_p50']:.2f}  p99 {p['ratio_no_pspm_p99']:.2f}"]
+    f = res.get('first_ticks')
+    if f:
+        lines += ['', f"LBR first tick and stack-switch tick ({f['repeats']} repeats each, "
+                  'interleaved): solver models built when a stack is accepted (prepared) vs '
+                  'at the tick that first needs them (lazy, the old way):']
+        for mode in ('prepared', 'lazy'):
+            for key in ('first', 'switch', 'steady'):
+                st = f[mode][key]
+                lines.append(f"  {mode:<9}{key:<7}p50 {st['p50_us']:8.1f} us  p99 "
+                             f"{st['p99_us']:8.1f} us  max {st['max_us']:8.1f} us")
+        p, lazy = f['prepared'], f['lazy']
+        worst = max(p['first']['max_us'], p['switch']['max_us'])
+        ratio = {key: p[key]['p50_us'] / lazy[key]['p50_us'] for key in ('first', 'switch')}
+        lines.append(f"  first and switch ticks <= 1 ms (prepared): "
+                     f"{'met' if worst <= 1000.0 else 'MISSED'} (max {worst:.0f} us); ratio "
+                     f"prepared/lazy p50: first {ratio['first']:.2f}, switch "
+                     f"{ratio['switch']:.2f}")
     return '\n'.join(lines)
 
 

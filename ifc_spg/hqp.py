@@ -161,6 +161,31 @@ class DaqpCascade(CascadeSolver):
         self._relax = float(primal_tol)
         self._native = native.module  # C kernels of the row arithmetic, or None (numpy)
 
+    @property
+    def model_count(self):
+        """DAQP models built so far (workspaces and per-level models are kept for reuse)."""
+        return sum(len(ws._levels) for ws in self._ws.values())
+
+    def prepare(self, dims, equalities):
+        """Build, before a stack is active, the workspace and the DAQP model of each level a
+        stack with these level sizes and kinds will solve (normal-form models of equality
+        levels, warm-started slack models of inequality levels), so that its first tick does
+        no setup (issue: a first or stack-switch tick of 1-1.8 ms against a 0.1 ms median)."""
+        R = int(sum(dims))
+        if not R:
+            return
+        ws = self._ws.get(R)
+        if ws is None:
+            ws = self._ws[R] = _Workspace(self.n, R, self.rho, self._settings)
+        start = 0
+        for i, (m, equality) in enumerate(zip(dims, equalities)):
+            end = start + int(m)
+            if equality and self._normal_form:
+                ws.level(i, start)
+            elif not equality:
+                ws.slack_level(i, start, end, self.rho)
+            start = end
+
     def solve(self, levels, box):
         """Solve the cascade; return a :class:`CascadeResult` (see the class docstring)."""
         if not levels:

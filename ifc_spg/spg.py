@@ -234,6 +234,9 @@ class SetPointGenerator:
                 if not task.equality:
                     raise IfcSpgError(f"task '{task.name}' is an inequality; the nullspace "
                                       "baseline handles equality tasks only (use solver 'daqp')")
+        prepare = getattr(self._solver, 'prepare', None)
+        if prepare is not None:  # the solver's models for this stack, now, not at its tick
+            prepare([task.dim for task in tasks], [task.equality for task in tasks])
         self._pending = (stack, tasks, budget)
 
     def reset(self, q):

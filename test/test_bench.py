@@ -17,3 +17,8 @@ def test_bench_runs_every_row_and_reports_the_machine_baseline():
     report = format_report(res)
     assert 'machine baseline' in report and res['implementation'] in report
     assert 'C kernels vs their numpy reference code' in report
+    f = res['first_ticks']
+    for mode in ('prepared', 'lazy'):
+        assert f[mode]['first']['ticks'] == f[mode]['switch']['ticks'] == f['repeats']
+        assert f[mode]['steady']['ticks'] == 198 * f['repeats']
+    assert 'stack-switch tick' in report and 'prepared/lazy' in report
