@@ -237,6 +237,11 @@ class SetPointGenerator:
         prepare = getattr(self._solver, 'prepare', None)
         if prepare is not None:  # the solver's models for this stack, now, not at its tick
             prepare([task.dim for task in tasks], [task.equality for task in tasks])
+            if self.tanks is not None:  # also the stall probes' (a stall must not slow a tick)
+                if self._probe_solver is None:
+                    self._probe_solver = make_solver(*self._solver_args)
+                self._probe_solver.prepare([task.dim for task in tasks],
+                                           [task.equality for task in tasks])
         self._pending = (stack, tasks, budget)
 
     def reset(self, q):
