@@ -92,8 +92,13 @@ def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsy
     assert counts.get('/spg/state', 0) > 100, counts
     res = replay(bag)
     assert res.resumed and res.missing == 0 and res.stacks == 1, res
-    # every command after the first recorded SPG state is compared
-    assert res.compared >= counts['/command/joint_position'] - res.skipped, (res, counts)
+    # every recorded state is compared, or an edge: before the first recorded SPG state
+    # (skipped) or after the last recorded command (unanswered). The recorder may match the
+    # SPG's commands before the bridge's states (discovery): commands without a recorded
+    # state are not compared (one run: 2948 commands, 2631 states, 2629 compared).
+    assert res.compared + res.skipped + res.unanswered == counts['/joint_states'], \
+        (res, counts)
+    assert res.compared > 1000, res
     assert res.max_abs_diff <= TOLERANCE, res
     print(f'mid-run replay: {res.compared} commands, {res.skipped} states before the first '
           f'spg/state, {res.unanswered} unanswered, max |dq_v| {res.max_abs_diff:.3e} rad',
