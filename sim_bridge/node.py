@@ -28,6 +28,7 @@ counted and reported.
 """
 
 from dataclasses import dataclass
+import gc
 import json
 import math
 import sys
@@ -473,6 +474,8 @@ def main(argv=None):
         print(f'sim_bridge: {exc}', file=sys.stderr)
         ros.shutdown()
         return 2
+    gc.collect()  # the model and scene live as long as the node: out of the cyclic collector
+    gc.freeze()
     try:
         bridge.run(ok=ros.ok)
     except KeyboardInterrupt:

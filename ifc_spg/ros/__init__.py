@@ -145,7 +145,11 @@ if _rclpy_available(_choice()):
 
         def __init__(self, nodes):
             self.nodes = [_weakref.ref(n) for n in nodes]
-            self.executor = _Executor(context=nodes[0].context)
+            if os.environ.get('IFC_SPG_RCLPY_EXECUTOR') == 'events':
+                from rclpy.experimental import EventsExecutor
+                self.executor = EventsExecutor(context=nodes[0].context)
+            else:
+                self.executor = _Executor(context=nodes[0].context)
 
         def spin_once(self, timeout_sec=None):
             for ref in self.nodes:
