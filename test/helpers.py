@@ -73,3 +73,24 @@ def use_loopback(monkeypatch, env=None):
     for key in LOOPBACK_KEYS:
         monkeypatch.setenv(key, env[key])
     return env
+
+
+def wait_for(condition, timeout):
+    """Poll ``condition()`` every 50 ms for up to ``timeout`` [s]; its last value."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return bool(condition())
+
+
+def start_recorder(procs, path, *topics, name='recorder'):
+    """Start ``ifc-spg bag record -o path topics...`` in ProcessGroup ``procs`` and wait until
+    it records (it prints 'recording'); fails the test with its log otherwise."""
+    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics, exe='ifc-spg')
+    assert wait_for(lambda: 'recording' in procs.log(name) or rec.poll() is not None, 60) \
+        and rec.poll() is None, procs.log(name)
+    return rec

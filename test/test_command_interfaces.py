@@ -7,7 +7,8 @@ is regulated as in the single-interface e2e test (after 2.9 s every sample withi
 import re
 import signal
 
-from helpers import CONFIG
+from helpers import CONFIG, start_recorder
+from helpers import wait_for as _wait
 import numpy as np
 import pytest
 import yaml
@@ -27,15 +28,6 @@ CASES = {
 }
 
 
-def _wait(cond, timeout):
-    import time
-
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and not cond():
-        time.sleep(0.05)
-    return bool(cond())
-
-
 @pytest.mark.parametrize('interface', list(CASES))
 def test_press_task_through_each_command_interface(tmp_path, interface):
     from ifc_spg.bag import BagReader
@@ -52,10 +44,7 @@ def test_press_task_through_each_command_interface(tmp_path, interface):
     procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'
     try:
-        rec = procs.start('recorder', 'bag', 'record', '-o', str(bag_path), 'joint_states',
-                          'sim/contact_wrench', exe='ifc-spg')
-        assert _wait(lambda: 'recording' in procs.log('recorder') or rec.poll() is not None,
-                     60) and rec.poll() is None, procs.log('recorder')
+        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench')
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'), '-p', f'task_stack_file:={stack}',
                           *command)
@@ -101,10 +90,7 @@ def test_timer_tick_presses_with_states_at_another_rate(tmp_path, rate, state_ra
     procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'
     try:
-        rec = procs.start('recorder', 'bag', 'record', '-o', str(bag_path), 'joint_states',
-                          'sim/contact_wrench', 'spg/status', exe='ifc-spg')
-        assert _wait(lambda: 'recording' in procs.log('recorder') or rec.poll() is not None,
-                     60) and rec.poll() is None, procs.log('recorder')
+        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench', 'spg/status')
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'), '-p', f'task_stack_file:={stack}',
                           '-p', 'tick:=timer', '-p', 'status.decimation:=50')

@@ -8,7 +8,8 @@ full period (1 / 0.16 Hz = 6.25 s)."""
 import re
 import signal
 
-from helpers import CONFIG
+from helpers import CONFIG, start_recorder
+from helpers import wait_for as _wait
 import numpy as np
 import pytest
 
@@ -22,15 +23,6 @@ SIM_SECONDS = 60.0
 PERIOD = 1.0 / 0.16
 
 
-def _wait(cond, timeout):
-    import time
-
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and not cond():
-        time.sleep(0.05)
-    return bool(cond())
-
-
 def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path):
     import pinocchio as pin
 
@@ -39,10 +31,7 @@ def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path)
     procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'
     try:
-        rec = procs.start('recorder', 'bag', 'record', '-o', str(bag_path), 'joint_states',
-                          'sim/contact_wrench', 'spg/status', exe='ifc-spg')
-        assert _wait(lambda: 'recording' in procs.log('recorder') or rec.poll() is not None,
-                     60) and rec.poll() is None, procs.log('recorder')
+        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench', 'spg/status')
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'))
         pub = procs.start('task_publisher',

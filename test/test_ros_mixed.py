@@ -13,7 +13,8 @@ nodes on the built-in Cyclone DDS backend in one loop.
 import re
 import signal
 
-from helpers import CONFIG, reach_stack
+from helpers import CONFIG, reach_stack, start_recorder
+from helpers import wait_for as _wait
 import numpy as np
 import pytest
 import yaml
@@ -37,17 +38,6 @@ def _needs_rclpy():
     except ImportError:
         pytest.skip('mixes rclpy with the built-in backend: rclpy is not installed (the '
                     'ros-jazzy wheels exist for Linux x86_64, CPython 3.10-3.13 only)')
-
-
-def _wait(cond, timeout):
-    import time
-
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.05)
-    return bool(cond())
 
 
 def _press_stack(tmp_path):
@@ -78,12 +68,8 @@ def test_bridge_and_spg_on_different_backends(tmp_path, spg_backend, bridge_back
     bridge_procs = ProcessGroup(tmp_path, bridge_env)
     rec_procs = ProcessGroup(tmp_path, rec_env)
     try:
-        rec = rec_procs.start('recorder', 'bag', 'record', '-o', str(bag_path),
-                              'joint_states', 'command/joint_position', 'sim/contact_wrench',
-                              exe='ifc-spg')
-        assert _wait(lambda: 'recording' in rec_procs.log('recorder') or
-                     rec.poll() is not None, 60) and rec.poll() is None, \
-            rec_procs.log('recorder')
+        start_recorder(rec_procs, bag_path, 'joint_states', 'command/joint_position',
+                       'sim/contact_wrench')
         spg = spg_procs.start('spg_node', '--ros-args', '--params-file',
                               str(CONFIG / 'lbr_iiwa14.yaml'), '-p',
                               f'task_stack_file:={stack}')
@@ -172,10 +158,7 @@ def test_bag_record_of_rclpy_nodes_deserializes_with_rosbags(tmp_path):
     bag_path = tmp_path / 'bag'
     count = 500
     try:
-        rec = recs.start('recorder', 'bag', 'record', '-o', str(bag_path), 'joint_states',
-                         'spg/task_stack', exe='ifc-spg')
-        assert _wait(lambda: 'recording' in recs.log('recorder') or rec.poll() is not None,
-                     60) and rec.poll() is None, recs.log('recorder')
+        start_recorder(recs, bag_path, 'joint_states', 'spg/task_stack')
         stack = tmp_path / 'reach.yaml'
         stack.write_text(reach_stack('lbr_iiwa14'))
         pub = talkers.start('task_publisher', str(stack))
