@@ -88,8 +88,10 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         assert spin_until(lambda: event('watchdog'), 10.0), log('spg_node')
         # run 2: a restarted bridge (clock from 0 again, robot back at home)
         # the SPG and the recorder subscribe to joint_states: start once both know us
+        # 6 s: the restarted run must reach the target (a loaded rclpy run once stopped at
+        # 0.15 of 0.3 rad after 3 s)
         bridge = start('bridge2', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=free',
-                       '-p', 'mode:=realtime', '-p', 'duration:=3.0',
+                       '-p', 'mode:=realtime', '-p', 'duration:=6.0',
                        '-p', 'wait_for_subscribers:=2', exe='sim_bridge')
         assert spin_until(lambda: bridge.poll() is not None, 60.0), log('bridge2')
         assert bridge.returncode == 0, log('bridge2')

@@ -99,8 +99,10 @@ def test_once_without_subscriber_exits_1(tmp_path, dds_env):
 def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, dds_env):
     a, b = _file(tmp_path, 'first'), _file(tmp_path, 'second')
     listener = Listener()
+    # --linger 5: a late joiner needs the publisher alive until it is discovered (Fast DDS
+    # can take one 3 s announcement period for a new participant)
     proc = subprocess.Popen([str(BIN / 'task_publisher'), f'{b}@0.8', a,
-                             '--wait-subscribers', '1', '--linger', '0.5'],
+                             '--wait-subscribers', '1', '--linger', '5.0'],
                             env=dds_env, stderr=subprocess.PIPE, text=True)
     late = None
     try:
@@ -112,7 +114,7 @@ def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, dds_
         late = Listener()  # joins after both: the latched topic gives it the latest only
         assert late.spin_until(lambda: late.received, 10.0)
         assert [text for _, text in late.received] == [text_b]
-        assert proc.wait(timeout=10) == 0  # --linger 0.5 s after the last one
+        assert proc.wait(timeout=15) == 0  # --linger 5 s after the last one
         assert 'published' in proc.stderr.read()
     finally:
         stop_process(proc)
