@@ -19,14 +19,22 @@ with stamps that jumped (or restarted) it restarts from the measured q (see
 :mod:`ifc_spg.spg_runner`).
 
 Parameters (``ros2 param describe`` shows ranges and units): robot, dt, solver, rho,
-torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget},
-watchdog.timeout, status.decimation, diagnostics.period, task_stack_file,
-topics.{joint_states, command, task_stack, status, diagnostics}. An unknown, mistyped or
-out-of-range parameter ends the node with exit code 2 and a message naming it.
+torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget,
+max_power}, impedance.{stiffness, damping}, watchdog.timeout, status.decimation,
+diagnostics.period, task_stack_file, topics.{joint_states, command, task_stack, status,
+diagnostics}, enable, command.{interface, joints, hold_when_disabled}, tick. An unknown,
+mistyped or out-of-range parameter ends the node with exit code 2 and a message naming it.
+
+Real robots (README, "On a real robot"): ``command.interface`` joint_state |
+float64_multi_array (ros2_control JointGroupPositionController, in ``command.joints`` order) |
+joint_trajectory; ``tick`` joint_states | timer (every dt with the latest state); ``enable``
+false publishes nothing until switched on (parameter or the latched ``spg/enable`` Bool),
+then restarts from the measured q.
 
 At run time (``ros2 param set``, rcl_interfaces SetParameters with rclpy) status.decimation,
-diagnostics.period and watchdog.timeout change from the next tick; every other parameter is
-refused with the reason in the SetParametersResult (restart the node to change it).
+diagnostics.period, watchdog.timeout, enable and command.hold_when_disabled change from the
+next tick; every other parameter is refused with the reason in the SetParametersResult
+(restart the node to change it).
 
 The logic lives in :class:`ifc_spg.spg_runner.SpgRunner` (no ROS); this module only wires
 it to topics and timers.
