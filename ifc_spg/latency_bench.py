@@ -22,8 +22,6 @@ import sys
 import tempfile
 import time
 
-import numpy as np
-
 __all__ = ['PAIRS', 'main', 'run']
 
 STACK = """version: 1
@@ -42,11 +40,11 @@ def _stamp(msg):
 
 
 class _Listener:
-    """Arrival times of states and commands, on one backend, in this process (its own
+    """The stamps of the states and commands seen on one backend, in this process (its own
     context, so that both backends can listen in one invocation)."""
 
     def __init__(self, backend):
-        self.state_at, self.command_at = {}, {}
+        self.states, self.commands = set(), set()
         self.backend = backend
         if backend == 'rclpy':
             import rclpy
@@ -69,10 +67,10 @@ class _Listener:
         self.subs = [
             self.node.create_subscription(
                 JointState, 'joint_states',
-                lambda m: self.state_at.setdefault(_stamp(m), time.monotonic()), 100),
+                lambda m: self.states.add(_stamp(m)), 100),
             self.node.create_subscription(
                 JointState, 'command/joint_position',
-                lambda m: self.command_at.setdefault(_stamp(m), time.monotonic()), 100)]
+                lambda m: self.commands.add(_stamp(m)), 100)]
 
     def spin(self, seconds):
         end = time.monotonic() + seconds
@@ -111,7 +109,6 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
     tmp = Path(tempfile.mkdtemp(prefix='latency_bench.'))
     (tmp / 'reach.yaml').write_text(STACK)
     listener = _Listener(spg_backend)
-    state_at, command_at = listener.state_at, listener.command_at
     procs, logs = [], []
 
     def start(name, backend, *args):
@@ -153,19 +150,17 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
                        bridge_log)
     measured = re.search(r'command latency p50 ([\d.]+) ms, p99 ([\d.]+) ms, max ([\d.]+) ms',
                          bridge_log)
-    # the bridge's own clock: its state published -> the command answering it received
-    lat = np.array([float(measured.group(i)) * 1e-3 for i in (1, 2, 3)]) if measured else \
-        np.array([])
     out = {
         'bridge_backend': bridge_backend,
         'spg_backend': spg_backend,
         'seconds': seconds,
-        'states': len(state_at),
-        'commands': len(command_at),
+        'states': len(listener.states),
+        'commands': len(listener.commands),
         'expected_ticks': round(seconds * 500),
-        'missed_here': len([s for s in state_at if s not in command_at]),
-        'latency_ms': {'p50': float(lat[0] * 1e3), 'p99': float(lat[1] * 1e3),
-                       'max': float(lat[2] * 1e3)} if lat.size else None,
+        'missed_here': len(listener.states - listener.commands),
+        # the bridge's own clock: its state published -> the command answering it received
+        'latency_ms': dict(zip(('p50', 'p99', 'max'), map(float, measured.groups())))
+        if measured else None,
         'bridge_missed_commands': int(pacing.group(4)) if pacing else None,
         'bridge_pacing_us': {'p50': int(pacing.group(1)), 'p99': int(pacing.group(2)),
                              'overruns': int(pacing.group(3))} if pacing else None,
