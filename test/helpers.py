@@ -94,3 +94,17 @@ def start_recorder(procs, path, *topics, name='recorder'):
     assert wait_for(lambda: 'recording' in procs.log(name) or rec.poll() is not None, 60) \
         and rec.poll() is None, procs.log(name)
     return rec
+
+
+def finish_run(procs, bridge, timeout):
+    """The end of a process-level run: ``bridge`` (of ProcessGroup ``procs``, named
+    'sim_bridge') ends by itself with exit 0 within ``timeout`` [s]; after 1 s for the last
+    command to reach the recorder, 'recorder' stops on SIGINT and 'spg_node' on SIGTERM, both
+    with exit 0."""
+    import signal
+
+    assert wait_for(lambda: bridge.poll() is not None, timeout), procs.log('sim_bridge')
+    assert bridge.returncode == 0, procs.log('sim_bridge')
+    wait_for(lambda: False, 1.0)
+    assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
+    assert procs.stop('spg_node') == 0, procs.log('spg_node')

@@ -5,9 +5,8 @@ JointTrajectory, the last two in the reversed joint order on a controller's topi
 is regulated as in the single-interface e2e test (after 2.9 s every sample within 1 N)."""
 
 import re
-import signal
 
-from helpers import CONFIG, start_recorder
+from helpers import CONFIG, finish_run, start_recorder
 from helpers import wait_for as _wait
 import numpy as np
 import pytest
@@ -54,11 +53,7 @@ def test_press_task_through_each_command_interface(tmp_path, interface):
             'sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=table',
             '-p', 'scene_options:=\'{"gap": 0.01}\'', '-p', 'mode:=lockstep',
             '-p', f'duration:={SIM_SECONDS}', '-p', 'wait_for_subscribers:=2', *bridge_command)
-        assert _wait(lambda: bridge.poll() is not None, 240), procs.log('sim_bridge')
-        assert bridge.returncode == 0, procs.log('sim_bridge')
-        _wait(lambda: False, 1.0)
-        assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
-        assert procs.stop('spg_node') == 0, procs.log('spg_node')
+        finish_run(procs, bridge, 240)
     finally:
         procs.close()
     match = re.search(r'spg_node: (\d+) ticks, (\d+) commands', procs.log('spg_node'))
@@ -101,11 +96,7 @@ def test_timer_tick_presses_with_states_at_another_rate(tmp_path, rate, state_ra
             '-p', 'scene_options:=\'{"gap": 0.01}\'', '-p', 'mode:=realtime',
             '-p', f'rate:={rate}', '-p', 'timestep:=0.001', '-p', f'state_rate:={state_rate}',
             '-p', f'duration:={SIM_SECONDS}', '-p', 'wait_for_subscribers:=2')
-        assert _wait(lambda: bridge.poll() is not None, 120), procs.log('sim_bridge')
-        assert bridge.returncode == 0, procs.log('sim_bridge')
-        _wait(lambda: False, 1.0)
-        assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
-        assert procs.stop('spg_node') == 0, procs.log('spg_node')
+        finish_run(procs, bridge, 120)
     finally:
         procs.close()
     with BagReader(bag_path) as bag:

@@ -6,9 +6,8 @@ and the circle's span (the smaller of the measured tool's x and y extent) is >= 
 full period (1 / 0.16 Hz = 6.25 s)."""
 
 import re
-import signal
 
-from helpers import CONFIG, start_recorder
+from helpers import CONFIG, finish_run, start_recorder
 from helpers import wait_for as _wait
 import numpy as np
 import pytest
@@ -42,11 +41,7 @@ def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path)
             'sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'interface:=lbr_fri',
             '-p', 'scene:=table', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}',
             '-p', 'wait_for_subscribers:=2')
-        assert _wait(lambda: bridge.poll() is not None, 600), procs.log('sim_bridge')
-        assert bridge.returncode == 0, procs.log('sim_bridge')
-        _wait(lambda: False, 1.0)
-        assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
-        assert procs.stop('spg_node') == 0, procs.log('spg_node')
+        finish_run(procs, bridge, 600)
     finally:
         procs.close()
     assert not re.search(r'stall', procs.log('spg_node')), procs.log('spg_node')
