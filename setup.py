@@ -20,12 +20,13 @@ def tree(src, dst):
 
 def native_extensions():
     """The C kernels of the 2 ms path (optional: without a compiler or numpy the package
-    falls back to its numpy code, see ifc_spg/native.py)."""
+    falls back to its numpy code, see ifc_spg/kernels/__init__.py).
+    """
     try:
         import numpy
     except ImportError:
         return []
-    return [Extension('ifc_spg._native', ['ifc_spg/_native.c'],
+    return [Extension('ifc_spg.kernels._native', ['ifc_spg/kernels/_native.c'],
                       include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
                       optional=True),
             # the Popov-Vereshchagin sweeps (numpy fallback: ifc_spg/dynamics/native.py)
@@ -38,8 +39,8 @@ def native_extensions():
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
-    package_data={'ifc_spg': ['model/data/*', 'schema/*.json', 'dynamics/kdl_bench.cpp']},
+    packages=find_packages(exclude=['test', 'test.*', 'experiments', 'experiments.*']),
+    package_data={'ifc_spg': ['py.typed', 'model/data/*', 'schema/*.json', 'dynamics/kdl_bench.cpp']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -56,10 +57,10 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'spg_node = ifc_spg.spg_node:main',
+            'spg_node = ifc_spg.node.spg_node:main',
             'sim_bridge = sim_bridge.node:main',
-            'task_publisher = ifc_spg.task_publisher:main',
-            'ifc-spg = ifc_spg.cli:main',
+            'task_publisher = ifc_spg.node.task_publisher:main',
+            'ifc-spg = ifc_spg.tools.cli:main',
         ],
     },
 )

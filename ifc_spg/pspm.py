@@ -36,7 +36,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg import native
+from ifc_spg import kernels as native
 from ifc_spg.errors import ParameterError
 from ifc_spg.limits.joint_limits import VelocityBox
 
@@ -118,7 +118,7 @@ class EnergyTanks:
         with np.errstate(divide='ignore'):
             self._two_over_K = np.where(self.K > 0, 2.0 / self.K, 0.0)
         self._modulated = self.mask.astype(float)
-        self._native = native.module  # C kernels (ifc_spg.native), or None: numpy below
+        self._native = native.module  # C kernels (ifc_spg.kernels), or None: numpy below
 
     def reset(self, q):
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
@@ -129,7 +129,8 @@ class EnergyTanks:
 
     def restore(self, q, energy, shuffled=None):
         """Continue from energies ``energy`` [J] and shuffled totals ``shuffled`` [J] with
-        ``q`` [rad] as the last measurement (a replay that starts mid-run)."""
+        ``q`` [rad] as the last measurement (a replay that starts mid-run).
+        """
         self.energy = np.array(energy, dtype=float)
         self.shuffled = np.zeros(self.K.size) if shuffled is None else \
             np.array(shuffled, dtype=float)
@@ -171,7 +172,8 @@ class EnergyTanks:
     def requested_power(self, q, q_v, qdot_v):
         """Power [W] per joint the step ``qdot_v`` [rad/s] from ``q_v`` would take from the
         tank this tick beyond what the IFC damper returned (E_Dmin): the spring energy it
-        adds, 1/2 K ((dq + dT qdot_v)^2 - dq^2), minus E_Dmin, over dT (0 for stiff joints)."""
+        adds, 1/2 K ((dq + dT qdot_v)^2 - dq^2), minus E_Dmin, over dT (0 for stiff joints).
+        """
         dq = q_v - q
         dE = self._half_K * ((dq + self.dt * qdot_v) ** 2 - dq * dq) - self.dissipated_min
         return np.where(self.mask, dE * self._inv_dt, 0.0)
@@ -226,7 +228,8 @@ class EnergyTanks:
 
     def _added(self, dissipated):
         """This tick's shuffled plus refilled energy per joint in [J] (``dissipated``: this
-        tick's E_Dmin, which counts as already in the tank when the refill is shared)."""
+        tick's E_Dmin, which counts as already in the tank when the refill is shared).
+        """
         if self._shuffling:
             room = np.maximum(self.config.shuffle_budget - self.shuffled, 0.0)
             self._shuffle_now = np.minimum(self.config.shuffle, room)
@@ -242,7 +245,8 @@ class EnergyTanks:
     def _water_fill(self, amount, e):
         """Share ``amount`` [J] among the modulated tanks with energies ``e`` [J], emptiest
         first: the tanks below a common level are raised to it (never above the fill level
-        E_r,init, or E_max if that is 0); returns the refill per joint."""
+        E_r,init, or E_max if that is 0); returns the refill per joint.
+        """
         idx = np.flatnonzero(self.mask)
         order = idx[np.argsort(e[idx], kind='stable')]
         levels = e[order]
@@ -323,7 +327,8 @@ class StallReport(NamedTuple):
     def suggestion(self):
         """The setting that would give the stack the power it asks for: twice the larger of
         the request, the robot's running consumption and the budget in effect (these are
-        lower bounds; a stall reported again under the new budget asks for twice that)."""
+        lower bounds; a stall reported again under the new budget asks for twice that).
+        """
         # the request is measured at the stalled state (the joint barely moves, so less than
         # moving will take) and the refill goes to whichever tank is emptiest: ask for twice
         # the larger of the request, what the whole robot spent running, and the budget

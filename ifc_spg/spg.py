@@ -23,14 +23,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg import native
+from ifc_spg import kernels as native
+from ifc_spg.cascade.daqp import level_violation, make_solver
+from ifc_spg.cascade.nullspace import NullspaceCascade
 from ifc_spg.errors import IfcSpgError, ParameterError
-from ifc_spg.hqp import level_violation, make_solver
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
 from ifc_spg.model import JOINT_IMPEDANCE
-from ifc_spg.nullspace import NullspaceCascade
 from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, stall_message
 
 __all__ = ['Activation', 'SetPointGenerator', 'SpgInfo', 'SpgState']
@@ -54,7 +54,8 @@ class SpgState(NamedTuple):
 
 class Activation(NamedTuple):
     """The tick at which a stack's tasks captured their ``init`` values: measured q [rad],
-    qdot [rad/s], the virtual q_v [rad] before the tick and the stamp t [s]."""
+    qdot [rad/s], the virtual q_v [rad] before the tick and the stamp t [s].
+    """
 
     q: np.ndarray
     qdot: np.ndarray
@@ -195,7 +196,7 @@ class SetPointGenerator:
         self._accel = np.ascontiguousarray(robot.a_max * self.dt, dtype=float)
         self._q_min = np.ascontiguousarray(robot.q_min, dtype=float)
         self._q_max = np.ascontiguousarray(robot.q_max, dtype=float)
-        self._native = native.module  # C kernels (ifc_spg.native), or None: numpy below
+        self._native = native.module  # C kernels (ifc_spg.kernels), or None: numpy below
         self._zeros = np.zeros(n)
         self.q_v = None
         self.qdot_v = np.zeros(n)
@@ -423,7 +424,8 @@ class SetPointGenerator:
     def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time):
         """Book this tick in the stall monitor; on its probe ticks, solve the cascade again
         without the passivity bound to learn the power the stack asks for. Returns the
-        :class:`~ifc_spg.pspm.StallReport` or None."""
+        :class:`~ifc_spg.pspm.StallReport` or None.
+        """
         monitor, tanks = self._stall, self.tanks
         requested = None
         if monitor.wants_probe:

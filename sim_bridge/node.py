@@ -106,7 +106,7 @@ _DESCRIPTIONS = {
 def declare(node):
     """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
     from ifc_spg import ros
-    from ifc_spg.spg_config import declare_checked, robot_gains_of
+    from ifc_spg.node.config import declare_checked, robot_gains_of
 
     values = {}
     gains = None
@@ -265,7 +265,8 @@ class SimBridge:
     def _decode_command(self, message):
         """(q_v in the simulation's joint order, stamp) of a command of the configured
         interface; a Float64MultiArray has no stamp: (0, 0), which lockstep takes as the
-        answer to the state it waits for."""
+        answer to the state it waits for.
+        """
         interface = self.params.command_interface
         if interface == 'float64_multi_array':
             data = np.array(list(message.data), dtype=float)
@@ -418,7 +419,8 @@ class SimBridge:
 
     def wait_for_subscribers(self, ok=lambda: True):
         """Wait for ``wait_for_subscribers`` subscriptions on joint_states (see its
-        description); False if they did not come within 60 s."""
+        description); False if they did not come within 60 s.
+        """
         import time
 
         n = self.params.wait_for_subscribers

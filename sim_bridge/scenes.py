@@ -254,7 +254,8 @@ def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4), frictio
            obstacle_size=(0.05, 0.02, 0.02)):
     """Table top ``gap`` [m] below the tool frame, centred ``offset`` (x, y) [m] (world)
     from the tool; with ``obstacle_offset`` (x, y) [m] (world, from the tool) a box of
-    half sizes ``obstacle_size`` [m] stands on it (same contact parameters as the top)."""
+    half sizes ``obstacle_size`` [m] stands on it (same contact parameters as the top).
+    """
     off = _xy(offset, 'table offset')
     top = anchor.tool_pos[2] - gap
     table = spec.worldbody.add_body(name='table', pos=[anchor.tool_pos[0] + off[0],

@@ -33,8 +33,8 @@ def domain(dds_env):
 @pytest.fixture(params=['native', 'numpy'])
 def impl(request, monkeypatch):
     """Run this test with the C kernels of the 2 ms path and with their numpy reference code
-    (objects pick the implementation when created; see ifc_spg.native)."""
-    from ifc_spg import native
+    (objects pick the implementation when created; see ifc_spg.kernels)."""
+    from ifc_spg import kernels as native
     if request.param == 'numpy':
         monkeypatch.setattr(native, 'module', None)
     return request.param

@@ -6,7 +6,7 @@ the variable box. Locked bounds follow the cascade's definition: [lower + s*, up
 (A qdot* for equality rows), widened by ``LOCK_TOLERANCE * (1 + |row|_1)``. Each QP is
 solved cold and its optimum accepted only if the KKT conditions (stationarity, primal
 feasibility, dual signs, complementarity) hold to 1e-8, so the reference rests on no
-solver's word. It shares no code with :mod:`ifc_spg.hqp`.
+solver's word. It shares no code with :mod:`ifc_spg.cascade.daqp`.
 """
 
 import daqp

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from ifc_spg.bag import TOPICS, BagReader, BagWriter, info
+from ifc_spg.offline.bag import TOPICS, BagReader, BagWriter, info
 from ifc_spg.ros import messages as m
 from ifc_spg.ros.testing import loopback_env
 
@@ -88,7 +88,7 @@ def test_writer_refuses_existing_directory(tmp_path):
 
 
 def _start(args, env):
-    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.cli', *args], env=env,
+    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -204,8 +204,8 @@ def test_metadata_is_what_rosbag2_jazzy_writes(tmp_path):
       ``topic_type_hash``; ``MCAPStorage::update_metadata``: a metadata record ``rosbag2``
       with ``serialized_metadata``, the YAML of the same BagMetadata.
     """
-    import yaml
     from mcap.reader import make_reader
+    import yaml
 
     from ifc_spg.ros.messages import REGISTRY
 

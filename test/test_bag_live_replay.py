@@ -17,7 +17,7 @@ from helpers import CONFIG, reach_stack, use_loopback
 import pytest
 
 from ifc_spg import ros
-from ifc_spg.bag import BagReader
+from ifc_spg.offline.bag import BagReader
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
@@ -27,7 +27,7 @@ TOLERANCE = 1e-9  # [rad]
 
 
 def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
-    from ifc_spg.replay import main, replay
+    from ifc_spg.offline.replay import main, replay
 
     env = use_loopback(monkeypatch)
     first = tmp_path / 'first.yaml'

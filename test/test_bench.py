@@ -1,6 +1,6 @@
 """``ifc-spg bench`` runs end to end (a few ticks; the numbers themselves are not tested)."""
 
-from ifc_spg.bench import format_report, run_benchmarks
+from ifc_spg.tools.bench import format_report, run_benchmarks
 
 
 def test_bench_runs_every_row_and_reports_the_machine_baseline():

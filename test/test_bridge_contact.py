@@ -107,7 +107,7 @@ def test_accrea_reference_is_clamped_into_the_joint_limits():
     inner reference q_ref stops ``limit_margin`` short of the limit, so the servo never
     drives the joint into MuJoCo's hard limit constraint (unclamped, q_ref follows q_v
     beyond the limit)."""
-    from ifc_spg.model.robots import accrea_home_deg
+    from ifc_spg.model.registry import accrea_home_deg
     q0 = np.radians(accrea_home_deg())
     q0[3] = np.radians(110.0)
     sim = Simulation(robot='accrea_dual_arm', scene='free', q0=tuple(q0))

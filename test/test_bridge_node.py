@@ -6,8 +6,8 @@ import operator
 import numpy as np
 import pytest
 
-from ifc_spg.errors import ParameterError
 from ifc_spg import ros
+from ifc_spg.errors import ParameterError
 from ifc_spg.ros import msg as ros_msg
 from sim_bridge.node import SimBridge, main, parse_push_frame
 from sim_bridge.simulation import Simulation

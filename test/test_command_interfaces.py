@@ -29,7 +29,7 @@ CASES = {
 
 @pytest.mark.parametrize('interface', list(CASES))
 def test_press_task_through_each_command_interface(tmp_path, interface):
-    from ifc_spg.bag import BagReader
+    from ifc_spg.offline.bag import BagReader
 
     topic, joints = CASES[interface]
     doc = yaml.safe_load((CONFIG / 'scenarios' / 'demo_lbr.yaml').read_text())
@@ -77,7 +77,7 @@ def test_timer_tick_presses_with_states_at_another_rate(tmp_path, rate, state_ra
     (realtime) bridge publishes states at 100 Hz or 1 kHz; spg/status reports their age."""
     import json
 
-    from ifc_spg.bag import BagReader
+    from ifc_spg.offline.bag import BagReader
 
     doc = yaml.safe_load((CONFIG / 'scenarios' / 'demo_lbr.yaml').read_text())
     stack = tmp_path / 'press.yaml'

@@ -14,10 +14,10 @@ from ifc_spg.constrained import (
     StrategyParams,
     build_tasks,
 )
-from ifc_spg.constrained.evaluate import CRANK_ESTIMATOR
-from ifc_spg.constrained.runner import Scenario, robot_with_stiffness, run
 from ifc_spg.errors import ParameterError, UnknownFrame
 from ifc_spg.kinematics import Kinematics
+from ifc_spg.offline.constrained import Scenario, robot_with_stiffness, run
+from ifc_spg.offline.constrained_evaluate import CRANK_ESTIMATOR
 from ifc_spg.tasks import WrenchTask
 from ifc_spg.tasks.static_interaction import static_wrench
 

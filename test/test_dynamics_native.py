@@ -282,7 +282,7 @@ def test_kdl_reproduces_our_accelerations(which, tmp_path):
 
 def test_bench_kdl_section(monkeypatch, tmp_path, capsys):
     """``ifc-spg dynamics bench`` section 4 (smoke): all rows; without KDL it says so."""
-    from ifc_spg.dynamics import bench
+    from ifc_spg.tools import dynamics_bench as bench
     monkeypatch.setenv('XDG_CACHE_HOME', str(tmp_path))     # the KDL program's cache
     res = bench.bench_kdl(np.random.default_rng(0), 50)
     assert [(r['dof'], r['constraints']) for r in res['rows']] == [

@@ -12,9 +12,9 @@ from helpers import wait_for as _wait
 import numpy as np
 import pytest
 
-from ifc_spg import pspm_budget_bench as bench
 from ifc_spg.model import RobotModel
 from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
+from ifc_spg.tools import pspm_budget_bench as bench
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.slow]
 
@@ -25,7 +25,7 @@ PERIOD = 1.0 / 0.16
 def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path):
     import pinocchio as pin
 
-    from ifc_spg.bag import BagReader
+    from ifc_spg.offline.bag import BagReader
 
     procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'

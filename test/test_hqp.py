@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from reference_hqp import reference_cascade
 
+from ifc_spg.cascade.daqp import DaqpCascade, ProxsuiteCascade, level_violation, make_solver
 from ifc_spg.errors import SolverError
-from ifc_spg.hqp import DaqpCascade, ProxsuiteCascade, level_violation, make_solver
 from ifc_spg.limits import VelocityBox
 from ifc_spg.tasks import Level
 

@@ -11,9 +11,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ifc_spg.errors import ModelError, UnknownJoint, UnknownRobot
-from ifc_spg.model import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, RobotModel, generate, robots
-from ifc_spg.model.robots import ROBOTS, load_robot, mjcf_spec, mujoco_indices
+from ifc_spg.errors import ModelError, ParameterError, UnknownJoint, UnknownRobot
+from ifc_spg.model import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, RobotModel, generate
+from ifc_spg.model import registry as robots
+from ifc_spg.model.registry import ROBOTS, mjcf_spec, mujoco_indices
+
+load_robot = RobotModel.from_config
 
 N_RANDOM = 50
 
@@ -295,16 +298,24 @@ def test_robot_model_mjcf_spec_default_and_missing_file():
         bare.mjcf_spec()
 
 
-def test_compliant_gains_follow_overridden_stiffness_and_damping():
-    """The runner overrides K/D on a copy of the model; the static interaction model's
-    cached gains must follow (stiff joints stay at zero)."""
-    import copy
+def test_with_gains_builds_a_validated_model_whose_compliant_gains_follow():
+    """with_gains goes through the constructor: the static interaction model's compliant gains
+    follow the new K/D (stiff joints stay at zero), the original is untouched, the pinocchio
+    model is shared, and bad gains are refused with the joints named."""
     robot = RobotModel.from_config('icub_upper_body')
     assert np.all(robot.compliant_stiffness[robot.stiff_mask] == 0)
-    other = copy.copy(robot)
-    other.stiffness = np.full(robot.n, 17.0)
-    other.damping = np.full(robot.n, 0.3)
+    other = robot.with_gains(stiffness=17.0, damping=np.full(robot.n, 0.3))
+    assert other is not robot and other.model is robot.model
     np.testing.assert_array_equal(other.compliant_stiffness, np.where(robot.stiff_mask, 0, 17.0))
     np.testing.assert_array_equal(other.compliant_damping, np.where(robot.stiff_mask, 0, 0.3))
     np.testing.assert_array_equal(robot.compliant_stiffness,
                                   np.where(robot.stiff_mask, 0, robot.stiffness))
+    kept = robot.with_gains(damping=0.1)
+    np.testing.assert_array_equal(kept.stiffness, robot.stiffness)
+    assert robot.with_gains() is robot
+    for k in (0.0, -1.0, float('nan'), [1.0, 2.0]):
+        with pytest.raises(ParameterError,
+                           match=f'x: stiffness must be > 0 .*{robot.joint_names[0]}'):
+            robot.with_gains(stiffness=k, where='x: ')
+    with pytest.raises(ParameterError, match='damping must be >= 0'):
+        robot.with_gains(damping=-0.1)

@@ -1,4 +1,4 @@
-"""The C kernels of the 2 ms path (ifc_spg._native) against their numpy reference code.
+"""The C kernels of the 2 ms path (ifc_spg.kernels._native) against their numpy reference code.
 
 Every kernel is compared with the numpy code it replaces (still in the package, used where
 the module is not built) on seeded random inputs, including NaN / inf bounds, stiff joints
@@ -10,15 +10,16 @@ import os
 import numpy as np
 import pytest
 
-from ifc_spg import RobotModel, native
-from ifc_spg import _native as nat  # the kernels, whatever IFC_SPG_NATIVE selects
-from ifc_spg.bench import icub_stack, lbr_stack
-from ifc_spg.hqp import _accept, _lock_if_satisfied, _stack_rows, _Workspace
+from ifc_spg import RobotModel
+from ifc_spg import kernels as native
+from ifc_spg.cascade.daqp import _accept, _lock_if_satisfied, _stack_rows, _Workspace
+from ifc_spg.kernels import _native as nat  # the kernels, whatever IFC_SPG_NATIVE selects
 from ifc_spg.limits import JointVelocityLimits, VelocityBox
+from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import EnergyTanks, PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks import Level
-from ifc_spg.testing import JointImpedancePlant
+from ifc_spg.tools.bench import icub_stack, lbr_stack
 
 
 def test_native_kernels_are_built():

@@ -5,10 +5,10 @@ import pytest
 
 from ifc_spg import RobotModel
 from ifc_spg.errors import ParameterError
+from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import EnergyTanks, PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask
-from ifc_spg.testing import JointImpedancePlant
 
 IIWA = RobotModel.from_config('lbr_iiwa14')
 
@@ -255,18 +255,18 @@ def test_bad_config_is_rejected(kwargs):
         PspmConfig(**kwargs)
 
 
-A1_SINE = '''version: 1
+A1_SINE = """version: 1
 name: a1_sine
 tasks:
   - {name: a1, type: joint_position, joints: [A1], gain: 10.0,
      equal: {trajectory: sine, amplitude: 0.3, frequency: 0.5}}
   - {name: rest, type: joint_position, equal: init, gain: 5.0}
-'''
+"""
 
 
 def test_the_node_logic_reports_a_stall_on_status_and_diagnostics_once_per_episode():
-    from ifc_spg.spg_config import SpgConfig
-    from ifc_spg.spg_runner import SpgRunner, status_json
+    from ifc_spg.node.config import SpgConfig
+    from ifc_spg.node.core import SpgRunner, status_json
 
     runner = SpgRunner(SpgConfig(robot='lbr_iiwa14', status_decimation=1))
     too_much = runner.handle_task_stack(A1_SINE.replace('tasks:', 'power_budget: 3\ntasks:'),

@@ -14,10 +14,10 @@ import sys
 import numpy as np
 import pytest
 
-from ifc_spg.bag import TOPICS, BagWriter
+from ifc_spg.node.config import SpgConfig
+from ifc_spg.offline.bag import TOPICS, BagWriter
+from ifc_spg.offline.runner import CONFIG_KEY, find_config_dir, load_scenario, run_scenario
 from ifc_spg.ros import messages as m
-from ifc_spg.runner import CONFIG_KEY, find_config_dir, load_scenario, run_scenario
-from ifc_spg.spg_config import SpgConfig
 
 FRAMES = 20
 FPS = 25.0
@@ -25,7 +25,7 @@ FPS = 25.0
 
 def _render(bag, out, *args):
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.cli', 'render', str(bag), '-o',
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.cli', 'render', str(bag), '-o',
                            str(out), '--size', '320x240', '--fps', str(FPS), *args],
                           capture_output=True, text=True, env=env, timeout=300)
     if proc.returncode == 2 and 'cannot render offscreen' in proc.stderr:
@@ -108,7 +108,7 @@ def test_short_lockstep_bag_renders_in_its_scene(tmp_path):
 def test_mp4_without_ffmpeg_is_a_clear_error_or_works(tmp_path):
     _sweep_bag(tmp_path / 'bag')
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.cli', 'render', str(tmp_path / 'bag'),
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.cli', 'render', str(tmp_path / 'bag'),
                            '-o', str(tmp_path / 'run.mp4'), '--size', '320x240', '-q',
                            '--duration', '0.2'], capture_output=True, text=True, env=env,
                           timeout=300)

@@ -2,9 +2,9 @@
 
 import pytest
 
-from ifc_spg.bag import BagReader, BagWriter
-from ifc_spg.replay import main, replay
-from ifc_spg.runner import find_config_dir, load_scenario, run_scenario
+from ifc_spg.offline.bag import BagReader, BagWriter
+from ifc_spg.offline.replay import main, replay
+from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
 
 
 @pytest.fixture(scope='module')
@@ -102,7 +102,7 @@ def _strip_robot_params(src, dst):
     """Copy a bag without its robot-parameter record (as bags written before it existed)."""
     import json
 
-    from ifc_spg.runner import ROBOT_PARAMS_KEY
+    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
 
     def drop(topic, i, msg):
         if topic != '/spg/status':
@@ -152,7 +152,7 @@ def test_bag_without_gains_replays_with_defaults_and_a_warning(bag, tmp_path, ca
 def test_bad_gain_record_is_an_error_naming_the_key(bag, tmp_path, capsys):
     import json
 
-    from ifc_spg.runner import ROBOT_PARAMS_KEY
+    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
 
     def short_k(key, value):
         if key != ROBOT_PARAMS_KEY:
@@ -169,7 +169,7 @@ def test_bad_gain_record_is_an_error_naming_the_key(bag, tmp_path, capsys):
 
 def test_gains_from_the_status_when_the_metadata_lacks_them(tuned_bag, tmp_path):
     """A bag recorded live (``ifc-spg bag record``) has no custom_data: spg/status has them."""
-    from ifc_spg.runner import ROBOT_PARAMS_KEY
+    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
 
     _copy(tuned_bag, tmp_path / 'live', custom=lambda k, v: None if k == ROBOT_PARAMS_KEY else v)
     res = replay(tmp_path / 'live')

@@ -1,4 +1,4 @@
-"""Short versions of the thesis experiments (ifc_spg.reproduce --quick): each claim's
+"""Short versions of the thesis experiments (experiments.reproduce --quick): each claim's
 direction, with a margin, from real lockstep simulation runs (no stored results).
 
 Each experiment runs once per session (about 70 s in all on 2 cores); a test fails when the
@@ -11,9 +11,9 @@ import json
 import numpy as np
 import pytest
 
-from ifc_spg import reproduce
+from experiments import reproduce
 from ifc_spg.errors import ParameterError
-from ifc_spg.runner import find_config_dir, load_scenario
+from ifc_spg.offline.runner import find_config_dir, load_scenario
 
 _BY_NAME = {e.name: e for e in reproduce.EXPERIMENTS}
 
@@ -43,7 +43,7 @@ def test_every_thesis_scenario_loads_and_names_its_table():
 
 
 def test_stiffness_override_reaches_simulation_and_spg(tmp_path):
-    from ifc_spg.runner import _robot_with_ifc
+    from ifc_spg.offline.runner import _robot_with_ifc
 
     over = reproduce._surface_overrides(stiffness=40.0)
     sc = load_scenario(find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',

@@ -15,9 +15,9 @@ from helpers import BIN, CONFIG, TARGET, reach_stack, use_loopback
 import numpy as np
 import pytest
 
-from ifc_spg.bag import BagReader
-from ifc_spg.model import RobotModel
 from ifc_spg import ros
+from ifc_spg.model import RobotModel
+from ifc_spg.offline.bag import BagReader
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 

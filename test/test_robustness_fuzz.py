@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from ifc_spg.model import RobotModel
-from ifc_spg.soak import STACKS, CommandChecker
-from ifc_spg.spg_config import SpgConfig
-from ifc_spg.spg_runner import REJECT_REASONS, SpgRunner
+from ifc_spg.node.config import SpgConfig
+from ifc_spg.node.core import REJECT_REASONS, SpgRunner
+from ifc_spg.tools.soak import STACKS, CommandChecker
 
 TASKS = CONFIG / 'tasks'
 SPECIALS = (math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, 1e6, -1e6)
@@ -183,7 +183,7 @@ def test_fuzz_task_stacks(robot):
 
 def test_the_checker_catches_violations(robot):
     """CommandChecker is the oracle of these tests: it must flag each kind of violation."""
-    from ifc_spg.spg_runner import Command
+    from ifc_spg.node.core import Command
 
     names = robot.joint_names
     q = robot.q_home.copy()

@@ -11,8 +11,8 @@ import pytest
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.ros import dds, messages
-from ifc_spg.ros.qos import QoSProfile, latched, qos_profile_sensor_data
 from ifc_spg.ros.parameters import SetParametersResult
+from ifc_spg.ros.qos import QoSProfile, latched, qos_profile_sensor_data
 
 pytestmark = pytest.mark.dds
 

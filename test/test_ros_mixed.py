@@ -58,7 +58,7 @@ def _envs(spg_backend, bridge_backend):
 @pytest.mark.parametrize('spg_backend, bridge_backend', [('rclpy', 'cyclonedds'),
                                                          ('cyclonedds', 'rclpy')])
 def test_bridge_and_spg_on_different_backends(tmp_path, spg_backend, bridge_backend):
-    from ifc_spg.bag import BagReader
+    from ifc_spg.offline.bag import BagReader
     from ifc_spg.ros.testing import stamp_ns
 
     spg_env, bridge_env, rec_env = _envs(spg_backend, bridge_backend)

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from ifc_spg.bag import BagReader, stamp_ns
 from ifc_spg.errors import ParameterError
-from ifc_spg.runner import find_config_dir, load_scenario, main, run_scenario
+from ifc_spg.offline.bag import BagReader, stamp_ns
+from ifc_spg.offline.runner import find_config_dir, load_scenario, main, run_scenario
 
 SCENARIO = find_config_dir() / 'scenarios' / 'surface_short.yaml'
 
@@ -57,7 +57,7 @@ def test_metrics_are_sane(short_run):
 def test_status_carries_config_and_stack_activation(short_run):
     with BagReader(short_run.bag) as bag:
         docs = [json.loads(m.data) for _, _, m in bag.messages({'/spg/status'})]
-        cfg = json.loads(bag.custom_data['ifc_spg.spg_config'])
+        cfg = json.loads(bag.custom_data['ifc_spg.node.config'])
     assert docs[0]['config'] == cfg and cfg['robot'] == 'lbr_iiwa14'
     ticks = [d for d in docs if d.get('stamp') is not None]
     switch = [d for d in ticks if d['stack']['id'] == 2]
@@ -134,7 +134,7 @@ def test_sigterm_stops_the_run_with_a_closed_bag_and_metrics(tmp_path):
 def test_robot_params_recorded_in_metadata_and_first_status(short_run):
     """K, D and limits the SPG ran with are in metadata.yaml and the first spg/status."""
     from ifc_spg.model import RobotModel
-    from ifc_spg.runner import ROBOT_PARAMS_KEY
+    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
 
     robot = RobotModel.from_config('lbr_iiwa14')
     with BagReader(short_run.bag) as bag:

@@ -153,7 +153,7 @@ def test_icub_table_placement_of_table_3_7_touches_only_the_left_hand():
     (the closest robot geom), the fingers and everything else > 1 cm above it."""
     import mujoco
 
-    from ifc_spg.runner import find_config_dir, load_scenario
+    from ifc_spg.offline.runner import find_config_dir, load_scenario
 
     sc = load_scenario(find_config_dir() / 'scenarios' /
                        'thesis_3_7_icub_wiping_cup_holding.yaml')

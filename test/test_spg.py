@@ -7,14 +7,14 @@ import pinocchio as pin
 import pytest
 
 from ifc_spg import RobotModel
+from ifc_spg.cascade.daqp import DaqpCascade
+from ifc_spg.cascade.nullspace import NullspaceCascade
 from ifc_spg.errors import IfcSpgError, ParameterError
-from ifc_spg.hqp import DaqpCascade
 from ifc_spg.limits import VelocityBox
-from ifc_spg.nullspace import NullspaceCascade
+from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, Level, WrenchTask
-from ifc_spg.testing import JointImpedancePlant
 
 IIWA = RobotModel.from_config('lbr_iiwa14')
 DT = 0.002

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import yaml
 
-from ifc_spg.model import RobotModel
-from ifc_spg.pspm import PspmConfig
 from ifc_spg import ros
+from ifc_spg.model import RobotModel
+from ifc_spg.node.config import PARAMETERS
+from ifc_spg.node.spg_node import SpgNode, main
+from ifc_spg.pspm import PspmConfig
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import stamp_ns
 from ifc_spg.spg import SetPointGenerator
-from ifc_spg.spg_config import PARAMETERS
-from ifc_spg.spg_node import SpgNode, main
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

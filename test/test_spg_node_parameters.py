@@ -21,7 +21,7 @@ def rclpy_env(monkeypatch):
         import rclpy  # noqa: F401
         import sensor_msgs.msg  # noqa: F401
     except ImportError:
-        pytest.skip('parameter services are rclpy\'s (the built-in backend has none): rclpy '
+        pytest.skip("parameter services are rclpy's (the built-in backend has none): rclpy "
                     'is not installed (ros-jazzy wheels: Linux x86_64, CPython 3.10-3.13)')
     env = use_loopback(monkeypatch)
     env['IFC_SPG_ROS_BACKEND'] = 'rclpy'
@@ -38,9 +38,9 @@ def _call(executor, client, request, timeout=10.0):
 
 
 def test_live_parameters_from_another_rclpy_node(tmp_path, rclpy_env):
-    import rclpy
     from rcl_interfaces.msg import Log, Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import GetParameters, SetParameters
+    import rclpy
     from rclpy.context import Context
     from sensor_msgs.msg import JointState
     from std_msgs.msg import String

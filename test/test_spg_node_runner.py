@@ -8,10 +8,10 @@ import pytest
 
 from ifc_spg.errors import ParameterError
 from ifc_spg.model import RobotModel
+from ifc_spg.node.config import PARAMETERS, SpgConfig, config_from_parameters
+from ifc_spg.node.core import REJECT_REASONS, SpgRunner, status_json
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator
-from ifc_spg.spg_config import PARAMETERS, SpgConfig, config_from_parameters
-from ifc_spg.spg_runner import REJECT_REASONS, SpgRunner, status_json
 
 STACK = reach_stack()
 

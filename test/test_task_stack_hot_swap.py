@@ -8,13 +8,13 @@ leaves the running one untouched.
 import numpy as np
 import pytest
 
-from ifc_spg import native
+from ifc_spg import kernels as native
 from ifc_spg import spg as spg_module
 from ifc_spg.limits import intersect_soft
 from ifc_spg.model import RobotModel
+from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.task_stack import TaskStack, TaskStackError
-from ifc_spg.testing import JointImpedancePlant
 
 DT = 0.002
 

@@ -7,7 +7,7 @@
   :class:`~ifc_spg.spg.SetPointGenerator` (what a ``constrained_manipulation`` entry of a
   task stack expands to),
 - :mod:`~ifc_spg.constrained.metrics`: |f_perp|, error angle, travel, time to open,
-- :mod:`~ifc_spg.constrained.runner` / :mod:`~ifc_spg.constrained.evaluate`: lockstep runs
+- :mod:`~ifc_spg.offline.constrained` / :mod:`~ifc_spg.offline.constrained_evaluate`: lockstep runs
   in the MuJoCo scenes and the thesis comparison.
 """
 

@@ -3,7 +3,7 @@
 
 The numpy kernel (:class:`ifc_spg.dynamics.vereshchagin.NumpyKernel`) is the reference the
 tests compare it with, and runs wherever the module is missing. ``IFC_SPG_NATIVE=0`` in the
-environment selects the numpy code, as for the SPG tick's kernels (:mod:`ifc_spg.native`).
+environment selects the numpy code, as for the SPG tick's kernels (:mod:`ifc_spg.kernels`).
 A solver picks its kernel when it is created.
 """
 

@@ -427,7 +427,8 @@ KERNELS = ('native', 'numpy')
 
 def default_kernel():
     """The kernel new solvers use: 'native' where the C module was built (and
-    ``IFC_SPG_NATIVE`` is not 0), else 'numpy' (see :func:`ifc_spg.dynamics.native.describe`)."""
+    ``IFC_SPG_NATIVE`` is not 0), else 'numpy' (see :func:`ifc_spg.dynamics.native.describe`).
+    """
     return 'native' if native.module is not None else 'numpy'
 
 

@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg import native
+from ifc_spg import kernels as native
 
 __all__ = ['JointVelocityLimits', 'VelocityBox', 'joint_velocity_bounds', 'intersect_soft',
            'stopping_velocity']
@@ -111,7 +111,7 @@ class JointVelocityLimits:
         for b in free:
             b.setflags(write=False)
         self._free_box = VelocityBox(*free)
-        self._native = native.module  # C kernel (ifc_spg.native), or None: numpy below
+        self._native = native.module  # C kernel (ifc_spg.kernels), or None: numpy below
 
     def box(self, q_v):
         """The :class:`VelocityBox` at the virtual configuration ``q_v`` (as the function).

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from ifc_spg import native
+from ifc_spg import kernels as native
 from ifc_spg.limits.joint_limits import VelocityBox
 from ifc_spg.tasks.task import Level
 
@@ -54,7 +54,7 @@ class TorqueLimitLevel:
         self._zeros = np.zeros(self.idx.size)
         # every joint compliant (the usual case): slices instead of index arrays (no copies)
         self._sel = slice(None) if self.idx.size == K.size else self.idx
-        self._native = native.module  # C kernel (ifc_spg.native), or None: numpy below
+        self._native = native.module  # C kernel (ifc_spg.kernels), or None: numpy below
         self._native_idx = None if self.idx.size == K.size else self.idx.astype(np.intp)
 
     def apply(self, q, qdot, q_v, box):

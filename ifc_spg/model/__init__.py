@@ -1,10 +1,6 @@
 """Robot models: pinocchio kinematics plus IFC parameters, and the named configurations."""
 
-from ifc_spg.model.robot_model import (
-    CARTESIAN_ADMITTANCE,
-    JOINT_IMPEDANCE,
-    CartesianAdmittance,
-    RobotModel,
-)
+from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance
+from ifc_spg.model.robot_model import RobotModel
 
 __all__ = ['CARTESIAN_ADMITTANCE', 'JOINT_IMPEDANCE', 'CartesianAdmittance', 'RobotModel']

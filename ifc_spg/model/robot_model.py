@@ -5,18 +5,16 @@ after construction, and every solver creates its own ``Data`` with :meth:`create
 (STYLE #6).
 """
 
-from dataclasses import dataclass
 import os
 
 import numpy as np
 import pinocchio as pin
 
-from ifc_spg.errors import ModelError, UnknownFrame, UnknownJoint, did_you_mean
+from ifc_spg.errors import ModelError, ParameterError, UnknownFrame, UnknownJoint, did_you_mean
+from ifc_spg.model import registry
+from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance
 
 __all__ = ['CartesianAdmittance', 'RobotModel', 'JOINT_IMPEDANCE', 'CARTESIAN_ADMITTANCE']
-
-JOINT_IMPEDANCE = 'joint_impedance'
-CARTESIAN_ADMITTANCE = 'cartesian_admittance'
 
 
 def _readonly(x, n, what):
@@ -25,21 +23,6 @@ def _readonly(x, n, what):
         raise ModelError(f'{what} must be finite, got {a.tolist()}')
     a.setflags(write=False)
     return a
-
-
-@dataclass(frozen=True)
-class CartesianAdmittance:
-    """Cartesian admittance parameters h = M_x dd(x) + D_x d(x) + K_x x (SPEC 2.22/2.23).
-
-    Attributes:
-        stiffness: K_x, 6 diagonal entries [N/m]*3 + [Nm/rad]*3.
-        damping: D_x, 6 diagonal entries [Ns/m]*3 + [Nms/rad]*3.
-        mass: M_x, 6 diagonal entries [kg]*3 + [kg m^2]*3.
-    """
-
-    stiffness: np.ndarray
-    damping: np.ndarray
-    mass: np.ndarray
 
 
 class RobotModel:
@@ -62,6 +45,10 @@ class RobotModel:
         model_file: Path of the file the model was loaded from (shared with the simulator).
         spec_builder: Callable returning a fresh ``mujoco.MjSpec`` of this robot for the
             simulator (default: ``model_file`` loaded as is), see :meth:`mjcf_spec`.
+
+    Attributes:
+        compliant_stiffness: K with zeros at stiff (position-controlled) joints [Nm/rad].
+        compliant_damping: D with zeros at stiff joints [Nms/rad].
     """
 
     def __init__(self, model, *, name, frames, stiffness, damping, q_min=None, q_max=None,
@@ -82,6 +69,27 @@ class RobotModel:
         if np.any(self.q_min >= self.q_max):
             raise ModelError(f"model '{name}': q_min must be < q_max for every joint "
                              f'(q_min={self.q_min.tolist()}, q_max={self.q_max.tolist()})')
+        self._set_limits_and_gains(model, v_max, a_max, tau_max, stiffness, damping)
+        mask = np.zeros(n, dtype=bool)
+        for j in stiff_joints:
+            mask[self.joint_index(j)] = True
+        mask.setflags(write=False)
+        self.stiff_mask = mask
+        self.compliant_columns = _readonly((~mask).astype(float), n, 'compliant_columns')
+        self.compliant_stiffness = _readonly(np.where(mask, 0.0, self.stiffness), n,
+                                             'stiffness')
+        self.compliant_damping = _readonly(np.where(mask, 0.0, self.damping), n, 'damping')
+        self._set_frames(frames)
+        if q_home is None:
+            q_home = np.clip(np.zeros(n), self.q_min, self.q_max)
+        self.q_home = _readonly(q_home, n, 'q_home')
+        self._set_ifc(ifc, admittance)
+        self.model_file = model_file
+        self._spec_builder = spec_builder
+        self._stiff_joints = tuple(stiff_joints)
+
+    def _set_limits_and_gains(self, model, v_max, a_max, tau_max, stiffness, damping):
+        n, name = self.n, self.name
         self.v_max = _readonly(model.velocityLimit if v_max is None else v_max, n, 'v_max')
         self.a_max = _readonly(a_max, n, 'a_max')
         self.tau_max = _readonly(model.effortLimit if tau_max is None else tau_max, n, 'tau_max')
@@ -93,13 +101,9 @@ class RobotModel:
         if np.any(self.stiffness <= 0) or np.any(self.damping < 0):
             raise ModelError(f"model '{name}': stiffness must be > 0 and damping >= 0 "
                              f'(K={self.stiffness.tolist()}, D={self.damping.tolist()})')
-        mask = np.zeros(n, dtype=bool)
-        for j in stiff_joints:
-            mask[self.joint_index(j)] = True
-        mask.setflags(write=False)
-        self.stiff_mask = mask
-        self.compliant_columns = _readonly((~mask).astype(float), n, 'compliant_columns')
-        self._compliant = None  # (K, D, K with stiff joints zeroed, D likewise), see below
+
+    def _set_frames(self, frames):
+        model, name = self.model, self.name
         self.frames = dict(frames)
         self._frame_ids = {}
         for chain, fname in self.frames.items():
@@ -108,9 +112,9 @@ class RobotModel:
                                    'is not in the model file' + did_you_mean(
                                        fname, [f.name for f in model.frames]))
             self._frame_ids[chain] = model.getFrameId(fname)
-        if q_home is None:
-            q_home = np.clip(np.zeros(n), self.q_min, self.q_max)
-        self.q_home = _readonly(q_home, n, 'q_home')
+
+    def _set_ifc(self, ifc, admittance):
+        name = self.name
         if ifc not in (JOINT_IMPEDANCE, CARTESIAN_ADMITTANCE):
             raise ModelError(f"model '{name}': ifc must be '{JOINT_IMPEDANCE}' or "
                              f"'{CARTESIAN_ADMITTANCE}', got '{ifc}'")
@@ -122,8 +126,6 @@ class RobotModel:
             if not self.admittance:
                 raise ModelError(f"model '{name}': cartesian_admittance needs admittance "
                                  'parameters for at least one chain')
-        self.model_file = model_file
-        self._spec_builder = spec_builder
 
     # -- construction --------------------------------------------------------------------
     @classmethod
@@ -153,8 +155,51 @@ class RobotModel:
     @classmethod
     def from_config(cls, name):
         """Build a named configuration: ``lbr4``, ``lbr_iiwa14``, ``icub_upper_body``, ..."""
-        from ifc_spg.model.robots import load_robot
-        return load_robot(name)
+        return cls(**registry.robot_arguments(name))
+
+    def with_gains(self, stiffness=None, damping=None, *, where=''):
+        """This robot with other joint-impedance gains (the pinocchio model is shared).
+
+        Args:
+            stiffness: Joint stiffness K [Nm/rad], scalar or per joint (None: keep).
+            damping: Joint damping D [Nms/rad], scalar or per joint (None: keep).
+            where: Prefix of error messages naming the source (e.g. ``"scenario 'x': sim."``).
+
+        Returns:
+            ``self`` when neither is given, else a new :class:`RobotModel` built (and
+            validated) by the constructor.
+
+        Raises:
+            ParameterError: A value that is not a finite number (K > 0, D >= 0) or a wrong
+                count; the message names the joints.
+        """
+        if stiffness is None and damping is None:
+            return self
+        gains = {}
+        for key, raw, old in (('stiffness', stiffness, self.stiffness),
+                              ('damping', damping, self.damping)):
+            if raw is None:
+                gains[key] = old
+                continue
+            try:
+                value = np.asarray(raw, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                value = np.array([np.nan])
+            if value.size == 1:
+                value = np.full(self.n, value[0])
+            if value.shape != (self.n,) or not np.all(np.isfinite(value)) or np.any(
+                    value < 0) or (key == 'stiffness' and np.any(value <= 0)):
+                raise ParameterError(f'{where}{key} must be '
+                                     f'{"> 0" if key == "stiffness" else ">= 0"} '
+                                     f'(scalar or {self.n} values for '
+                                     f"{', '.join(self.joint_names)}), got {raw!r}")
+            gains[key] = value
+        return RobotModel(
+            self.model, name=self.name, frames=self.frames, q_min=self.q_min, q_max=self.q_max,
+            v_max=self.v_max, a_max=self.a_max, tau_max=self.tau_max,
+            stiff_joints=self._stiff_joints, q_home=self.q_home, ifc=self.ifc,
+            admittance=self.admittance, model_file=self.model_file,
+            spec_builder=self._spec_builder, **gains)
 
     def mjcf_spec(self):
         """Return a fresh ``mujoco.MjSpec`` of this robot for the simulator.
@@ -171,28 +216,6 @@ class RobotModel:
         return mujoco.MjSpec.from_file(str(self.model_file))
 
     # -- lookups -------------------------------------------------------------------------
-    def _compliant_gains(self):
-        # cached for the 2 ms path, and rebuilt when K or D was replaced (the runner's
-        # scenario overrides copy the model and assign new arrays)
-        c = self._compliant
-        if c is None or c[0] is not self.stiffness or c[1] is not self.damping:
-            n = self.n
-            c = self._compliant = (
-                self.stiffness, self.damping,
-                _readonly(np.where(self.stiff_mask, 0.0, self.stiffness), n, 'stiffness'),
-                _readonly(np.where(self.stiff_mask, 0.0, self.damping), n, 'damping'))
-        return c
-
-    @property
-    def compliant_stiffness(self):
-        """Joint stiffness K with zeros at stiff (position-controlled) joints [Nm/rad]."""
-        return self._compliant_gains()[2]
-
-    @property
-    def compliant_damping(self):
-        """Joint damping D with zeros at stiff (position-controlled) joints [Nms/rad]."""
-        return self._compliant_gains()[3]
-
     def create_data(self):
         """Return a fresh pinocchio ``Data`` owned by the caller."""
         return self.model.createData()

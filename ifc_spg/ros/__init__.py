@@ -99,7 +99,8 @@ if _rclpy_available(_choice()):
 
     class Node(_RclpyNode):
         """rclpy's Node; :func:`shutdown` destroys the nodes of the context it shuts down (as
-        the built-in backend does), so that a node does not outlive its context on the graph."""
+        the built-in backend does), so that a node does not outlive its context on the graph.
+        """
 
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
@@ -111,7 +112,8 @@ if _rclpy_available(_choice()):
 
     def init(args=None, *, context=None, **kwargs):
         """rclpy.init, after the ``--ros-args`` are checked by the same parser as the built-in
-        backend's (clear errors, e.g. ``malformed '-p rate=5'``); returns the context."""
+        backend's (clear errors, e.g. ``malformed '-p rate=5'``); returns the context.
+        """
         import sys
 
         parse_ros_args(sys.argv if args is None else args)
@@ -120,7 +122,8 @@ if _rclpy_available(_choice()):
 
     def shutdown(*, context=None):
         """Destroy the nodes of the default (or given) context and shut it down; a no-op
-        when it is not initialised."""
+        when it is not initialised.
+        """
         ctx = context or rclpy.get_default_context()
         for node in list(_nodes):
             if node.context is ctx:
@@ -141,7 +144,8 @@ if _rclpy_available(_choice()):
 
     class _NodesExecutor:
         """A SingleThreadedExecutor over a fixed set of nodes; a node taken over by another
-        executor in between is added back before each spin."""
+        executor in between is added back before each spin.
+        """
 
         def __init__(self, nodes):
             self.nodes = [_weakref.ref(n) for n in nodes]
@@ -168,14 +172,16 @@ if _rclpy_available(_choice()):
 
     def wait_for_acks(publisher, timeout_sec=1.0):
         """Wait until every matched reliable reader acknowledged what ``publisher`` sent;
-        True if they did within ``timeout_sec`` [s]."""
+        True if they did within ``timeout_sec`` [s].
+        """
         from rclpy.duration import Duration
 
         return publisher.wait_for_all_acked(Duration(seconds=timeout_sec))
 
     def spin(node, executor=None):
         """Run callbacks of ``node`` until its context shuts down (a signal ends it quietly,
-        as with the built-in backend)."""
+        as with the built-in backend).
+        """
         ex = globals()['executor']((node,)) if executor is None else executor
         while node.context.ok():
             ex.spin_once(timeout_sec=0.1)
@@ -247,12 +253,14 @@ else:
 
     def wait_for_acks(publisher, timeout_sec=1.0):
         """Wait until every matched reliable reader acknowledged what ``publisher`` sent;
-        True if they did within ``timeout_sec`` [s]."""
+        True if they did within ``timeout_sec`` [s].
+        """
         return publisher.wait_for_acks(timeout_sec)
 
 
 def describe():
     """The backend line every node logs at start-up, e.g. ``ROS 2 backend: rclpy on
-    rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``."""
+    rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``.
+    """
     domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
     return f'ROS 2 backend: {BACKEND} on {RMW}, ROS_DOMAIN_ID {domain}'

@@ -325,7 +325,8 @@ class Subscription:
 
 class Timer:
     """Calls ``callback()`` every ``timer_period_ns`` on the steady clock, skipping missed
-    periods as rcl does."""
+    periods as rcl does.
+    """
 
     def __init__(self, node, period_s, callback, autostart=True):
         if not period_s > 0:
@@ -487,7 +488,8 @@ class Node:
     def count_publishers(self, topic_name):
         """Publishers matched on ``topic_name``, as seen by this node's subscriptions to it
         (rclpy counts the whole graph; the built-in backend knows the writers its readers
-        matched, which is what a test waiting for a connection needs)."""
+        matched, which is what a test waiting for a connection needs).
+        """
         name = self.resolve_topic_name(topic_name)
         return max((s.get_publisher_count() for s in self.subscriptions
                     if s.topic_name == name), default=0)
@@ -592,12 +594,14 @@ class Node:
 
     def add_on_set_parameters_callback(self, callback):
         """Call ``callback(parameters) -> SetParametersResult`` before parameters change (as
-        rclpy does); an unsuccessful result refuses the change."""
+        rclpy does); an unsuccessful result refuses the change.
+        """
         self._on_set.append(callback)
 
     def set_parameters(self, parameters):
         """Set declared parameters, one at a time as rclpy does: type, range and read_only
-        are checked, then the on-set callbacks; one SetParametersResult per parameter."""
+        are checked, then the on-set callbacks; one SetParametersResult per parameter.
+        """
         results = []
         for param in parameters:
             old = self.get_parameter(param.name)  # undeclared: raises, as rclpy does

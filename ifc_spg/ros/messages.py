@@ -258,7 +258,8 @@ class JointState(Message):
 
 class JointTrajectoryPoint(Message):
     """trajectory_msgs/msg/JointTrajectoryPoint: ``positions``, ``velocities``,
-    ``accelerations``, ``effort``, ``time_from_start`` (Duration)."""
+    ``accelerations``, ``effort``, ``time_from_start`` (Duration).
+    """
 
     __slots__ = ('positions', 'velocities', 'accelerations', 'effort', 'time_from_start')
     _TYPE = 'trajectory_msgs/msg/JointTrajectoryPoint'

@@ -95,7 +95,7 @@ class RosArgs:
 
 
 def _node_pattern_matches(pattern, node_fqn):
-    """fnmatch of rcl: ``*`` matches one name token, ``**`` any number of tokens."""
+    """Fnmatch of rcl: ``*`` matches one name token, ``**`` any number of tokens."""
     if pattern == '/**':
         return True
     regex = ''

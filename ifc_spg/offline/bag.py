@@ -391,7 +391,8 @@ def _discovered(participant, reader):
 
 class _Recording:
     """What both recorders share: the topics they record, and writing what arrived, then
-    looking for new topics on the graph (at most every 0.2 s)."""
+    looking for new topics on the graph (at most every 0.2 s).
+    """
 
     _last_discovery = 0.0
 
@@ -493,7 +494,8 @@ class Recorder(_Recording):
 
 def _rclpy_message_class(msgtype):
     """The rclpy class of ROS type ``pkg/msg/T`` (rosidl_runtime_py is not among the Jazzy
-    wheels, so the generated module is imported by name)."""
+    wheels, so the generated module is imported by name).
+    """
     import importlib
 
     pkg, kind, name = msgtype.split('/')

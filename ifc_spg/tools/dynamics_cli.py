@@ -133,7 +133,7 @@ def main(argv=None):
     """Entry point of ``ifc-spg dynamics``; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == 'bench':
-        from ifc_spg.dynamics import bench
+        from ifc_spg.tools import dynamics_bench as bench
         return bench.main(argv[1:])
     parser = argparse.ArgumentParser(
         prog='ifc-spg dynamics', description=__doc__.split('\n\n')[0],

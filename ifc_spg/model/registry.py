@@ -1,4 +1,4 @@
-"""Named robot configurations: ``load_robot(name)`` and the parameter tables behind them.
+"""Named robot configurations: the parameter tables behind ``RobotModel.from_config(name)``.
 
 Every named robot is built from ONE model file that both pinocchio (the SPG) and MuJoCo
 (the simulator) load, so the SPG and the simulation share kinematics and inertias exactly:
@@ -27,17 +27,12 @@ import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import ModelError, UnknownJoint, UnknownRobot, did_you_mean
-from ifc_spg.model.robot_model import (
-    CARTESIAN_ADMITTANCE,
-    JOINT_IMPEDANCE,
-    CartesianAdmittance,
-    RobotModel,
-)
+from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance
 
 __all__ = [
     'ArmTable', 'Link', 'ROBOTS', 'LBR4', 'LBR_IIWA14', 'ACCREA_ARM', 'DATA_DIR',
     'ICUB_JOINTS', 'ICUB_FRAMES', 'ICUB_WIPE_PAD', 'ICUB_WIPE_ARM_DEG',
-    'load_robot', 'model_file', 'mjcf_spec', 'icub_mjcf_spec',
+    'robot_arguments', 'model_file', 'mjcf_spec', 'icub_mjcf_spec',
     'icub_urdf_path', 'mujoco_indices', 'accrea_home_deg',
 ]
 
@@ -275,8 +270,11 @@ def model_file(name):
     return os.path.join(DATA_DIR, f'{name}.xml')
 
 
-def load_robot(name):
-    """Build the named configuration ``name`` as a :class:`RobotModel`.
+def robot_arguments(name):
+    """The :class:`~ifc_spg.model.RobotModel` constructor arguments of configuration ``name``.
+
+    ``RobotModel.from_config(name)`` builds the model from them (this module is data: it
+    does not import the class).
 
     Args:
         name: One of :data:`ROBOTS`.
@@ -290,8 +288,9 @@ def load_robot(name):
     if name == 'accrea_dual_arm':
         return _load_accrea()
     table = LBR4 if name == 'lbr4' else LBR_IIWA14
-    return RobotModel.from_mjcf(
-        model_file(name), name=name, frames={'flange': 'flange', 'tool': 'tool'},
+    return dict(
+        model=_mjcf_model(model_file(name)), model_file=model_file(name), name=name,
+        frames={'flange': 'flange', 'tool': 'tool'},
         stiffness=table.stiffness, damping=table.damping, v_max=_deg(table.v_max_deg),
         a_max=_deg(table.a_max_deg), q_home=_deg(table.q_home_deg), ifc=JOINT_IMPEDANCE,
         spec_builder=partial(mjcf_spec, name))
@@ -301,8 +300,9 @@ def _load_accrea():
     a = ACCREA_ARM
     frames = {f'{s}_{f}': f'{s}_{f}' for s in 'lr' for f in ('flange', 'ft', 'tool')}
     adm = _accrea_admittance()
-    return RobotModel.from_mjcf(
-        model_file('accrea_dual_arm'), name='accrea_dual_arm', frames=frames,
+    return dict(
+        model=_mjcf_model(model_file('accrea_dual_arm')),
+        model_file=model_file('accrea_dual_arm'), name='accrea_dual_arm', frames=frames,
         stiffness=a.stiffness * 2, damping=a.damping * 2, v_max=_deg(a.v_max_deg * 2),
         a_max=_deg(a.a_max_deg * 2), q_home=_deg(accrea_home_deg()),
         ifc=CARTESIAN_ADMITTANCE, admittance={'l_tool': adm, 'r_tool': adm},
@@ -316,6 +316,10 @@ def accrea_home_deg():
     # plane: joints about the arm's z axis (A1, A3, A5, A7) change sign, A2, A4, A6 do not.
     right = tuple(-q if i % 2 == 0 else q for i, q in enumerate(left))
     return left + right
+
+
+def _mjcf_model(path):
+    return pin.buildModelFromMJCF(str(path))
 
 
 def _deg(values):
@@ -369,8 +373,8 @@ def _load_icub():
     damping = np.array([0.5 if j in ICUB_TORSO else 0.2 for j in order])
     frames = {f: f for f in ICUB_FRAMES}
     frames.update({f'{s}_hand': f'{s}_hand' for s in 'lr'})
-    return RobotModel(
-        model, name='icub_upper_body', frames=frames, stiffness=stiffness, damping=damping,
+    return dict(
+        model=model, name='icub_upper_body', frames=frames, stiffness=stiffness, damping=damping,
         v_max=_deg(v_max), a_max=math.radians(500.0), tau_max=tau, stiff_joints=ICUB_STIFF,
         q_home=_deg(home), ifc=JOINT_IMPEDANCE, model_file=urdf, spec_builder=icub_mjcf_spec)
 
@@ -387,7 +391,7 @@ def icub_mjcf_spec():
     static links kept as bodies), every joint not in :data:`ICUB_JOINTS` is deleted (its
     child welded at q = 0, exactly like pinocchio's reduction) and the added frames
     (:data:`ICUB_FRAMES`) and the ``l_hand``/``r_hand`` link frames become sites, so every
-    chain of ``load_robot('icub_upper_body')`` is a site of the same name. The left forearm
+    chain of ``RobotModel.from_config('icub_upper_body')`` is a site of the same name. The left forearm
     carries a massless wiping pad (:data:`ICUB_WIPE_PAD`, geom ``l_wipe_pad``). The root link is
     fixed to the world at the origin (iCub convention: x backwards, z up). MuJoCo orders the
     joints differently from pinocchio (right arm first): map them by name, see
@@ -426,7 +430,7 @@ def mjcf_spec(name):
 
     The spec has no actuators (apply joint torques with ``qfrc_applied`` or add motors);
     robot geoms have ``contype=1, conaffinity=0``: no self-collision, contacts with every
-    scene geom of default ``conaffinity``. Every chain of :func:`load_robot` (``tool``,
+    scene geom of default ``conaffinity``. Every chain of a named configuration (``tool``,
     ``flange``, ``l_ft``, ``l_contact``, ...) is a site of the same name. Keep the robot's
     root body at the world origin: pinocchio places the robot base at its origin (and
     ignores the pose of the MJCF root body), so a moved robot must be attached to the scene

@@ -33,7 +33,7 @@ def _render_video(bag, out, quiet):
     import os
     import subprocess
 
-    from ifc_spg.render import ffmpeg_exe
+    from ifc_spg.tools.render import ffmpeg_exe
 
     # without ffmpeg a smaller GIF: Pillow holds its frames in memory until it writes
     video, size = (out / 'run.mp4', []) if ffmpeg_exe() else \
@@ -41,7 +41,7 @@ def _render_video(bag, out, quiet):
     for old in (out / 'run.mp4', out / 'run.gif'):
         old.unlink(missing_ok=True)
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.render', str(bag), '-o', str(video),
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.render', str(bag), '-o', str(video),
                            '-q', *size], capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         reason = (proc.stderr.strip().splitlines() or ['failed'])[-1]
@@ -54,7 +54,7 @@ def _render_video(bag, out, quiet):
 
 def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False, video=True):
     """Run the demo scenario; returns ``(RunResult, list of PNG paths)``."""
-    from ifc_spg.runner import find_config_dir, run_scenario
+    from ifc_spg.offline.runner import find_config_dir, run_scenario
 
     out = Path(out_dir)
     if (out / 'bag').exists():
@@ -68,7 +68,7 @@ def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False, video=T
     clip = _render_video(result.bag, out, quiet) if video else None
     pngs = []
     if plots:
-        from ifc_spg.plot import plot_bag
+        from ifc_spg.tools.plot import plot_bag
 
         pngs = plot_bag(result.bag, out / 'plots', title='ifc_spg demo: LBR iiwa 14 surface '
                         'tracking (simulated)', video=clip)

@@ -43,8 +43,8 @@ import numpy as np
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.model import RobotModel
+from ifc_spg.node.config import SpgConfig
 from ifc_spg.spg import SetPointGenerator
-from ifc_spg.spg_config import SpgConfig
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
            'parse_task_stack', 'robot_gains', 'robot_params', 'status_json']
@@ -172,7 +172,6 @@ def robot_gains(robot, config):
             D < 0 (the message names the parameter, the joints and the values).
     """
     from ifc_spg.model import JOINT_IMPEDANCE
-    from ifc_spg.runner import robot_with_gains
 
     if not config.stiffness and not config.damping:
         return robot
@@ -180,7 +179,7 @@ def robot_gains(robot, config):
         raise ParameterError(f"parameters impedance.stiffness/damping set the joint impedance; "
                              f"robot '{robot.name}' is under {robot.ifc.replace('_', ' ')} "
                              '(its gains come with the robot configuration)')
-    return robot_with_gains(robot, stiffness=list(config.stiffness) or None,
+    return robot.with_gains(stiffness=list(config.stiffness) or None,
                             damping=list(config.damping) or None, where='parameter impedance.')
 
 
@@ -188,7 +187,7 @@ class SpgRunner:
     """The SPG node body: validated ticks, hot-swapped stacks, watchdog, status.
 
     Args:
-        config: :class:`~ifc_spg.spg_config.SpgConfig`.
+        config: :class:`~ifc_spg.node.config.SpgConfig`.
         robot: The :class:`~ifc_spg.model.RobotModel` (default: ``config.robot``).
         clock: Monotonic clock in [s] for the watchdog (default ``time.monotonic``).
         parse_stack: ``parse_stack(text) -> stack`` (default :func:`parse_task_stack`).
@@ -383,7 +382,8 @@ class SpgRunner:
 
     def request_restart(self):
         """Restart from the measured q at the next joint state (e.g. after the node was
-        disabled: the robot may have been moved meanwhile)."""
+        disabled: the robot may have been moved meanwhile).
+        """
         self._restart_requested = True
 
     def _restart(self, q):
@@ -525,7 +525,8 @@ class SpgRunner:
     def state_vector(self):
         """The ``spg/state`` data after the last tick (floats, layout ``state_layout`` of
         :meth:`config_doc`; NaN where there are no tanks): the tick count, its stamp, the
-        measured q and the SPG's state the next tick starts from."""
+        measured q and the SPG's state the next tick starts from.
+        """
         snap = self.spg.snapshot()
         nan = np.full(self._n, np.nan)
         sec, nsec = divmod(int(self._last_stamp or 0), 1_000_000_000)
@@ -559,7 +560,7 @@ class SpgRunner:
         if stack:
             event = self.handle_task_stack(stack['text'])
             if not event.accepted:
-                raise ParameterError(f"spg/config: the recorded stack does not build here: "
+                raise ParameterError(f'spg/config: the recorded stack does not build here: '
                                      f'{event.message}')
             acts = [Activation(np.array(a['q']), np.array(a['qdot']), np.array(a['q_v']),
                                float(a['t'])) for a in stack['activations']]
@@ -588,7 +589,8 @@ class SpgRunner:
         """A :class:`DiagItem` summarizing the node (for a ~1 Hz DiagnosticArray).
 
         A PSPM stall (an empty tank clipping the stack) is a WARN naming the joints, the
-        power the stack asks for and the setting that would allow it."""
+        power the stack asks for and the setting that would allow it.
+        """
         values = {'ticks': str(self.ticks), 'state': self.state,
                   'stack': f'{self.stack_name} (id {self.stack_id})' if self.stack_id else '',
                   'spg_status': self.spg.info.status,

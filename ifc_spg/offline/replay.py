@@ -11,14 +11,14 @@ warm-started solver). Joint states recorded before it and states whose command t
 recorder stopped before receiving are the recording's edges and do not fail the replay.
 
 Otherwise the replay starts from the first tick. The SPG configuration comes from the bag
-(metadata ``custom_data['ifc_spg.spg_config']``, else ``spg/config``, else the first
+(metadata ``custom_data['ifc_spg.node.config']``, else ``spg/config``, else the first
 ``spg/status`` message carrying ``config``; ``--robot`` is the last resort,
 with default parameters), and so do the robot's IFC gains K, D the run used (a scenario's
 ``sim: {stiffness, damping}``): ``custom_data['ifc_spg.robot_params']``, else ``robot_params``
 in ``spg/status``. A bag without them (recorded before they were stored) is replayed with
 the robot's default K, D and a warning; recorded limits that differ from the current robot
 model are warned about too. Every ``joint_states`` message is one tick, in stamp order, fed
-to a fresh :class:`~ifc_spg.spg_runner.SpgRunner` exactly as the live node or the offline
+to a fresh :class:`~ifc_spg.node.core.SpgRunner` exactly as the live node or the offline
 runner did; each task stack on ``spg/task_stack`` is handed to it before the tick at which
 the recorded run activated it (``stack.since`` in ``spg/status``; without it, the first
 status showing the stack's id; without statuses, the message's log time). The recorded
@@ -58,7 +58,7 @@ class ReplayResult:
         stacks: Task stacks handed to the SPG.
         config: The SPG configuration used (dict).
         robot_params: The robot parameters used (dict of
-            :func:`~ifc_spg.spg_runner.robot_params`: K, D, limits).
+            :func:`~ifc_spg.node.core.robot_params`: K, D, limits).
         gains_recorded: True when K, D came from the bag, False for the defaults.
         warnings: What the replay could not take from the bag (messages).
         skipped: Recorded joint states before the first recorded SPG state (a bag recorded
@@ -85,10 +85,11 @@ class ReplayResult:
 
 
 def read_spg_config(bag, statuses, robot=None, configs=()):
-    """The :class:`~ifc_spg.spg_config.SpgConfig` a bag was recorded with (``configs``: the
-    recorded ``spg/config`` documents)."""
-    from ifc_spg.runner import CONFIG_KEY
-    from ifc_spg.spg_config import SpgConfig
+    """The :class:`~ifc_spg.node.config.SpgConfig` a bag was recorded with (``configs``: the
+    recorded ``spg/config`` documents).
+    """
+    from ifc_spg.node.config import SpgConfig
+    from ifc_spg.offline.runner import CONFIG_KEY
 
     doc = None
     if CONFIG_KEY in bag.custom_data:
@@ -113,7 +114,7 @@ def read_spg_config(bag, statuses, robot=None, configs=()):
 
 def read_robot_params(bag, statuses, configs=()):
     """The robot-parameter record of a bag (dict), or None for bags without one."""
-    from ifc_spg.runner import ROBOT_PARAMS_KEY
+    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
 
     if ROBOT_PARAMS_KEY in bag.custom_data:
         try:
@@ -136,7 +137,7 @@ def replay_robot(config, doc, where='bag'):
     """The robot to replay with: ``config.robot`` with the recorded K, D of ``doc``.
 
     Args:
-        config: The :class:`~ifc_spg.spg_config.SpgConfig` to replay with.
+        config: The :class:`~ifc_spg.node.config.SpgConfig` to replay with.
         doc: The bag's robot-parameter record (:func:`read_robot_params`), or None.
         where: Name of the bag for messages.
 
@@ -147,7 +148,7 @@ def replay_robot(config, doc, where='bag'):
         ParameterError: A record whose K or D is not a valid per-joint vector.
     """
     from ifc_spg.model import RobotModel
-    from ifc_spg.runner import ROBOT_PARAMS_KEY, robot_with_gains
+    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
 
     robot = RobotModel.from_config(config.robot)
     if doc is None:
@@ -175,7 +176,7 @@ def replay_robot(config, doc, where='bag'):
             raise ParameterError(f"{where}: custom_data '{ROBOT_PARAMS_KEY}' field '{key}' "
                                  f"must list {robot.n} values (one per joint of "
                                  f"'{robot.name}'), got {value!r}")
-    robot = robot_with_gains(robot, stiffness=doc['stiffness'], damping=doc['damping'],
+    robot = robot.with_gains(stiffness=doc['stiffness'], damping=doc['damping'],
                              where=f"{where}: custom_data '{ROBOT_PARAMS_KEY}' field ")
     for key in _CHECKED:
         value = doc.get(key)
@@ -248,7 +249,8 @@ def _resume_point(snapshots, state_stamps):
 
 def _config_at(configs, stamp_s):
     """The ``spg/config`` document in force after the tick at ``stamp_s`` [s]: the one whose
-    stack's latest activation is the newest not after it (None: no document)."""
+    stack's latest activation is the newest not after it (None: no document).
+    """
     best, best_t = None, None
     for _, doc in configs:
         stack = doc.get('stack')
@@ -267,8 +269,8 @@ def replay(path, robot=None):
     joint states before that point (``skipped``) and after the last recorded command
     (``unanswered``: the recorder stopped first) are the recording's edges, not failures.
     """
-    from ifc_spg.bag import BagReader, stamp_ns
-    from ifc_spg.spg_runner import SpgRunner, parse_task_stack, robot_params
+    from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params
+    from ifc_spg.offline.bag import BagReader, stamp_ns
 
     with BagReader(path) as bag:
         topics = {t.lstrip('/'): t for t in bag.topics}

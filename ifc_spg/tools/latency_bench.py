@@ -2,7 +2,7 @@
 free scene) and ``spg_node`` as separate processes over loopback DDS, for each pairing of the
 two ROS backends (rclpy on Fast DDS, the built-in Cyclone DDS backend) in one invocation.
 
-    python -m ifc_spg.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...] [--json]
+    python -m ifc_spg.tools.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...] [--json]
 
 The latency of a tick is measured by the bridge on its own clock: from publishing a state to
 receiving the command answering it (same header stamp) — the bridge's publish, the SPG's tick
@@ -41,7 +41,8 @@ def _stamp(msg):
 
 class _Listener:
     """The stamps of the states and commands seen on one backend, in this process (its own
-    context, so that both backends can listen in one invocation)."""
+    context, so that both backends can listen in one invocation).
+    """
 
     def __init__(self, backend):
         self.states, self.commands = set(), set()
@@ -95,8 +96,8 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
             backend of this process (``ifc_spg.ros.BACKEND``).
     """
     from ifc_spg import ros
+    from ifc_spg.offline.runner import find_config_dir
     from ifc_spg.ros.testing import loopback_env, random_domain_id, stop_process
-    from ifc_spg.runner import find_config_dir
 
     bridge_backend = bridge_backend or ros.BACKEND
     spg_backend = spg_backend or ros.BACKEND
@@ -195,8 +196,8 @@ def _pairs(text, have_rclpy):
 
 
 def main(argv=None):
-    """``python -m ifc_spg.latency_bench``; exit 1 if a pairing measured nothing."""
-    parser = argparse.ArgumentParser(prog='python -m ifc_spg.latency_bench',
+    """``python -m ifc_spg.tools.latency_bench``; exit 1 if a pairing measured nothing."""
+    parser = argparse.ArgumentParser(prog='python -m ifc_spg.tools.latency_bench',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('--seconds', type=float, default=60.0, help='realtime run [s]')
     parser.add_argument('--pairs', default='all',

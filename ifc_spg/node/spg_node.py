@@ -16,7 +16,7 @@ tick: tick, stamp, measured q, q_v, qdot_v, tank energies; layout in ``spg/confi
 which ``ifc-spg replay`` recomputes q_v of a bag recorded mid-run. Without joint states for
 ``watchdog.timeout`` seconds the node stops commanding and reports it; when states return
 with stamps that jumped (or restarted) it restarts from the measured q (see
-:mod:`ifc_spg.spg_runner`).
+:mod:`ifc_spg.node.core`).
 
 Parameters (``ros2 param describe`` shows ranges and units): robot, dt, solver, rho,
 torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget,
@@ -36,7 +36,7 @@ diagnostics.period, watchdog.timeout, enable and command.hold_when_disabled chan
 next tick; every other parameter is refused with the reason in the SetParametersResult
 (restart the node to change it).
 
-The logic lives in :class:`ifc_spg.spg_runner.SpgRunner` (no ROS); this module only wires
+The logic lives in :class:`ifc_spg.node.core.SpgRunner` (no ROS); this module only wires
 it to topics and timers.
 """
 
@@ -49,8 +49,8 @@ import time
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.spg_config import declare_parameters
-from ifc_spg.spg_runner import SpgRunner, status_json
+from ifc_spg.node.config import declare_parameters
+from ifc_spg.node.core import SpgRunner, status_json
 
 __all__ = ['SpgNode', 'main']
 
@@ -101,7 +101,7 @@ def _command_order(config, joint_names):
 
 
 class SpgNode:
-    """Wires an :class:`~ifc_spg.spg_runner.SpgRunner` to a node of the active ROS backend.
+    """Wires an :class:`~ifc_spg.node.core.SpgRunner` to a node of the active ROS backend.
 
     Args:
         node: ``ifc_spg.ros.Node`` (rclpy or the built-in backend).
@@ -176,11 +176,12 @@ class SpgNode:
     def on_set_parameters(self, parameters):
         """A parameter change at run time (``ros2 param set``, SetParameters): the
         :data:`LIVE_PARAMETERS` apply from the next tick; the others are refused with the
-        reason (they shape the solver, the model or the topics: restart the node)."""
+        reason (they shape the solver, the model or the topics: restart the node).
+        """
         from dataclasses import replace
 
         from ifc_spg import ros
-        from ifc_spg.spg_config import PARAMETERS
+        from ifc_spg.node.config import PARAMETERS
 
         fields = {p.name: p.field for p in PARAMETERS}
         changes = {}
@@ -266,7 +267,8 @@ class SpgNode:
     def on_timer_tick(self):
         """``tick: timer``: one tick with the latest joint state, stamped with its stamp plus
         its age (task time runs on; q is not extrapolated). A state older than
-        watchdog.timeout stops commanding, as a stopped stream does."""
+        watchdog.timeout stops commanding, as a stopped stream does.
+        """
         if self._latest is None:
             return
         message, arrived = self._latest
@@ -383,7 +385,8 @@ class SpgNode:
     # -- outputs ------------------------------------------------------------------------
     def publish_status(self, event=None):
         """Publish the runner's status JSON on the status topic (with ``tick: timer``, also
-        the joint states' age at the ticks: ``state_age`` p50/p99/max [s])."""
+        the joint states' age at the ticks: ``state_age`` p50/p99/max [s]).
+        """
         status = self.runner.status(event)
         if self._ages:
             ages = np.sort(np.array(self._ages))
@@ -393,7 +396,7 @@ class SpgNode:
         self.pub_status.publish(self._msg.String(data=status_json(status)))
 
     def publish_config(self):
-        """Publish the runner's :meth:`~ifc_spg.spg_runner.SpgRunner.config_doc` (latched)."""
+        """Publish the runner's :meth:`~ifc_spg.node.core.SpgRunner.config_doc` (latched)."""
         self._config_version = self.runner.config_version
         self.pub_config.publish(self._msg.String(data=status_json(self.runner.config_doc())))
 

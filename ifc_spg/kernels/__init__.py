@@ -1,4 +1,4 @@
-"""The compiled kernels of the 2 ms path (``ifc_spg._native``, built from ``_native.c`` at
+"""The compiled kernels of the 2 ms path (``ifc_spg.kernels._native``, built from ``_native.c`` at
 install time), or None where they were not built.
 
 Each kernel replaces a handful of numpy calls on a few joints or task rows; the numpy code
@@ -16,7 +16,7 @@ def _load():
     if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
         return None
     try:
-        from ifc_spg import _native
+        from ifc_spg.kernels import _native
     except ImportError:
         return None
     return _native
@@ -31,4 +31,4 @@ def describe():
         return 'native (C kernels)'
     if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
         return 'numpy (IFC_SPG_NATIVE=0)'
-    return 'numpy (ifc_spg._native was not built: reinstall with a C compiler)'
+    return 'numpy (ifc_spg.kernels._native was not built: reinstall with a C compiler)'

@@ -31,7 +31,7 @@ _ROBOTS = ('lbr4', 'lbr_iiwa14', 'icub_upper_body', 'accrea_dual_arm')
 
 @dataclass(frozen=True)
 class SpgConfig:
-    """Validated settings of the SPG node (and of :class:`~ifc_spg.spg_runner.SpgRunner`).
+    """Validated settings of the SPG node (and of :class:`~ifc_spg.node.core.SpgRunner`).
 
     Attributes:
         robot: Named robot configuration (``RobotModel.from_config``).
@@ -344,7 +344,8 @@ def declare_parameters(node):
 def robot_gains_of(robot):
     """``{'stiffness': K, 'damping': D}`` of the named robot configuration, as lists of
     floats: the declared defaults of the gain parameters, so that ``ros2 param get`` shows
-    what the node computes with (spg_node, sim_bridge)."""
+    what the node computes with (spg_node, sim_bridge).
+    """
     from ifc_spg.model import RobotModel
 
     SpgConfig(robot=robot)  # an unknown robot: the error names the choices
@@ -362,7 +363,7 @@ def config_file(robot):
     """
     import sys
 
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     candidates = [os.path.join(here, 'config', f'{robot}.yaml'),
                   os.path.join(sys.prefix, 'share', 'ifc_spg', 'config', f'{robot}.yaml')]
     for path in candidates:

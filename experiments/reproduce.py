@@ -1,9 +1,9 @@
-"""Reproduce the thesis experiments in simulation: ``python -m ifc_spg.reproduce``.
+"""Reproduce the thesis experiments in simulation: ``python -m experiments.reproduce``.
 
-    python -m ifc_spg.reproduce [--quick] [-o DIR] [--only NAME ...] [--list]
+    python -m experiments.reproduce [--quick] [-o DIR] [--only NAME ...] [--list]
 
 Each experiment runs one or more scenarios of ``config/scenarios/thesis_*.yaml`` with the
-offline lockstep runner (:func:`ifc_spg.runner.run_scenario`; bags and ``metrics.json`` in
+offline lockstep runner (:func:`ifc_spg.offline.runner.run_scenario`; bags and ``metrics.json`` in
 ``DIR/runs/<run>/``), evaluates the thesis claim as a pass/fail check with the numbers it
 rests on, draws a figure in the style of the thesis figure (``DIR/figures/<name>.png``) and
 writes ``DIR/REPORT.md`` (a table: experiment, thesis claim, our numbers, verdict) and
@@ -13,7 +13,7 @@ checks are the same, with thresholds stated in each check's text.
 Sweeps (Figs. 3.14/3.15) are built from ``thesis_3_2_surface_tracking.yaml`` by scenario
 overrides: the joint stiffness K (``sim: {stiffness, damping}``; D scaled with sqrt(K) for a
 constant damping ratio) and the circle frequency (an inline copy of the Table 3.2 stack).
-Table 5.1 reuses :mod:`ifc_spg.constrained.evaluate`.
+Table 5.1 reuses :mod:`ifc_spg.offline.constrained_evaluate`.
 
 The exit status is 0 when every check ran (whether it passed or not) and 2 on an error;
 ``--strict`` makes a failed check exit 1.
@@ -46,7 +46,7 @@ class RunSpec:
     Attributes:
         label: Run name (directory under ``runs/``).
         scenario: Scenario file name in ``config/scenarios``.
-        overrides: Scenario keys replaced (see :func:`ifc_spg.runner.load_scenario`).
+        overrides: Scenario keys replaced (see :func:`ifc_spg.offline.runner.load_scenario`).
         duration: Full-run duration [s] (None: the scenario's).
         quick: Duration of the ``--quick`` run [s].
     """
@@ -86,7 +86,7 @@ class Run:
     """A finished run: its metrics, bag series and per-task time series."""
 
     def __init__(self, spec, result):
-        from ifc_spg.plot import _task_series, load_series
+        from ifc_spg.tools.plot import _task_series, load_series
 
         self.spec = spec
         self.metrics = result.metrics
@@ -100,7 +100,8 @@ class Run:
     def task(self, name, since=None):
         """Task series (t, value, physical, lower, upper) of ``name``; with ``since`` [s]
         only the statuses from then on (a task of the same name in an earlier stack may
-        have another dimension)."""
+        have another dimension).
+        """
         if name not in self.tasks:
             raise IfcSpgError(f"run '{self.spec.label}': no task '{name}' in the status "
                               f"(tasks: {', '.join(self.tasks)})")
@@ -108,7 +109,7 @@ class Run:
             return self.tasks[name]
         key = (name, since)
         if key not in self._since:
-            from ifc_spg.plot import BagSeries, _task_series
+            from ifc_spg.tools.plot import BagSeries, _task_series
 
             sub = BagSeries()
             keep = [i for i, t in enumerate(self.s.t_status) if t >= since - 1e-9]
@@ -170,7 +171,7 @@ def _smooth(x, n):
 
 
 def _band_err(d, comps=None):
-    from ifc_spg.runner import band_error
+    from ifc_spg.offline.runner import band_error
 
     sl = slice(None) if comps is None else list(comps)
     ev = band_error(d['value'], d['lower'], d['upper'])[:, sl]
@@ -221,7 +222,7 @@ def _surface_stack(frequency):
     """The Table 3.2 stack with another circle frequency (speed sweep)."""
     import yaml
 
-    from ifc_spg.runner import find_config_dir
+    from ifc_spg.offline.runner import find_config_dir
 
     doc = yaml.safe_load((find_config_dir() / 'tasks' /
                           'table_3_2_surface_tracking.yaml').read_text(encoding='utf8'))
@@ -235,7 +236,7 @@ def _surface_stack(frequency):
 def _surface_overrides(stiffness=None, frequency=None):
     import yaml
 
-    from ifc_spg.runner import find_config_dir
+    from ifc_spg.offline.runner import find_config_dir
 
     over = {}
     if stiffness is not None:
@@ -471,7 +472,8 @@ def _push_windows(run):
 def _check_cup(runs, quick, chain, task, wrist=None, settle=0.5):
     """Cup holding: moved by the pushes, virtual orientation held, physical orientation back
     within 3 deg ``settle`` [s] after each push (and, with ``wrist``, the stiff wrist joints
-    at q_bar = q0: q tracks q_v within 1e-3 rad and q_v stays within 0.5 deg of q_bar)."""
+    at q_bar = q0: q tracks q_v within 1e-3 rad and q_v stays within 0.5 deg of q_bar).
+    """
     r = runs['cup']
     pos, rot = r.tool_positions(chain)
     ang = np.rad2deg(_rot_angle(rot[0], rot))
@@ -546,7 +548,8 @@ def _check_3_7(runs, quick):
     """Table 3.7: contact kept (smoothed f_z below -1 N) >= 90 % of the time after t0 = 1 s,
     f_z RMS error < 3.5 N from -7 N, right-hand (cup) orientation within 3 deg and position
     within 20 mm; the full run must also wipe (left hand y range >= 4 cm of the 8 cm steps).
-    The torso yaw excursion and the virtual wipe error are reported, not checked."""
+    The torso yaw excursion and the virtual wipe error are reported, not checked.
+    """
     r = runs['wipe_cup']
     t0 = 1.0
     f = r.contact_force()[:, 2][r.after(t0, r.s.t_cw)]
@@ -609,7 +612,8 @@ _T41_BAND = _T_CIRCLE + 1.0  # the approach leaves ~6 Nm; the 1b band is reached
 
 def _static_wrench(run, chain='tool'):
     """h_s = J^{+T} K (q_v - q) [N, Nm] per joint-state sample (least squares of
-    J^T h = tau_s at the measured q, base frame), independent of the SPG's task code."""
+    J^T h = tau_s at the measured q, base frame), independent of the SPG's task code.
+    """
     import pinocchio as pin
 
     from ifc_spg.model import RobotModel
@@ -1016,11 +1020,12 @@ EXPERIMENTS = (
 
 
 def _table_5_1(out_dir, quick):
-    """Table 5.1 via :func:`ifc_spg.constrained.evaluate.comparison`: the thesis' nine runs
+    """Table 5.1 via :func:`ifc_spg.offline.constrained_evaluate.comparison`: the thesis' nine runs
     per strategy (K x kappa grid, 0.29 m lift), overall RMS |f_perp| (measured force);
     ``quick``: one (K, kappa) pair. Also the SMA estimator from a 45 deg error (K = 40 row,
-    reported, not part of the pass)."""
-    from ifc_spg.constrained.evaluate import KAPPAS, QUICK_COMPARISON, comparison
+    reported, not part of the pass).
+    """
+    from ifc_spg.offline.constrained_evaluate import KAPPAS, QUICK_COMPARISON, comparison
 
     res = comparison(**(QUICK_COMPARISON if quick else {}))
     if not quick:
@@ -1083,7 +1088,7 @@ def run_experiment(exp, out_dir, quick=False, figures=True, cache=None):
         cache: Dict of finished runs by (scenario, overrides, duration) shared between
             experiments (the sweeps share the base scenario).
     """
-    from ifc_spg.runner import load_scenario, run_scenario
+    from ifc_spg.offline.runner import load_scenario, run_scenario
 
     out_dir = Path(out_dir)
     wall0 = time.perf_counter()
@@ -1118,7 +1123,7 @@ def run_experiment(exp, out_dir, quick=False, figures=True, cache=None):
 
 
 def _scenario_path(name):
-    from ifc_spg.runner import find_config_dir
+    from ifc_spg.offline.runner import find_config_dir
 
     return find_config_dir() / 'scenarios' / name
 
@@ -1165,7 +1170,7 @@ def write_report(rows, path, quick=False, figure_prefix='', notes=None, preamble
     """
     notes = notes or {}
     lines = ['# Reproduction of the thesis experiments (simulation)', '',
-             f'Generated by `python -m ifc_spg.reproduce{" --quick" if quick else ""}` '
+             f'Generated by `python -m experiments.reproduce{" --quick" if quick else ""}` '
              f'({time.strftime("%Y-%m-%d")}).', ''] + ([preamble, ''] if preamble else []) + [
              '| experiment | thesis claim | our numbers | verdict |', '|---|---|---|---|']
     for r in rows:
@@ -1183,10 +1188,10 @@ def write_report(rows, path, quick=False, figure_prefix='', notes=None, preamble
             cmds = ' '.join(f'`ifc-spg run config/scenarios/{s} -o out/{Path(s).stem}`'
                             for s in r['scenarios'])
             lines += [f'Scenarios: {cmds}; all runs and the check: '
-                      f"`python -m ifc_spg.reproduce --only {r['name']}`.", '']
+                      f"`python -m experiments.reproduce --only {r['name']}`.", '']
         else:
-            lines += [f"Command: `python -m ifc_spg.reproduce --only {r['name']}` "
-                      '(uses `python -m ifc_spg.constrained.evaluate --only comparison`).', '']
+            lines += [f"Command: `python -m experiments.reproduce --only {r['name']}` "
+                      '(uses `python -m ifc_spg.offline.constrained_evaluate --only comparison`).', '']
         if r['figure']:
             lines += [f"![{r['name']}]({figure_prefix}{r['figure']})", '']
     Path(path).write_text('\n'.join(lines) + '\n', encoding='utf8')
@@ -1194,7 +1199,7 @@ def write_report(rows, path, quick=False, figure_prefix='', notes=None, preamble
 
 def main(argv=None):
     """Command line entry (see the module docstring)."""
-    ap = argparse.ArgumentParser(prog='python -m ifc_spg.reproduce',
+    ap = argparse.ArgumentParser(prog='python -m experiments.reproduce',
                                  description=__doc__.splitlines()[0])
     ap.add_argument('-o', '--output', default='out/reproduce', help='output directory')
     ap.add_argument('--quick', action='store_true', help='short runs (what the tests run)')

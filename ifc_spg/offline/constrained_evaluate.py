@@ -1,4 +1,4 @@
-"""Scenario evaluation of constrained manipulation: ``python -m ifc_spg.constrained.evaluate``.
+"""Scenario evaluation of constrained manipulation: ``python -m ifc_spg.offline.constrained_evaluate``.
 
 Runs the strategies in the lockstep simulator and prints a JSON report:
 
@@ -11,13 +11,13 @@ Runs the strategies in the lockstep simulator and prints a JSON report:
 - ``accrea``: the Cartesian-admittance strategy (5.3) on the ACCREA emulation (position
   based Cartesian admittance, wrist F/T) on the same three mechanisms, from a 45 deg
   initial error, each from its start pose of
-  :func:`~ifc_spg.constrained.runner.initial_pose_deg`; success needs |f| <= 40 N.
+  :func:`~ifc_spg.offline.constrained.initial_pose_deg`; success needs |f| <= 40 N.
 
 Examples::
 
-    python -m ifc_spg.constrained.evaluate --only comparison
-    python -m ifc_spg.constrained.evaluate --only accrea
-    python -m ifc_spg.constrained.evaluate --quick      # shorter runs (CI smoke)
+    python -m ifc_spg.offline.constrained_evaluate --only comparison
+    python -m ifc_spg.offline.constrained_evaluate --only accrea
+    python -m ifc_spg.offline.constrained_evaluate --quick      # shorter runs (CI smoke)
 """
 
 import argparse
@@ -26,8 +26,8 @@ import math
 import sys
 
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
-from ifc_spg.constrained.runner import Scenario, run
 from ifc_spg.errors import ParameterError, did_you_mean
+from ifc_spg.offline.constrained import Scenario, run
 
 __all__ = ['ACCREA_SCENES', 'KAPPAS', 'QUICK_COMPARISON', 'STIFFNESSES', 'THESIS_5_5_3',
            'accrea', 'comparison', 'main', 'mechanisms', 'reduction']

@@ -12,7 +12,7 @@
    largest difference of KDL's q̈ from ours (same chain given to both).
 
 Run: ``ifc-spg dynamics bench [--quick] [--json FILE]`` or
-``python -m ifc_spg.dynamics.bench``.
+``python -m ifc_spg.tools.dynamics_bench``.
 """
 
 import argparse

@@ -3,7 +3,7 @@
     ifc-spg run config/scenarios/demo_lbr.yaml -o out/demo [--duration S] [--quiet]
 
 Each SPG tick: the simulation's state becomes the ``joint_states`` message (stamp = sim
-time), the SPG (:class:`~ifc_spg.spg_runner.SpgRunner`, the live node's logic) answers with
+time), the SPG (:class:`~ifc_spg.node.core.SpgRunner`, the live node's logic) answers with
 ``command/joint_position`` (same stamp), the simulation holds that q_v for one command
 period. The bag in ``DIR/bag`` has the topics a live run records, with the same types,
 QoS and header stamps (log time = sim time): ``joint_states``, ``command/joint_position``,
@@ -12,7 +12,7 @@ with wrist sensors), ``sim/env_joint_states`` (scenes with mechanisms) and
 ``sim/apply_wrench`` (the scenario's pushes). Everything that sets the SPG's output besides
 the recorded joint states and task stacks is stored in the bag, each as JSON in the
 metadata's ``custom_data`` (``metadata.yaml``) and in the first ``spg/status`` message: the
-SPG configuration (``ifc_spg.spg_config`` / ``config``: dt, solver, rho, torque_limits, PSPM,
+SPG configuration (``ifc_spg.node.config`` / ``config``: dt, solver, rho, torque_limits, PSPM,
 watchdog) and the robot parameters the SPG ran with (``ifc_spg.robot_params`` /
 ``robot_params``: K and D after the scenario's ``sim: {stiffness, damping}``, and the limits),
 so ``ifc-spg replay`` recomputes every command. ``DIR/metrics.json`` holds the metrics.
@@ -77,11 +77,10 @@ __all__ = [
     'find_config_dir',
     'load_scenario',
     'main',
-    'robot_with_gains',
     'run_scenario',
 ]
 
-CONFIG_KEY = 'ifc_spg.spg_config'
+CONFIG_KEY = 'ifc_spg.node.config'
 ROBOT_PARAMS_KEY = 'ifc_spg.robot_params'
 SCENARIO_KEY = 'ifc_spg.scenario'
 STACK_SINCE_KEY = 'since'
@@ -97,7 +96,7 @@ _SIM_KEYS = ('joint_damping', 'frictionloss', 'armature', 'contact_chain', 'stif
 
 def find_config_dir():
     """The ``config/`` directory: the source tree's, else the installed share dir."""
-    here = Path(__file__).resolve().parent.parent / 'config'
+    here = Path(__file__).resolve().parents[2] / 'config'
     if here.is_dir():
         return here
     return Path(sys.prefix) / 'share' / 'ifc_spg' / 'config'
@@ -160,7 +159,7 @@ def _number(value, what, where, low=None, positive=False):
 
 
 def _stack_text(entry, i, base, where):
-    from ifc_spg.spg_runner import parse_task_stack
+    from ifc_spg.node.core import parse_task_stack
 
     item = f'{where}: stacks[{i}]'
     if not isinstance(entry, dict):
@@ -225,7 +224,7 @@ def params_file_values(path):
 
 
 def _spg_config(spec, robot, dt, where):
-    from ifc_spg.spg_config import PARAMETERS, config_from_parameters
+    from ifc_spg.node.config import PARAMETERS, config_from_parameters
 
     spec = dict(spec or {})
     fields = {p.field: p.name for p in PARAMETERS}
@@ -431,9 +430,9 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
         quiet: No progress lines.
         stream: Where progress goes (default stdout).
     """
-    from ifc_spg.bag import TOPICS, BagWriter
+    from ifc_spg.node.core import SpgRunner, robot_params, status_json
+    from ifc_spg.offline.bag import TOPICS, BagWriter
     from ifc_spg.ros import messages as m
-    from ifc_spg.spg_runner import SpgRunner, robot_params, status_json
     from sim_bridge.simulation import SimConfig, Simulation
 
     if not isinstance(scenario, Scenario):
@@ -619,34 +618,13 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
 
 def _robot_with_ifc(scenario):
     """The scenario's robot; ``sim: {stiffness, damping}`` override its IFC gains K [Nm/rad]
-    and D [Nms/rad] (scalar or per joint) for the simulated controller AND the SPG."""
+    and D [Nms/rad] (scalar or per joint) for the simulated controller AND the SPG.
+    """
     from ifc_spg.model import RobotModel
 
-    return robot_with_gains(RobotModel.from_config(scenario.robot),
-                            stiffness=scenario.sim.get('stiffness'),
-                            damping=scenario.sim.get('damping'),
-                            where=f"scenario '{scenario.path}': sim.")
-
-
-def robot_with_gains(robot, stiffness=None, damping=None, where=''):
-    """A copy of ``robot`` with other IFC gains (the model itself is shared, not modified).
-
-    Args:
-        robot: The :class:`~ifc_spg.model.RobotModel`.
-        stiffness: Joint stiffness K in [Nm/rad], scalar or per joint (None: keep).
-        damping: Joint damping D in [Nms/rad], scalar or per joint (None: keep).
-        where: Prefix of error messages naming the source (e.g. ``"scenario 'x': sim."``).
-
-    Returns:
-        ``robot`` itself when neither is given, else a shallow copy with read-only arrays.
-
-    Raises:
-        ParameterError: A value that is not a finite number (K > 0, D >= 0), or a wrong count.
-    """
-    import copy
-
-    if stiffness is None and damping is None:
-        return robot
+    return RobotModel.from_config(scenario.robot).with_gains(
+        stiffness=scenario.sim.get('stiffness'), damping=scenario.sim.get('damping'),
+        where=f"scenario '{scenario.path}': sim.")
     robot = copy.copy(robot)
     for key, raw in (('stiffness', stiffness), ('damping', damping)):
         if raw is None:
@@ -740,7 +718,8 @@ def _report(sc, duration, wall, n_ticks, missed, warnings, last_tasks, m_force, 
 
 class _StopRequest:
     """SIGINT/SIGTERM set :attr:`requested` (the signal's name) instead of killing the run,
-    so that an interrupted run still closes its bag and writes its metrics."""
+    so that an interrupted run still closes its bag and writes its metrics.
+    """
 
     def __init__(self):
         self.requested = None

@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg import native
+from ifc_spg import kernels as native
 from ifc_spg.errors import SolverError, did_you_mean
 
 __all__ = ['CascadeResult', 'CascadeSolver', 'DaqpCascade', 'ProxsuiteCascade', 'SOLVERS',
@@ -170,7 +170,8 @@ class DaqpCascade(CascadeSolver):
         """Build, before a stack is active, the workspace and the DAQP model of each level a
         stack with these level sizes and kinds will solve (normal-form models of equality
         levels, warm-started slack models of inequality levels), so that its first tick does
-        no setup (issue: a first or stack-switch tick of 1-1.8 ms against a 0.1 ms median)."""
+        no setup (issue: a first or stack-switch tick of 1-1.8 ms against a 0.1 ms median).
+        """
         R = int(sum(dims))
         if not R:
             return
@@ -319,7 +320,8 @@ class DaqpCascade(CascadeSolver):
 
     def _solve_slack_level(self, ws, i, start, end):
         """Inequality level ``start:end`` as (4.45)-(4.48) over [qdot_v; s], with this level
-        index's persistent DAQP model (warm started); return ``(x, exitflag)``."""
+        index's persistent DAQP model (warm started); return ``(x, exitflag)``.
+        """
         n = self.n
         if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
             return self._solve_with_slacks(ws, start, end)  # equal rows: flagged, cold
@@ -363,7 +365,8 @@ class DaqpCascade(CascadeSolver):
 
 class _Workspace:
     """Preallocated rows and bounds of a cascade with R task rows over n joints, and one
-    DAQP model per level index that points at them (so updates only say what changed)."""
+    DAQP model per level index that points at them (so updates only say what changed).
+    """
 
     def __init__(self, n, R, rho, settings):
         self.n = n
@@ -386,7 +389,8 @@ class _Workspace:
         """``(C, bu, bl, cold sense, model)`` of inequality level index i (rows
         ``start:end``): over w = [qdot_v; s], C = [[A_higher, 0], [A_i, -I]], bounds [box;
         free; rows]; the model points at C, bu and bl and keeps its working set from tick to
-        tick."""
+        tick.
+        """
         key = ('slack', i, start, end)
         hit = self._levels.get(key)
         if hit is None:
@@ -426,7 +430,8 @@ def _slack_model(n, start, end, rho, settings):
 def _daqp_model(H, f, A, bu, bl, settings):
     """A DAQP model pointing at these arrays (no copies: later in-place changes plus an
     ``update`` naming them are seen), with its own all-inequality sense flags and
-    ``settings`` applied over DAQP's defaults."""
+    ``settings`` applied over DAQP's defaults.
+    """
     import daqp
     model = daqp.Model()
     model.setup(H, f, A, bu, bl, np.zeros(bu.shape[0], dtype=np.int32))
@@ -438,7 +443,8 @@ def _daqp_model(H, f, A, bu, bl, settings):
 
 def _stack_rows(levels, ms, ws, lock_tolerance):
     """Stack the levels' rows and bounds into the workspace, with each row's norm, unit row
-    and lock band (``_native.stack_rows`` in numpy)."""
+    and lock band (``_native.stack_rows`` in numpy).
+    """
     A_all, norm = ws.A, ws.norm
     row = 0
     for lev, m in zip(levels, ms):
@@ -459,7 +465,8 @@ def _stack_rows(levels, ms, ws, lock_tolerance):
 
 def _lock_if_satisfied(ws, qdot, start, end):
     """If ``qdot`` satisfies the rows ``start:end``, lock them at their own bounds and return
-    True (``_native.lock_if_satisfied`` in numpy)."""
+    True (``_native.lock_if_satisfied`` in numpy).
+    """
     sl = slice(start, end)
     a = ws.A[sl] @ qdot
     if not _satisfied(a, ws.orig_lo[sl], ws.orig_hi[sl]):
@@ -475,7 +482,8 @@ def _lock_if_satisfied(ws, qdot, start, end):
 def _accept(ws, x, start, end):
     """Take the solution ``x`` of the level of rows ``start:end``, clipped into the box
     (DAQP meets constraints to its 1e-6 tolerance); return ``(qdot_v, A_i qdot_v)``, the
-    latter in unit-row coordinates."""
+    latter in unit-row coordinates.
+    """
     n = x.shape[0]
     qdot = np.minimum(np.maximum(x, ws.bl[:n]), ws.bu[:n])
     return qdot, ws.A_unit[start:end] @ qdot
@@ -485,7 +493,8 @@ def _widen(ws, qdot, start):
     """Widen the locked bands of rows ``:start`` to contain ``qdot`` (the higher levels'
     solution, inside the box): the locked set then surely contains a point, and a level
     that DAQP called infeasible can be retried. Bands are 1e-9 wide and DAQP's tolerance is
-    1e-6, so a solution may lie just outside them."""
+    1e-6, so a solution may lie just outside them.
+    """
     if qdot is None or not start:
         return
     a = ws.A_unit[:start] @ qdot
@@ -494,7 +503,6 @@ def _widen(ws, qdot, start):
 
 
 def _satisfied(a, lo, hi):
-
     """True if lo <= a <= hi everywhere."""
     return np.maximum(lo - a, a - hi).max() <= 0.0
 

@@ -51,7 +51,7 @@ class BagSeries:
 
 def load_series(path):
     """Read a bag into a :class:`BagSeries`."""
-    from ifc_spg.bag import BagReader, stamp_ns
+    from ifc_spg.offline.bag import BagReader, stamp_ns
 
     s = BagSeries()
     with BagReader(path) as bag:

@@ -73,9 +73,9 @@ class _Series:
 
 
 def _read_bag(path):
-    from ifc_spg.bag import BagReader, stamp_ns
-    from ifc_spg.replay import read_robot_params, read_spg_config
-    from ifc_spg.runner import SCENARIO_KEY
+    from ifc_spg.offline.bag import BagReader, stamp_ns
+    from ifc_spg.offline.replay import read_robot_params, read_spg_config
+    from ifc_spg.offline.runner import SCENARIO_KEY
 
     states, commands, wrenches, env, configs = [], [], [], [], []
     with BagReader(path) as bag:
@@ -128,7 +128,8 @@ def _robot_bodies(model, qpos_adr):
 
 def ffmpeg_exe():
     """The ffmpeg executable MP4 is written with (imageio-ffmpeg's, else the PATH's), or
-    None."""
+    None.
+    """
     try:
         import imageio_ffmpeg
 
@@ -221,7 +222,7 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
     if not states:
         raise ParameterError(f"bag '{bag}' has no joint states to render")
     scenario = scenario or {}
-    from ifc_spg.replay import replay_robot
+    from ifc_spg.offline.replay import replay_robot
 
     robot, _, _ = replay_robot(config, params, where=f"bag '{bag}'")
     sim = Simulation(SimConfig(

@@ -1,9 +1,9 @@
 """Soak benchmark: a long lockstep run that must stay safe, lean and steady.
 
-    python -m ifc_spg.soak [--hours 1] [--minutes M] [--quick] [--robot lbr_iiwa14] [--json F]
+    python -m ifc_spg.tools.soak [--hours 1] [--minutes M] [--quick] [--robot lbr_iiwa14] [--json F]
 
 The MuJoCo simulation (:class:`sim_bridge.simulation.Simulation`, free scene, 1 kHz
-physics) and the SPG node's logic (:class:`~ifc_spg.spg_runner.SpgRunner`) run in lockstep
+physics) and the SPG node's logic (:class:`~ifc_spg.node.core.SpgRunner`) run in lockstep
 in one process, one SPG tick per 2 ms of simulated time, no DDS. Every ``--period``
 seconds (default 10) of simulated time the next task stack of a fixed cycle is sent
 (joint targets, a Cartesian circle, a sine, a Cartesian hold with joint torque and posture
@@ -74,7 +74,7 @@ class CommandChecker:
         """Check one command; return the list of violations (empty: fine).
 
         Args:
-            cmd: :class:`~ifc_spg.spg_runner.Command` (or anything with ``tick``,
+            cmd: :class:`~ifc_spg.node.core.Command` (or anything with ``tick``,
                 ``position``, ``velocity``, ``resumed``).
             q: The measured joint positions the command answers [rad] (needed after a
                 restart, where the previous q_v is the clipped measurement).
@@ -236,8 +236,8 @@ def run_soak(seconds, robot='lbr_iiwa14', period=10.0, progress=None, stacks=STA
         progress: Print a progress line to this stream every 10 % (None: quiet).
         stacks: Task-stack texts, sent in turn.
     """
-    from ifc_spg.spg_config import SpgConfig
-    from ifc_spg.spg_runner import SpgRunner
+    from ifc_spg.node.config import SpgConfig
+    from ifc_spg.node.core import SpgRunner
     from sim_bridge.simulation import SimConfig, Simulation
 
     sim = Simulation(SimConfig(robot=robot, scene='free'))
@@ -322,8 +322,8 @@ def run_soak(seconds, robot='lbr_iiwa14', period=10.0, progress=None, stacks=STA
 
 
 def main(argv=None):
-    """Command line entry (``python -m ifc_spg.soak``); returns the exit code."""
-    p = argparse.ArgumentParser(prog='python -m ifc_spg.soak', description=__doc__.split(
+    """Command line entry (``python -m ifc_spg.tools.soak``); returns the exit code."""
+    p = argparse.ArgumentParser(prog='python -m ifc_spg.tools.soak', description=__doc__.split(
         '\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('--hours', type=float, default=1.0, help='simulated hours (default 1)')
     p.add_argument('--minutes', type=float, default=None, help='simulated minutes (overrides '

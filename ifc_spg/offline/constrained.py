@@ -50,14 +50,8 @@ def robot_with_stiffness(robot, stiffness=None):
     if stiffness is None:
         return robot
     k_new = np.broadcast_to(np.asarray(stiffness, dtype=float), (robot.n,))
-    scale = np.sqrt(k_new / robot.stiffness)
-    return RobotModel(
-        robot.model, name=robot.name, frames=robot.frames, stiffness=k_new,
-        damping=robot.damping * scale, q_min=robot.q_min, q_max=robot.q_max,
-        v_max=robot.v_max, a_max=robot.a_max, tau_max=robot.tau_max,
-        stiff_joints=[j for j, s in zip(robot.joint_names, robot.stiff_mask) if s],
-        q_home=robot.q_home, ifc=robot.ifc, admittance=robot.admittance,
-        model_file=robot.model_file, spec_builder=robot._spec_builder)
+    return robot.with_gains(stiffness=k_new,
+                            damping=robot.damping * np.sqrt(k_new / robot.stiffness))
 
 
 class TaskSpecificationStrategy:

@@ -12,15 +12,15 @@ __all__ = ['main', 'VERBS']
 
 # verb -> (module, one-line help)
 VERBS = {
-    'demo': ('ifc_spg.demo', 'run the simulated LBR demo (bridge + SPG, lockstep)'),
-    'run': ('ifc_spg.runner', 'offline lockstep run of a scenario file'),
+    'demo': ('ifc_spg.tools.demo', 'run the simulated LBR demo (bridge + SPG, lockstep)'),
+    'run': ('ifc_spg.offline.runner', 'offline lockstep run of a scenario file'),
     'check': ('ifc_spg.task_stack.check', 'validate task-stack files'),
-    'bag': ('ifc_spg.bag', 'rosbag2 MCAP record | play | info'),
-    'replay': ('ifc_spg.replay', 'recompute the SPG output from a bag'),
-    'plot': ('ifc_spg.plot', 'figures from a bag'),
-    'render': ('ifc_spg.render', 'video of a bag: the robot in its MuJoCo scene'),
-    'bench': ('ifc_spg.bench', 'benchmark the SPG tick per solver'),
-    'dynamics': ('ifc_spg.dynamics.cli', 'Popov-Vereshchagin solver scenarios'),
+    'bag': ('ifc_spg.offline.bag', 'rosbag2 MCAP record | play | info'),
+    'replay': ('ifc_spg.offline.replay', 'recompute the SPG output from a bag'),
+    'plot': ('ifc_spg.tools.plot', 'figures from a bag'),
+    'render': ('ifc_spg.tools.render', 'video of a bag: the robot in its MuJoCo scene'),
+    'bench': ('ifc_spg.tools.bench', 'benchmark the SPG tick per solver'),
+    'dynamics': ('ifc_spg.tools.dynamics_cli', 'Popov-Vereshchagin solver scenarios'),
     'ros': ('ifc_spg.ros.tools', 'ROS 2 layer tools: talker, listener, topic echo'),
 }
 

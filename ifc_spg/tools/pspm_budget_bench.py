@@ -1,9 +1,9 @@
 """Every shipped task stack, as shipped, in lockstep: does it run without a PSPM stall?
 
-    python -m ifc_spg.pspm_budget_bench [--minutes 10] [--only NAME ...] [--jobs 2] [-o DIR]
+    python -m ifc_spg.tools.pspm_budget_bench [--minutes 10] [--only NAME ...] [--jobs 2] [-o DIR]
 
 Issue 18's benchmark. For each stack in ``config/tasks/`` the bench runs one lockstep
-scenario (:func:`ifc_spg.runner.run_scenario`): the robot the stack names, with the SPG
+scenario (:func:`ifc_spg.offline.runner.run_scenario`): the robot the stack names, with the SPG
 parameters of the shipped ``config/<robot>.yaml`` (PSPM on, its ``pspm.max_power``
 ceiling) and nothing else; the stack alone from t = 0, as ``task_publisher`` sends it; the
 scene, its options and the start pose of the thesis scenario that runs the stack
@@ -30,7 +30,7 @@ import time
 import numpy as np
 import yaml
 
-from ifc_spg.runner import find_config_dir, run_scenario, scenario_from_dict
+from ifc_spg.offline.runner import find_config_dir, run_scenario, scenario_from_dict
 
 __all__ = ['shipped_scenario', 'surface_tracking_figures', 'run_stack', 'main']
 
@@ -117,7 +117,7 @@ def surface_tracking_figures(bag, robot, *, period, start=0.0, settle=SURFACE_SE
     """
     import pinocchio as pin
 
-    from ifc_spg.bag import BagReader
+    from ifc_spg.offline.bag import BagReader
 
     fid = robot.frame_id(frame)
     data = robot.create_data()
@@ -147,7 +147,8 @@ def run_stack(stack_file, seconds, out_dir=None, power=None):
     """Run one shipped stack; return its row (dict). The bag is deleted unless ``out_dir``.
 
     ``net_j_per_min`` is the energy the SPG spent from the tanks beyond what the IFC damper
-    returned, per minute: initial tank energy + refill - final tank energy."""
+    returned, per minute: initial tank energy + refill - final tank energy.
+    """
     from ifc_spg.model import RobotModel
 
     data = shipped_scenario(stack_file, seconds, power=power)
@@ -203,7 +204,7 @@ def _row_text(r):
 
 def main(argv=None):
     """Run the benchmark; exit code 1 if an unexpected stack stalled."""
-    parser = argparse.ArgumentParser(prog='python -m ifc_spg.pspm_budget_bench',
+    parser = argparse.ArgumentParser(prog='python -m ifc_spg.tools.pspm_budget_bench',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('--minutes', type=float, default=10.0, help='simulated minutes')
     parser.add_argument('--only', nargs='*', default=None, help='stack names (file stems)')

@@ -10,7 +10,7 @@ joint-impedance plant (the plant is not timed). Stacks:
 - ``icub_table_3_7``: iCub upper body, the 7-level stack of Table 3.7 (wiping with the
   left hand while the right hand holds a cup);
 - ``native_ratio``: the LBR and iCub stacks with the C kernels of the tick
-  (``ifc_spg._native``) and with their numpy reference code, two closed loops in one
+  (``ifc_spg.kernels._native``) and with their numpy reference code, two closed loops in one
   process, interleaved tick by tick;
 - ``pink_ratio``: a 2-level strict stack (pose, posture) on the iiwa, next to pink's
   weighted solve of the same two tasks (``pink.solve_ik`` with DAQP), same process,
@@ -120,8 +120,9 @@ def calibrate_baseline(seconds):
 
 def _closed_loop(spg, robot, ticks, progress, budget=None, baseline=None):
     """Run ``ticks`` closed-loop ticks (fewer if ``budget`` seconds run out first); with a
-    ``baseline`` count, time ``_busy(baseline)`` after each tick too (see module doc)."""
-    from ifc_spg.testing import JointImpedancePlant
+    ``baseline`` count, time ``_busy(baseline)`` after each tick too (see module doc).
+    """
+    from ifc_spg.offline.plants import JointImpedancePlant
     plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
     q, qd, t = plant.q, plant.qdot, 0.0
     times = np.empty(ticks)
@@ -159,7 +160,8 @@ def _stats(times):
 def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_ticks=None,
                 slow_budget=None):
     """Tick times of one stack per solver; solvers other than DAQP run ``slow_ticks`` ticks
-    at most, within ``slow_budget`` seconds (proxsuite can stall for seconds per tick)."""
+    at most, within ``slow_budget`` seconds (proxsuite can stall for seconds per tick).
+    """
     from ifc_spg.spg import SetPointGenerator
     rows = []
     for solver in solvers:
@@ -187,9 +189,9 @@ def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_tic
 
 def bench_native_ratio(name, robot, make_stack, ticks):
     """The tick with the C kernels vs their numpy code: two closed loops, interleaved."""
-    from ifc_spg import native
+    from ifc_spg import kernels as native
+    from ifc_spg.offline.plants import JointImpedancePlant
     from ifc_spg.spg import SetPointGenerator
-    from ifc_spg.testing import JointImpedancePlant
     if native.module is None:
         return None
     module = native.module
@@ -301,7 +303,7 @@ def bench_first_ticks(repeats=20):
     steady-tick statistics [us] over the repeats, and the max of everything.
     """
     from ifc_spg import RobotModel, SetPointGenerator, TaskStack
-    from ifc_spg.runner import find_config_dir
+    from ifc_spg.offline.runner import find_config_dir
 
     robot = RobotModel.from_config('lbr_iiwa14')
     tasks = find_config_dir() / 'tasks'
@@ -335,7 +337,8 @@ def bench_first_ticks(repeats=20):
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
-    from ifc_spg import RobotModel, native
+    from ifc_spg import RobotModel
+    from ifc_spg import kernels as native
     out = {'ticks': ticks, 'stacks': [], 'implementation': native.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
     icub = RobotModel.from_config('icub_upper_body')
@@ -385,7 +388,7 @@ def format_report(res):
                          f"{b['p99_us']:.0f} us, max {b['max_us']:.0f} us, {b['over_1ms']} "
                          f"over 1 ms")
     if res.get('native'):
-        lines += ['', 'C kernels vs their numpy reference code (ifc_spg.native), two closed loops '
+        lines += ['', 'C kernels vs their numpy reference code (ifc_spg.kernels), two closed loops '
                   'interleaved:']
         for r in res['native']:
             a, b = r['native'], r['numpy']

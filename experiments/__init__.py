@@ -1,0 +1,1 @@
+"""The thesis reproduction harness (outside the wheel)."""

@@ -1,0 +1,1 @@
+"""Strict-priority cascades of QPs: one interface, three solvers."""

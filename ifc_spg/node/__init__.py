@@ -1,0 +1,1 @@
+"""The SPG node: its configuration, its ROS-free core, and the ROS shells."""

@@ -1,0 +1,1 @@
+"""Offline work without DDS: lockstep scenario runs, replay, bags."""

@@ -1,0 +1,1 @@
+"""Command-line tools: ``ifc-spg`` and its verbs, benchmarks, demo."""

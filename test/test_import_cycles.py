@@ -1,0 +1,93 @@
+"""The package's import graph has no cycle: a concept depends on the ones below it only.
+
+Every ``import`` of an ``ifc_spg`` module counts, at module level or inside a function (a
+deferred import hides a cycle from the interpreter, not from a reader).
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ('ifc_spg', 'sim_bridge')
+
+
+def _module_name(path):
+    parts = list(path.relative_to(ROOT).with_suffix('').parts)
+    if parts[-1] == '__init__':
+        parts.pop()
+    return '.'.join(parts)
+
+
+def import_graph():
+    """{module: set of ifc_spg/sim_bridge modules it imports} from the source files."""
+    files = {_module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob('*.py')}
+    graph = {}
+    for name, path in files.items():
+        deps = set()
+        is_pkg = path.name == '__init__.py'
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ''
+                if node.level:
+                    pkg = name if is_pkg else name.rpartition('.')[0]
+                    for _ in range(node.level - 1):
+                        pkg = pkg.rpartition('.')[0]
+                    base = f'{pkg}.{base}' if base else pkg
+                targets = [base] + [f'{base}.{a.name}' for a in node.names]
+            else:
+                continue
+            for t in targets:
+                # the module itself, else its nearest package in the tree
+                while t and t not in files:
+                    t = t.rpartition('.')[0]
+                if t and t != name and not name.startswith(t + '.'):
+                    deps.add(t)
+        graph[name] = deps
+    return graph
+
+
+def find_cycle(graph):
+    """One cycle as a list of modules, or None (iterative DFS with colours)."""
+    colour = dict.fromkeys(graph, 0)
+    for root in sorted(graph):
+        if colour[root]:
+            continue
+        stack = [(root, iter(sorted(graph[root])))]
+        path = [root]
+        colour[root] = 1
+        while stack:
+            node, it = stack[-1]
+            nxt = next(it, None)
+            if nxt is None:
+                colour[node] = 2
+                stack.pop()
+                path.pop()
+            elif colour.get(nxt) == 1:
+                return path[path.index(nxt):] + [nxt]
+            elif colour.get(nxt) == 0:
+                colour[nxt] = 1
+                stack.append((nxt, iter(sorted(graph[nxt]))))
+                path.append(nxt)
+    return None
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    assert find_cycle({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': set()}) == ['a', 'b', 'c', 'a']
+    assert find_cycle({'a': {'b'}, 'b': set()}) is None
+
+
+def test_the_graph_sees_deferred_and_from_imports():
+    graph = import_graph()
+    assert 'ifc_spg.spg' in graph['ifc_spg']          # from ifc_spg.spg import ...
+    assert len(graph) > 60
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_no_import_cycle(package):
+    graph = import_graph()
+    cycle = find_cycle(graph)
+    assert cycle is None, 'import cycle: ' + ' -> '.join(cycle)
