@@ -213,6 +213,13 @@ class SetPointGenerator:
             self.set_stack(stack)
 
     # -- stack management -----------------------------------------------------------
+    @property
+    def pending_stack(self):
+        """The stack given to :meth:`set_stack` that the next tick will take over (it
+        becomes :attr:`stack` at that tick boundary), or None when no swap is pending.
+        """
+        return None if self._pending is None else self._pending[0]
+
     def set_stack(self, stack):
         """Replace the running stack at the next tick (hot swap, no jump in q_v).
 

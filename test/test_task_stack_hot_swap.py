@@ -152,3 +152,14 @@ def test_init_is_captured_at_activation():
     lower, _ = spg.tasks[0].bounds_at(0.0)
     np.testing.assert_allclose(lower, q_v_at_swap)
     assert spg.info.task_time == 0.0
+
+
+def test_pending_stack_is_the_stack_until_the_next_tick():
+    robot = RobotModel.from_config('lbr_iiwa14')
+    stack = TaskStack.from_yaml(CIRCLE)
+    spg = SetPointGenerator(robot, dt=DT)
+    assert spg.pending_stack is None
+    spg.set_stack(stack)
+    assert spg.pending_stack is stack and spg.stack is None
+    spg.step(np.zeros(robot.n), np.zeros(robot.n), 0.0)
+    assert spg.pending_stack is None and spg.stack is stack
