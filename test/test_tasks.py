@@ -287,3 +287,22 @@ def test_minimal_rotation_takes_u_onto_v_by_the_least_angle():
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
         angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
         np.testing.assert_allclose(angle, np.arccos(np.clip(u @ v, -1, 1)), atol=1e-7)
+
+
+def test_deactivate_recaptures_init_targets_at_the_next_level():
+    robot = ROBOTS['lbr_iiwa14']
+    rng = np.random.default_rng(8)
+    q0, qdot, q_v0 = random_state(robot, rng)
+    q1, _, q_v1 = random_state(robot, rng)
+    task = JointPositionTask(robot, equal='init', gain=2.0)
+    task.level(kin_at(robot, q0, qdot, q_v0), 0.0)
+    assert task.active
+    np.testing.assert_allclose(task.bounds_at(0.0)[0], q_v0)
+    held = task.level(kin_at(robot, q1, qdot, q_v1), 0.0)  # still pulled back to q_v0
+    np.testing.assert_allclose(held.lower, 2.0 * (q_v0 - q_v1), atol=1e-12)
+    task.deactivate()
+    assert not task.active
+    fresh = task.level(kin_at(robot, q1, qdot, q_v1), 0.0)  # target captured anew at q_v1
+    assert task.active
+    np.testing.assert_allclose(task.bounds_at(0.0)[0], q_v1)
+    np.testing.assert_allclose(fresh.lower, 0.0, atol=1e-12)

@@ -146,6 +146,16 @@ class Task:
         if self.equality:
             self._active_upper = self._active_lower
 
+    def deactivate(self):
+        """Forget the captured ``init`` bounds, so the next :meth:`level` re-activates.
+
+        A stack that starts again (a new task stack, or one resumed after a hold) calls
+        this, so its ``init`` targets are captured anew from the configuration at that
+        moment instead of where the task was first started.
+        """
+        self._active_lower = None
+        self._active_upper = None
+
     def level(self, kin, t):
         """Build this task's :class:`Level` at task time ``t`` in [s]."""
         if not self.active:
