@@ -61,12 +61,23 @@ import json
 import math
 import os
 from pathlib import Path
+import signal
 import sys
+import threading
 import time
 
 import numpy as np
+import yaml
 
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+from ifc_spg.kinematics import Kinematics
+from ifc_spg.model import RobotModel
+from ifc_spg.node.config import PARAMETERS, config_from_parameters
+from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params, status_json
+from ifc_spg.offline.bag import TOPICS, BagWriter
+from ifc_spg.offline.metrics import MetricsRecorder, band_error
+from ifc_spg.ros import messages as m
+from ifc_spg.tasks.subspace import subspace_in_base
 
 __all__ = [
     'CONFIG_KEY',
@@ -74,9 +85,11 @@ __all__ = [
     'STACK_SINCE_KEY',
     'RunResult',
     'Scenario',
+    'band_error',
     'find_config_dir',
     'load_scenario',
     'main',
+    'robot_with_ifc',
     'run_scenario',
 ]
 
@@ -159,8 +172,6 @@ def _number(value, what, where, low=None, positive=False):
 
 
 def _stack_text(entry, i, base, where):
-    from ifc_spg.node.core import parse_task_stack
-
     item = f'{where}: stacks[{i}]'
     if not isinstance(entry, dict):
         raise ParameterError(f'{item}: expected a mapping {{at: SECONDS, file: PATH}} or '
@@ -190,15 +201,18 @@ def _stack_text(entry, i, base, where):
 
 
 def params_file_values(path):
-    """``{ROS parameter name: value}`` of a ``spg_node`` params file (``config/<robot>.yaml``:
-    ``/**: ros__parameters:`` with nested groups), without robot, dt and watchdog.timeout
-    (a scenario sets those; offline there is no wall-clock watchdog).
+    """``{ROS parameter name: value}`` of a ``spg_node`` params file.
+
+    The file is ``config/<robot>.yaml``: ``/**: ros__parameters:`` with nested groups. The
+    result has no robot, dt and watchdog.timeout (a scenario sets those; offline there is no
+    wall-clock watchdog).
+
+    Args:
+        path: The params file (relative ones are also looked for in ``config/``).
 
     Raises:
         ParameterError: The file is missing or not a params file.
     """
-    import yaml
-
     path = Path(path)
     if not path.is_absolute() and not path.is_file():
         path = find_config_dir() / path
@@ -224,8 +238,6 @@ def params_file_values(path):
 
 
 def _spg_config(spec, robot, dt, where):
-    from ifc_spg.node.config import PARAMETERS, config_from_parameters
-
     spec = dict(spec or {})
     fields = {p.field: p.name for p in PARAMETERS}
     values = {'robot': robot, 'dt': dt}
@@ -274,8 +286,6 @@ def load_scenario(path, overrides=None):
         ParameterError: A bad key or value (naming the file, the key and the fix);
             ``TaskStackError`` for a bad stack.
     """
-    import yaml
-
     path = Path(path)
     if not path.is_file():
         alt = find_config_dir() / 'scenarios' / path.name
@@ -294,10 +304,42 @@ def load_scenario(path, overrides=None):
     return scenario_from_dict(data, where=str(path), base=path.parent)
 
 
+def _q0(data, robot, where):
+    """The initial configuration [rad] of ``q0`` or ``q0_deg`` (None: the robot's home)."""
+    if 'q0' in data and 'q0_deg' in data:
+        raise _err(where, "give 'q0' [rad] or 'q0_deg' [deg], not both")
+    if data.get('q0') is None and data.get('q0_deg') is None:
+        return None
+    raw = data.get('q0') if data.get('q0') is not None else data['q0_deg']
+    q0 = np.asarray(raw, dtype=float).reshape(-1)
+    if 'q0_deg' in data:
+        q0 = np.deg2rad(q0)
+    if q0.shape != (robot.n,):
+        raise _err(where, f'q0 needs {robot.n} values ({", ".join(robot.joint_names)}), '
+                   f'got {q0.size}')
+    return tuple(float(x) for x in q0)
+
+
+def _push(p, item):
+    """One validated ``pushes`` entry; ``item`` names it in errors."""
+    if not isinstance(p, dict) or 'wrench' not in p:
+        raise ParameterError(f'{item}: expected {{at, target, wrench: [fx, fy, fz, tx, ty, '
+                             f'tz], duration}}, got {p!r}')
+    bad = [k for k in p if k not in ('at', 'target', 'wrench', 'duration')]
+    if bad:
+        raise ParameterError(f"{item}: unknown key '{bad[0]}'; keys: at, target, wrench, "
+                             'duration')
+    w = np.asarray(p['wrench'], dtype=float).reshape(-1)
+    if w.shape != (6,) or not np.all(np.isfinite(w)):
+        raise ParameterError(f'{item}: wrench needs 6 finite numbers [N, Nm], got '
+                             f"{p['wrench']!r}")
+    return Push(_number(p.get('at', 0.0), 'at', item, low=0.0), str(p.get('target', '')),
+                tuple(w.tolist()), _number(p.get('duration', 0.5), 'duration', item,
+                                           positive=True))
+
+
 def scenario_from_dict(data, where='scenario', base=Path('.')):
     """Validate a scenario mapping (the parsed file); see :func:`load_scenario`."""
-    from ifc_spg.model import RobotModel
-
     unknown = [k for k in data if k not in _SCENARIO_KEYS]
     if unknown:
         raise _err(where, f"unknown key '{unknown[0]}'{did_you_mean(unknown[0], _SCENARIO_KEYS)}"
@@ -307,40 +349,13 @@ def scenario_from_dict(data, where='scenario', base=Path('.')):
     dt = _number(data.get('dt', 0.002), 'dt', where, positive=True)
     timestep = _number(data.get('timestep', 0.001), 'timestep', where, positive=True)
     duration = _number(data.get('duration', 5.0), 'duration', where, positive=True)
-    if 'q0' in data and 'q0_deg' in data:
-        raise _err(where, "give 'q0' [rad] or 'q0_deg' [deg], not both")
-    q0 = None
-    if data.get('q0') is not None or data.get('q0_deg') is not None:
-        raw = data.get('q0') if data.get('q0') is not None else data['q0_deg']
-        q0 = np.asarray(raw, dtype=float).reshape(-1)
-        if 'q0_deg' in data:
-            q0 = np.deg2rad(q0)
-        if q0.shape != (robot.n,):
-            raise _err(where, f'q0 needs {robot.n} values ({", ".join(robot.joint_names)}), '
-                       f'got {q0.size}')
-        q0 = tuple(float(x) for x in q0)
+    q0 = _q0(data, robot, where)
     stacks = data.get('stacks') or []
     if not isinstance(stacks, list):
         raise _err(where, "'stacks' must be a list of {at, file|stack} entries")
     entries = tuple(sorted((_stack_text(e, i, base, where) for i, e in enumerate(stacks)),
                            key=lambda e: e.at))
-    pushes = []
-    for i, p in enumerate(data.get('pushes') or []):
-        item = f'{where}: pushes[{i}]'
-        if not isinstance(p, dict) or 'wrench' not in p:
-            raise ParameterError(f'{item}: expected {{at, target, wrench: [fx, fy, fz, tx, ty, '
-                                 f'tz], duration}}, got {p!r}')
-        bad = [k for k in p if k not in ('at', 'target', 'wrench', 'duration')]
-        if bad:
-            raise ParameterError(f"{item}: unknown key '{bad[0]}'; keys: at, target, wrench, "
-                                 'duration')
-        w = np.asarray(p['wrench'], dtype=float).reshape(-1)
-        if w.shape != (6,) or not np.all(np.isfinite(w)):
-            raise ParameterError(f'{item}: wrench needs 6 finite numbers [N, Nm], got '
-                                 f"{p['wrench']!r}")
-        pushes.append(Push(_number(p.get('at', 0.0), 'at', item, low=0.0),
-                           str(p.get('target', '')), tuple(w.tolist()),
-                           _number(p.get('duration', 0.5), 'duration', item, positive=True)))
+    pushes = [_push(p, f'{where}: pushes[{i}]') for i, p in enumerate(data.get('pushes') or [])]
     sim = dict(data.get('sim') or {})
     bad = [k for k in sim if k not in _SIM_KEYS]
     if bad:
@@ -372,15 +387,11 @@ class _TaskProbe:
     """Task values at the virtual and the measured configuration, for status and metrics."""
 
     def __init__(self, robot):
-        from ifc_spg.kinematics import Kinematics
-
         self.robot = robot
         self.kin_v = Kinematics(robot)
         self.kin_m = Kinematics(robot)
 
     def evaluate(self, tasks, q, qdot, q_v, task_time, contact_wrench, contact_chain):
-        from ifc_spg.tasks.subspace import subspace_in_base
-
         self.kin_v.update(q, qdot, q_v)
         self.kin_m.update(q, qdot, q)
         out = []
@@ -403,13 +414,6 @@ class _TaskProbe:
         return out
 
 
-def band_error(value, lower, upper):
-    """Distance of ``value`` to the band [lower, upper] per component (0 inside)."""
-    v, lo, hi = (np.asarray(x, dtype=float) for x in (value, lower, upper))
-    with np.errstate(invalid='ignore'):
-        return np.where(v < lo, lo - v, np.where(v > hi, v - hi, 0.0))
-
-
 @dataclasses.dataclass
 class RunResult:
     """What :func:`run_scenario` produced: paths and the metrics dict."""
@@ -430,224 +434,228 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
         quiet: No progress lines.
         stream: Where progress goes (default stdout).
     """
-    from ifc_spg.node.core import SpgRunner, robot_params, status_json
-    from ifc_spg.offline.bag import TOPICS, BagWriter
-    from ifc_spg.ros import messages as m
-    from sim_bridge.simulation import SimConfig, Simulation
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    stream = stream or sys.stdout
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     bag_path = out_dir / 'bag'
     if bag_path.exists():
         raise ParameterError(f"'{bag_path}' exists; choose another -o directory or remove it")
     duration = scenario.duration if duration is None else float(duration)
-    config = scenario.spg
-    sim_opts = {k: v for k, v in scenario.sim.items() if k not in ('stiffness', 'damping')}
-    sim = Simulation(SimConfig(robot=_robot_with_ifc(scenario), interface=scenario.interface,
-                               scene=scenario.scene, scene_options=scenario.scene_options,
-                               q0=scenario.q0, timestep=scenario.timestep,
-                               command_period=scenario.dt, **sim_opts))
-    runner = SpgRunner(config, robot=sim.robot)
-    probe = _TaskProbe(sim.robot)
-    robot = sim.robot
-    steps = round(scenario.dt / scenario.timestep)
-    n_ticks = round(duration / scenario.dt)
-    contact_chain = sim.contact_chain
-    writer = BagWriter(bag_path)
-    config_doc = dataclasses.asdict(config)
-    robot_doc = robot_params(runner.robot)
-    writer.set_custom_data(CONFIG_KEY, json.dumps(config_doc, sort_keys=True))
-    writer.set_custom_data(ROBOT_PARAMS_KEY, json.dumps(robot_doc))
-    writer.set_custom_data(SCENARIO_KEY, json.dumps({
-        'name': scenario.name, 'path': scenario.path, 'scene': scenario.scene,
-        'interface': sim.interface, 'duration': duration,
-        # ifc-spg render rebuilds the scene: it is anchored at the tool pose of q0
-        'scene_options': scenario.scene_options or {}, 'q0': [float(x) for x in sim.q0]}))
-    topics = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
-              'sim/contact_wrench']
-    if sim.read_state().ft_wrench:
-        topics.append('ft_sensor/wrench')
-    if sim.env_joint_names:
-        topics.append('sim/env_joint_states')
-    if scenario.pushes:
-        topics.append('sim/apply_wrench')
-    for topic in topics:
-        writer.add_topic('/' + topic, *TOPICS[topic])
-    writer.write_msg('/spg/status', 0, m.String(data=status_json(
-        {'event': {'type': 'started', 'message': f'offline run of {scenario.name}'},
-         'config': config_doc, 'robot_params': robot_doc, 'robot': robot.name, 'tick': 0})))
-
-    stacks = list(scenario.stacks)
-    pushes = list(scenario.pushes)
-    names = list(sim.joint_names)
-    since = {}
-    m_force, m_tank, m_viol, m_tick, m_forcerr, m_taskerr = [], [], 0, [], [], {}
-    fopt = scenario.metrics.get('force_error_rms')
-    topt = scenario.metrics.get('task_error_rms')
-    axis_idx = None
-    if fopt is not None:
-        axes = ('fx', 'fy', 'fz', 'tx', 'ty', 'tz')
-        axis = fopt.get('axis', 'fz')
-        if axis not in axes:
-            raise ParameterError(f"metric force_error_rms: axis '{axis}' not one of "
-                                 f"{', '.join(axes)}")
-        axis_idx = axes.index(axis)
-    comps = slice(None) if topt is None or topt.get('components') is None else \
-        np.asarray(topt['components'], dtype=int)
-    last_tasks = []
-    progress_every = max(1, int(n_ticks * scenario.progress / 100)) if scenario.progress \
-        and not quiet else 0
+    run = _LockstepRun(scenario, bag_path, duration, quiet, stream or sys.stdout)
     wall0 = time.perf_counter()
-    done = 0
     try:
-        for k in range(n_ticks):
-            if _stop.requested:
-                print(f'[{scenario.name}] stopped by {_stop.requested} after {k} ticks; '
-                      'closing the bag and writing the metrics', file=stream, flush=True)
-                break
-            s = sim.read_state()
-            sec, nsec = _stamp(s.t)
-            t_ns = sec * 1_000_000_000 + nsec
-            stamp = m.Time(sec=sec, nanosec=nsec)
-            while stacks and stacks[0].at <= s.t + 1e-9:
-                entry = stacks.pop(0)
-                writer.write_msg('/spg/task_stack', t_ns, m.String(data=entry.text))
-                event = runner.handle_task_stack(entry.text, source=entry.source)
-                if not event.accepted:
-                    raise IfcSpgError(event.message)
-            while pushes and pushes[0].at <= s.t + 1e-9:
-                p = pushes.pop(0)
-                target = p.target or contact_chain
-                sim.apply_wrench(target, p.wrench, p.duration)
-                ws = m.WrenchStamped()
-                ws.header.stamp = stamp
-                ws.header.frame_id = f'{target};duration={p.duration:g}'
-                (ws.wrench.force.x, ws.wrench.force.y, ws.wrench.force.z, ws.wrench.torque.x,
-                 ws.wrench.torque.y, ws.wrench.torque.z) = p.wrench
-                writer.write_msg('/sim/apply_wrench', t_ns, ws)
-            js = m.JointState(name=names, position=s.q, velocity=s.qd, effort=s.tau_measured)
-            js.header.stamp = stamp
-            writer.write_msg('/joint_states', t_ns, js)
-            for chain, w in s.ft_external.items():
-                writer.write_msg('/ft_sensor/wrench', t_ns, _wrench(m, stamp, chain, w))
-            writer.write_msg('/sim/contact_wrench', t_ns,
-                             _wrench(m, stamp, contact_chain, s.contact_wrench))
-            if s.env_joint_names:
-                env = m.JointState(name=list(s.env_joint_names), position=s.env_q,
-                                   velocity=s.env_qd)
-                env.header.stamp = stamp
-                writer.write_msg('/sim/env_joint_states', t_ns, env)
-            # the SPG sees exactly what the bag holds
-            stalls = runner.pspm_stalls
-            cmd = runner.handle_joint_state(js.name, js.position, js.velocity, t_ns)
-            if cmd is None:
-                raise IfcSpgError(f'the SPG rejected the joint state at t = {s.t:.3f} s: '
-                                  f'{runner.last_error}')
-            out = m.JointState(name=names, position=cmd.position, velocity=cmd.velocity)
-            out.header.stamp = stamp
-            writer.write_msg('/command/joint_position', t_ns, out)
-            if runner.stack_id and runner.stack_id not in since:
-                since[runner.stack_id] = t_ns * 1e-9
-            info = runner.spg.info
-            task_time = info.task_time if info.task_time is not None else 0.0
-            tasks = probe.evaluate(runner.spg.tasks, np.asarray(js.position),
-                                   np.asarray(js.velocity), cmd.position, task_time,
-                                   s.contact_wrench, contact_chain)
-            last_tasks = tasks
-            event = None
-            if runner.pspm_stalls != stalls:  # once per episode, as spg_node logs it
-                event = ('pspm_stall', runner.last_stall)
-                if not quiet:
-                    print(f'[{scenario.name}] t = {s.t:.3f} s: {runner.last_stall}',
-                          file=stream, flush=True)
-            if event or k % config.status_decimation == 0 or k == n_ticks - 1:
-                doc = runner.status(event)
-                if doc.get('stack'):
-                    doc['stack'][STACK_SINCE_KEY] = since.get(runner.stack_id)
-                doc['tasks'] = tasks
-                writer.write_msg('/spg/status', t_ns, m.String(data=status_json(doc)))
-            # metrics
-            m_force.append(float(np.linalg.norm(s.contact_wrench[:3])))
-            if info.tank_energy is not None:
-                m_tank.append(float(np.min(info.tank_energy)))
-            m_viol += int(np.sum((cmd.position < robot.q_min - 1e-9) |
-                                 (cmd.position > robot.q_max + 1e-9) |
-                                 (np.abs(cmd.velocity) > robot.v_max * (1 + 1e-6) + 1e-12)))
-            m_tick.append(info.tick_time or 0.0)
-            if fopt is not None and s.t >= fopt.get('after', 0.0) - 1e-9:
-                f = -s.contact_wrench[axis_idx]
-                m_forcerr.append(f - float(fopt.get('target', 0.0)))
-            if topt is not None and s.t >= topt.get('after', 0.0) - 1e-9:
-                for task in tasks:
-                    if task['name'] == topt.get('task'):
-                        ev = band_error(task['value'], task['lower'], task['upper'])[comps]
-                        ep = None if task['physical'] is None else band_error(
-                            task['physical'], task['lower'], task['upper'])[comps]
-                        m_taskerr.setdefault('virtual', []).append(float(np.linalg.norm(ev)))
-                        if ep is not None:
-                            m_taskerr.setdefault('physical', []).append(
-                                float(np.linalg.norm(ep)))
-            sim.write_command(cmd.position)
-            sim.step(steps)
-            done = k + 1
-            if progress_every and ((k + 1) % progress_every == 0 or k + 1 == n_ticks):
-                wall = time.perf_counter() - wall0
-                t_sim = (k + 1) * scenario.dt
-                print(f'[{scenario.name}] {100 * (k + 1) / n_ticks:5.1f} %  sim {t_sim:7.3f} s  '
-                      f'wall {wall:6.2f} s  real-time factor {t_sim / max(wall, 1e-9):5.2f}',
-                      file=stream, flush=True)
+        done = run.loop(wall0)
     finally:
-        writer.close()
-        missed = sim.missed_commands
-        warnings = sim.warnings()
-        sim.close()
+        missed, warnings = run.close()
     wall = time.perf_counter() - wall0
-    metrics = _report(scenario, done * scenario.dt, wall, done, missed, warnings, last_tasks,
-                      m_force,
-                      m_tank, m_viol, m_tick, m_forcerr, m_taskerr, runner)
-    if done < n_ticks:
+    metrics = run.metrics.report(done, wall, missed, warnings, run.runner)
+    if done < run.n_ticks:
         metrics['interrupted'] = {'by': _stop.requested, 'ticks_done': done,
-                                  'ticks_planned': n_ticks}
+                                  'ticks_planned': run.n_ticks}
     metrics_path = out_dir / 'metrics.json'
     metrics_path.write_text(json.dumps(metrics, indent=2, allow_nan=False) + '\n')
     return RunResult(out_dir, bag_path, metrics_path, metrics)
 
 
-def _robot_with_ifc(scenario):
-    """The scenario's robot; ``sim: {stiffness, damping}`` override its IFC gains K [Nm/rad]
-    and D [Nms/rad] (scalar or per joint) for the simulated controller AND the SPG.
-    """
-    from ifc_spg.model import RobotModel
+class _LockstepRun:
+    """One offline run: the simulation, the SPG (:class:`SpgRunner`) and the bag, tick by tick.
 
+    Args:
+        scenario: The :class:`Scenario`.
+        bag_path: Bag directory to create.
+        duration: Sim time to run [s].
+        quiet: No progress or stall lines.
+        stream: Where progress goes.
+    """
+
+    def __init__(self, scenario, bag_path, duration, quiet, stream):
+        from sim_bridge.simulation import SimConfig, Simulation  # MuJoCo: only when running
+
+        self.scenario, self.quiet, self.stream = scenario, quiet, stream
+        self.config = scenario.spg
+        sim_opts = {k: v for k, v in scenario.sim.items() if k not in ('stiffness', 'damping')}
+        self.sim = Simulation(SimConfig(
+            robot=robot_with_ifc(scenario), interface=scenario.interface, scene=scenario.scene,
+            scene_options=scenario.scene_options, q0=scenario.q0, timestep=scenario.timestep,
+            command_period=scenario.dt, **sim_opts))
+        self.runner = SpgRunner(self.config, robot=self.sim.robot)
+        self.probe = _TaskProbe(self.sim.robot)
+        self.steps = round(scenario.dt / scenario.timestep)
+        self.n_ticks = round(duration / scenario.dt)
+        self.contact_chain = self.sim.contact_chain
+        self.names = list(self.sim.joint_names)
+        self.stacks, self.pushes = list(scenario.stacks), list(scenario.pushes)
+        self.since = {}
+        self.writer = BagWriter(bag_path)
+        self._write_header(duration)
+        self.metrics = MetricsRecorder(scenario, self.sim.robot)
+        self.progress_every = max(1, int(self.n_ticks * scenario.progress / 100)) \
+            if scenario.progress and not quiet else 0
+
+    def _write_header(self, duration):
+        """Custom data (config, robot parameters, scenario), the topics, the first status."""
+        scenario, sim, writer = self.scenario, self.sim, self.writer
+        config_doc = dataclasses.asdict(self.config)
+        robot_doc = robot_params(self.runner.robot)
+        writer.set_custom_data(CONFIG_KEY, json.dumps(config_doc, sort_keys=True))
+        writer.set_custom_data(ROBOT_PARAMS_KEY, json.dumps(robot_doc))
+        writer.set_custom_data(SCENARIO_KEY, json.dumps({
+            'name': scenario.name, 'path': scenario.path, 'scene': scenario.scene,
+            'interface': sim.interface, 'duration': duration,
+            # ifc-spg render rebuilds the scene: it is anchored at the tool pose of q0
+            'scene_options': scenario.scene_options or {},
+            'q0': [float(x) for x in sim.q0]}))
+        topics = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
+                  'sim/contact_wrench']
+        if sim.read_state().ft_wrench:
+            topics.append('ft_sensor/wrench')
+        if sim.env_joint_names:
+            topics.append('sim/env_joint_states')
+        if scenario.pushes:
+            topics.append('sim/apply_wrench')
+        for topic in topics:
+            writer.add_topic('/' + topic, *TOPICS[topic])
+        writer.write_msg('/spg/status', 0, m.String(data=status_json(
+            {'event': {'type': 'started', 'message': f'offline run of {scenario.name}'},
+             'config': config_doc, 'robot_params': robot_doc, 'robot': sim.robot.name,
+             'tick': 0})))
+
+    def loop(self, wall0):
+        """Run every tick (or until a stop is requested); the number of ticks done."""
+        for k in range(self.n_ticks):
+            if _stop.requested:
+                print(f'[{self.scenario.name}] stopped by {_stop.requested} after {k} ticks; '
+                      'closing the bag and writing the metrics', file=self.stream, flush=True)
+                return k
+            self.tick(k)
+            if self.progress_every and ((k + 1) % self.progress_every == 0 or
+                                        k + 1 == self.n_ticks):
+                self._progress(k + 1, time.perf_counter() - wall0)
+        return self.n_ticks
+
+    def tick(self, k):
+        """Tick ``k``: inputs due, the state into the bag and the SPG, its command out."""
+        s = self.sim.read_state()
+        sec, nsec = _stamp(s.t)
+        t_ns = sec * 1_000_000_000 + nsec
+        stamp = m.Time(sec=sec, nanosec=nsec)
+        self._stacks_due(s.t, t_ns)
+        self._pushes_due(s.t, t_ns, stamp)
+        js = self._write_state(s, t_ns, stamp)
+        # the SPG sees exactly what the bag holds
+        runner = self.runner
+        stalls = runner.pspm_stalls
+        cmd = runner.handle_joint_state(js.name, js.position, js.velocity, t_ns)
+        if cmd is None:
+            raise IfcSpgError(f'the SPG rejected the joint state at t = {s.t:.3f} s: '
+                              f'{runner.last_error}')
+        out = m.JointState(name=self.names, position=cmd.position, velocity=cmd.velocity)
+        out.header.stamp = stamp
+        self.writer.write_msg('/command/joint_position', t_ns, out)
+        if runner.stack_id and runner.stack_id not in self.since:
+            self.since[runner.stack_id] = t_ns * 1e-9
+        info = runner.spg.info
+        task_time = info.task_time if info.task_time is not None else 0.0
+        tasks = self.probe.evaluate(runner.spg.tasks, np.asarray(js.position),
+                                    np.asarray(js.velocity), cmd.position, task_time,
+                                    s.contact_wrench, self.contact_chain)
+        event = None
+        if runner.pspm_stalls != stalls:  # once per episode, as spg_node logs it
+            event = ('pspm_stall', runner.last_stall)
+            if not self.quiet:
+                print(f'[{self.scenario.name}] t = {s.t:.3f} s: {runner.last_stall}',
+                      file=self.stream, flush=True)
+        if event or k % self.config.status_decimation == 0 or k == self.n_ticks - 1:
+            self._write_status(event, tasks, t_ns)
+        self.metrics.on_tick(s.t, s.contact_wrench, cmd, info, tasks)
+        self.sim.write_command(cmd.position)
+        self.sim.step(self.steps)
+
+    def _stacks_due(self, t, t_ns):
+        """Send the task stacks due at sim time ``t`` [s] to the SPG (and the bag)."""
+        while self.stacks and self.stacks[0].at <= t + 1e-9:
+            entry = self.stacks.pop(0)
+            self.writer.write_msg('/spg/task_stack', t_ns, m.String(data=entry.text))
+            event = self.runner.handle_task_stack(entry.text, source=entry.source)
+            if not event.accepted:
+                raise IfcSpgError(event.message)
+
+    def _pushes_due(self, t, t_ns, stamp):
+        """Apply the pushes due at sim time ``t`` [s] (and record them)."""
+        while self.pushes and self.pushes[0].at <= t + 1e-9:
+            p = self.pushes.pop(0)
+            target = p.target or self.contact_chain
+            self.sim.apply_wrench(target, p.wrench, p.duration)
+            ws = m.WrenchStamped()
+            ws.header.stamp = stamp
+            ws.header.frame_id = f'{target};duration={p.duration:g}'
+            (ws.wrench.force.x, ws.wrench.force.y, ws.wrench.force.z, ws.wrench.torque.x,
+             ws.wrench.torque.y, ws.wrench.torque.z) = p.wrench
+            self.writer.write_msg('/sim/apply_wrench', t_ns, ws)
+
+    def _write_state(self, s, t_ns, stamp):
+        """Record the simulation state ``s``; the joint state message the SPG gets."""
+        writer = self.writer
+        js = m.JointState(name=self.names, position=s.q, velocity=s.qd, effort=s.tau_measured)
+        js.header.stamp = stamp
+        writer.write_msg('/joint_states', t_ns, js)
+        for chain, w in s.ft_external.items():
+            writer.write_msg('/ft_sensor/wrench', t_ns, _wrench(stamp, chain, w))
+        writer.write_msg('/sim/contact_wrench', t_ns,
+                         _wrench(stamp, self.contact_chain, s.contact_wrench))
+        if s.env_joint_names:
+            env = m.JointState(name=list(s.env_joint_names), position=s.env_q,
+                               velocity=s.env_qd)
+            env.header.stamp = stamp
+            writer.write_msg('/sim/env_joint_states', t_ns, env)
+        return js
+
+    def _write_status(self, event, tasks, t_ns):
+        doc = self.runner.status(event)
+        if doc.get('stack'):
+            doc['stack'][STACK_SINCE_KEY] = self.since.get(self.runner.stack_id)
+        doc['tasks'] = tasks
+        self.writer.write_msg('/spg/status', t_ns, m.String(data=status_json(doc)))
+
+    def _progress(self, done, wall):
+        t_sim = done * self.scenario.dt
+        print(f'[{self.scenario.name}] {100 * done / self.n_ticks:5.1f} %  sim {t_sim:7.3f} s  '
+              f'wall {wall:6.2f} s  real-time factor {t_sim / max(wall, 1e-9):5.2f}',
+              file=self.stream, flush=True)
+
+    def close(self):
+        """Close the bag and the simulation; ``(missed commands, MuJoCo warnings)``."""
+        try:
+            self.writer.close()
+        finally:
+            missed = self.sim.missed_commands
+            warnings = self.sim.warnings()
+            self.sim.close()
+        return missed, warnings
+
+
+def robot_with_ifc(scenario):
+    """The scenario's robot with its IFC gains: ``sim: {stiffness, damping}``.
+
+    The overrides (K [Nm/rad] and D [Nms/rad], scalar or per joint) hold for the simulated
+    controller AND the SPG.
+
+    Args:
+        scenario: The :class:`Scenario`.
+
+    Raises:
+        ParameterError: A gain that is not a positive number (or one per joint).
+    """
     return RobotModel.from_config(scenario.robot).with_gains(
         stiffness=scenario.sim.get('stiffness'), damping=scenario.sim.get('damping'),
         where=f"scenario '{scenario.path}': sim.")
-    robot = copy.copy(robot)
-    for key, raw in (('stiffness', stiffness), ('damping', damping)):
-        if raw is None:
-            continue
-        try:
-            value = np.asarray(raw, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            value = np.array([np.nan])
-        if value.size == 1:
-            value = np.full(robot.n, value[0])
-        if value.shape != (robot.n,) or not np.all(np.isfinite(value)) or np.any(
-                value < 0) or (key == 'stiffness' and np.any(value <= 0)):
-            raise ParameterError(f'{where}{key} must be '
-                                 f'{"> 0" if key == "stiffness" else ">= 0"} '
-                                 f'(scalar or {robot.n} values for '
-                                 f"{', '.join(robot.joint_names)}), got {raw!r}")
-        value = value.copy()
-        value.setflags(write=False)
-        setattr(robot, key, value)
-    return robot
 
 
-def _wrench(m, stamp, frame, w):
+_robot_with_ifc = robot_with_ifc  # the old name (test/test_reproduce.py)
+
+
+def _wrench(stamp, frame, w):
     msg = m.WrenchStamped()
     msg.header.stamp = stamp
     msg.header.frame_id = frame
@@ -656,77 +664,16 @@ def _wrench(m, stamp, frame, w):
     return msg
 
 
-def _rms(x):
-    return float(np.sqrt(np.mean(np.square(x)))) if len(x) else None
-
-
-def _report(sc, duration, wall, n_ticks, missed, warnings, last_tasks, m_force, m_tank, m_viol,
-            m_tick, m_forcerr, m_taskerr, runner):
-    out = {'scenario': sc.name, 'robot': sc.robot, 'scene': sc.scene, 'duration_s': duration,
-           'ticks': n_ticks, 'wall_time_s': wall,
-           'real_time_factor': duration / wall if wall > 0 else None,
-           'spg_status_counts': None, 'mujoco_warnings': warnings}
-    metrics = sc.metrics
-    if 'final_task_errors' in metrics:
-        out['final_task_errors'] = {
-            t['name']: {'virtual': float(np.linalg.norm(band_error(t['value'], t['lower'],
-                                                                   t['upper']))),
-                        'physical': None if t['physical'] is None else float(np.linalg.norm(
-                            band_error(t['physical'], t['lower'], t['upper'])))}
-            for t in last_tasks}
-    if 'max_contact_force' in metrics:
-        out['max_contact_force_n'] = max(m_force) if m_force else 0.0
-    if 'tank_energy_min' in metrics:
-        out['tank_energy_min_j'] = min(m_tank) if m_tank else None
-    if 'limit_violations' in metrics:
-        out['limit_violations'] = m_viol
-    if 'tick_time' in metrics:
-        tt = np.array(m_tick) * 1e3
-        out['tick_time_ms'] = {'p50': float(np.percentile(tt, 50)),
-                               'p99': float(np.percentile(tt, 99)), 'max': float(tt.max())}
-    if 'missed_ticks' in metrics:
-        out['missed_ticks'] = int(missed)
-    if 'force_error_rms' in metrics:
-        opt = metrics['force_error_rms']
-        out['force_error_rms_n'] = _rms(m_forcerr)
-        window = round(float(opt.get('window', 0.0)) / sc.dt)
-        if window > 1 and len(m_forcerr) >= window:
-            smooth = np.convolve(m_forcerr, np.ones(window) / window, mode='valid')
-            out['force_error_rms_filtered_n'] = _rms(smooth)
-        out['force_error_rms_options'] = opt
-    if 'task_error_rms' in metrics:
-        opt = metrics['task_error_rms']
-        out['task_error_rms'] = {k: _rms(v) for k, v in m_taskerr.items()}
-        out['task_error_rms_options'] = opt
-    tanks = runner.spg.tanks
-    if tanks is not None:
-        # energy the power budget put into the tanks (this session), and the stalls
-        out['pspm'] = {'power_budget_w': tanks.power, 'max_power_w': tanks.config.max_power,
-                       'refilled_j': float(tanks.refilled.sum()),
-                       'refilled_per_minute_j': float(tanks.refilled.sum()) * 60.0 /
-                       duration if duration > 0 else None,
-                       'tank_energy_start_j': float(tanks.config.initial_energy *
-                                                    np.count_nonzero(tanks.mask)),
-                       'tank_energy_end_j': float(tanks.energy.sum()),
-                       'stalls': runner.pspm_stalls,
-                       'stall': runner.spg.info.pspm['stall'],
-                       'last_stall_message': runner.last_stall or None}
-    out['spg'] = {'rejected': dict(runner.rejected), 'errors': list(runner.errors)}
-    del out['spg_status_counts']
-    return out
-
-
 class _StopRequest:
-    """SIGINT/SIGTERM set :attr:`requested` (the signal's name) instead of killing the run,
-    so that an interrupted run still closes its bag and writes its metrics.
+    """SIGINT/SIGTERM set :attr:`requested` (the signal's name) instead of killing the run.
+
+    So an interrupted run still closes its bag and writes its metrics.
     """
 
     def __init__(self):
         self.requested = None
 
     def install(self):
-        import signal
-        import threading
         if threading.current_thread() is not threading.main_thread():
             return {}
 
@@ -736,7 +683,6 @@ class _StopRequest:
 
     @staticmethod
     def restore(old):
-        import signal
         for sig, h in old.items():
             signal.signal(sig, h)
 
