@@ -17,9 +17,11 @@ import array
 from dataclasses import dataclass, fields
 import math
 import os
+import sys
 from typing import NamedTuple
 
 from ifc_spg.errors import ParameterError, did_you_mean
+from ifc_spg.model import RobotModel
 from ifc_spg.pspm import PspmConfig
 
 __all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
@@ -105,28 +107,18 @@ class SpgConfig:
     def __post_init__(self):
         for p in PARAMETERS:
             value = getattr(self, p.field)
-            default = _DEFAULTS[p.field]
-            if isinstance(default, tuple) and isinstance(value, list):  # e.g. from JSON
+            if isinstance(_DEFAULTS[p.field], tuple) and isinstance(value, list):  # from JSON
                 value = tuple(value)
                 object.__setattr__(self, p.field, value)
-            if type(value) is not type(default) and not (
-                    isinstance(default, float) and type(value) is int):
-                raise ParameterError(f"parameter '{p.name}': {value!r} is a "
-                                     f'{type(value).__name__}, expected a '
-                                     f'{type(default).__name__} ({p.description})')
-            if p.field == 'command_joints':
-                if not all(isinstance(v, str) and v for v in value):
-                    raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
-                                         f'joint names ({p.description})')
-                continue
-            if isinstance(default, tuple):
-                if not all(type(v) in (int, float) and math.isfinite(v) for v in value):
-                    raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
-                                         f'finite numbers ({p.description})')
-                continue
-            if p.range is not None and not (p.range[0] <= value <= p.range[1]):
-                raise ParameterError(f"parameter '{p.name}': {value!r} is outside "
-                                     f'[{p.range[0]}, {p.range[1]}] ({p.description})')
+            _check_value(p, value)
+        self._check_choices()
+        self.pspm_config()  # validates the energies (initial <= max)
+        for p in PARAMETERS:
+            if p.field.endswith('_topic') and not getattr(self, p.field):
+                raise ParameterError(f"parameter '{p.name}' must name a topic, got ''")
+
+    def _check_choices(self):
+        """Raise ParameterError for a robot, solver, tick or command interface not known."""
         if self.robot not in _ROBOTS:
             raise ParameterError(f"parameter 'robot': unknown robot '{self.robot}'"
                                  f'{did_you_mean(self.robot, _ROBOTS)}; choose one of '
@@ -142,10 +134,6 @@ class SpgConfig:
                 f"parameter 'command.interface': '{self.command_interface}' is not one of "
                 f"{', '.join(COMMAND_INTERFACES)}"
                 f'{did_you_mean(self.command_interface, COMMAND_INTERFACES)}')
-        self.pspm_config()  # validates the energies (initial <= max)
-        for p in PARAMETERS:
-            if p.field.endswith('_topic') and not getattr(self, p.field):
-                raise ParameterError(f"parameter '{p.name}' must name a topic, got ''")
 
     def pspm_config(self):
         """The :class:`~ifc_spg.pspm.PspmConfig`, or False when PSPM is off."""
@@ -269,17 +257,40 @@ def _descriptor(ros, p, default):
     return desc
 
 
+def _check_value(p, value):
+    """Raise ParameterError unless ``value`` has the type and range of parameter ``p``."""
+    default = _DEFAULTS[p.field]
+    if type(value) is not type(default) and not (
+            isinstance(default, float) and type(value) is int):
+        raise ParameterError(f"parameter '{p.name}': {value!r} is a "
+                             f'{type(value).__name__}, expected a '
+                             f'{type(default).__name__} ({p.description})')
+    if p.field == 'command_joints':
+        if not all(isinstance(v, str) and v for v in value):
+            raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
+                                 f'joint names ({p.description})')
+    elif isinstance(default, tuple):
+        if not all(type(v) in (int, float) and math.isfinite(v) for v in value):
+            raise ParameterError(f"parameter '{p.name}': {value!r} must be a list of "
+                                 f'finite numbers ({p.description})')
+    elif p.range is not None and not (p.range[0] <= value <= p.range[1]):
+        raise ParameterError(f"parameter '{p.name}': {value!r} is outside "
+                             f'[{p.range[0]}, {p.range[1]}] ({p.description})')
+
+
 def overrides(node):
     """``{name: value}`` of the -p / --params-file values given to ``node``.
 
-    rclpy offers no public accessor for a node's parameter overrides, so this reads its
-    ``_parameter_overrides`` (rclpy 7, Jazzy); the built-in backend keeps them in
-    ``_overrides``. Used to refuse parameters nobody declares and to check a value with the
-    same messages on both backends before rclpy sees it.
+    The built-in backend's node offers them as ``parameter_overrides()``. Used to refuse
+    parameters nobody declares and to check a value with the same messages on both backends
+    before rclpy sees it.
+
+    Args:
+        node: An rclpy node or one of the built-in backend.
     """
-    table = getattr(node, '_overrides', None)
-    if table is not None:
-        return dict(table)
+    if hasattr(node, 'parameter_overrides'):
+        return node.parameter_overrides()
+    # rclpy 7 (Jazzy) has no public accessor for a node's overrides (-p, --params-file):
     table = getattr(node, '_parameter_overrides', None) or {}
     out = {}
     for name, param in table.items():
@@ -289,13 +300,22 @@ def overrides(node):
 
 
 def declare_checked(node, name, default, descriptor):
-    """``node.declare_parameter(name, default, descriptor).value``, with an override checked
-    first (type, range: :func:`~ifc_spg.ros.parameters.check_parameter_value`), so that a bad
-    value gives the same clear message on rclpy and on the built-in backend.
+    """``node.declare_parameter(name, default, descriptor).value``, an override checked first.
+
+    The override's type and range are checked with
+    :func:`~ifc_spg.ros.parameters.check_parameter_value`, so that a bad value gives the same
+    clear message on rclpy and on the built-in backend.
+
+    Args:
+        node: The node to declare the parameter on.
+        name: The parameter's name.
+        default: Its default value (also gives its type).
+        descriptor: Its ``ParameterDescriptor`` (description, range).
 
     Raises:
         ParameterError: A bad type or range.
     """
+    # ifc_spg.ros selects the backend (imports rclpy) on import: not for ROS-free users
     from ifc_spg.ros.parameters import ParameterType, check_parameter_value
 
     given = overrides(node)
@@ -320,7 +340,7 @@ def declare_parameters(node):
         ParameterError: Unknown name, wrong type or out of range (backend errors of rclpy
             are re-raised as ParameterError with their message).
     """
-    from ifc_spg import ros
+    from ifc_spg import ros  # imports rclpy: only where a node is given
 
     values = {}
     gains = None
@@ -342,12 +362,14 @@ def declare_parameters(node):
 
 
 def robot_gains_of(robot):
-    """``{'stiffness': K, 'damping': D}`` of the named robot configuration, as lists of
-    floats: the declared defaults of the gain parameters, so that ``ros2 param get`` shows
-    what the node computes with (spg_node, sim_bridge).
-    """
-    from ifc_spg.model import RobotModel
+    """``{'stiffness': K, 'damping': D, 'command_joints': names}`` of a robot configuration.
 
+    Lists of floats (and the joint names): the declared defaults of the gain parameters, so
+    that ``ros2 param get`` shows what the node computes with (spg_node, sim_bridge).
+
+    Args:
+        robot: The robot configuration's name.
+    """
     SpgConfig(robot=robot)  # an unknown robot: the error names the choices
     model = RobotModel.from_config(robot)
     out = {key: [float(v) for v in getattr(model, key)] for key in ('stiffness', 'damping')}
@@ -361,8 +383,6 @@ def config_file(robot):
     Raises:
         ParameterError: No such file (names the places searched).
     """
-    import sys
-
     here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     candidates = [os.path.join(here, 'config', f'{robot}.yaml'),
                   os.path.join(sys.prefix, 'share', 'ifc_spg', 'config', f'{robot}.yaml')]

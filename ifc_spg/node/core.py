@@ -41,10 +41,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg.errors import IfcSpgError, ParameterError
-from ifc_spg.model import RobotModel
+from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+from ifc_spg.model import JOINT_IMPEDANCE, RobotModel
 from ifc_spg.node.config import SpgConfig
-from ifc_spg.spg import SetPointGenerator
+from ifc_spg.spg import Activation, SetPointGenerator, SpgState
+from ifc_spg.task_stack import TaskStack
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
            'parse_task_stack', 'robot_gains', 'robot_params', 'status_json']
@@ -102,19 +103,14 @@ class DiagItem(NamedTuple):
 def parse_task_stack(text, source=None):
     """Parse a task-stack document (YAML or JSON text) with :mod:`ifc_spg.task_stack`.
 
+    Args:
+        text: The document.
+        source: Name for error messages (e.g. the topic or file name).
+
     Raises:
         IfcSpgError: ``TaskStackError`` naming the field path, line and column.
     """
-    from ifc_spg.task_stack import TaskStack
-
-    for name in ('from_text', 'from_yaml'):
-        parse = getattr(TaskStack, name, None)
-        if parse is not None:
-            try:
-                return parse(text, source=source) if source else parse(text)
-            except TypeError:
-                return parse(text)
-    raise IfcSpgError('ifc_spg.task_stack.TaskStack has no from_text/from_yaml parser')
+    return TaskStack.from_text(text, source=source)
 
 
 def _stamp_ns(stamp):
@@ -171,8 +167,6 @@ def robot_gains(robot, config):
         ParameterError: Gains for a Cartesian-admittance robot, a wrong count, K <= 0 or
             D < 0 (the message names the parameter, the joints and the values).
     """
-    from ifc_spg.model import JOINT_IMPEDANCE
-
     if not config.stiffness and not config.damping:
         return robot
     if robot.ifc != JOINT_IMPEDANCE:
@@ -183,6 +177,19 @@ def robot_gains(robot, config):
                             damping=list(config.damping) or None, where='parameter impedance.')
 
 
+def _levels_status(info):
+    """The ``levels`` entry of the status: per level its name, residual and slack."""
+    levels = []
+    for i, name in enumerate(info.level_names or []):
+        residual = info.residuals[i] if i < len(info.residuals or []) else np.zeros(0)
+        slack = info.slacks[i] if i < len(info.slacks or []) else None
+        levels.append({
+            'name': name,
+            'residual': float(np.max(residual)) if np.size(residual) else 0.0,
+            'slack': None if slack is None else [float(x) for x in np.ravel(slack)]})
+    return levels
+
+
 class SpgRunner:
     """The SPG node body: validated ticks, hot-swapped stacks, watchdog, status.
 
@@ -190,7 +197,9 @@ class SpgRunner:
         config: :class:`~ifc_spg.node.config.SpgConfig`.
         robot: The :class:`~ifc_spg.model.RobotModel` (default: ``config.robot``).
         clock: Monotonic clock in [s] for the watchdog (default ``time.monotonic``).
-        parse_stack: ``parse_stack(text) -> stack`` (default :func:`parse_task_stack`).
+        parse_stack: ``parse_stack(text) -> stack``, called as ``parse_stack(text,
+            source=source)`` when :meth:`handle_task_stack` is given a source (default
+            :func:`parse_task_stack`).
     """
 
     def __init__(self, config=None, robot=None, clock=time.monotonic, parse_stack=None):
@@ -242,7 +251,7 @@ class SpgRunner:
             source: Name for error messages (e.g. the topic or file name).
         """
         try:
-            stack = self._parse(text) if source is None else self._parse_with(text, source)
+            stack = self._parse(text) if source is None else self._parse(text, source=source)
             self.spg.set_stack(stack)
         except IfcSpgError as exc:
             message = f'task stack rejected: {exc}'
@@ -263,12 +272,6 @@ class SpgRunner:
                           f"task stack '{self._pending_name}' (id {self._next_id}) accepted"
                           f'{note}; active from the next tick')
 
-    def _parse_with(self, text, source):
-        try:
-            return self._parse(text, source=source)
-        except TypeError:
-            return self._parse(text)
-
     def handle_joint_state(self, names, position, velocity, stamp_ns):
         """One tick for one joint-state message; None when the message is rejected.
 
@@ -279,6 +282,37 @@ class SpgRunner:
                 the positions over the stamps, zero on the first tick).
             stamp_ns: Measurement stamp in [ns] (sets task time and the command stamp).
         """
+        measured = self._measured(names, position, velocity, stamp_ns)
+        if measured is None:
+            return None
+        q, velocity, perm, stamp_ns = measured
+        last = self._last_stamp
+        if last is not None and stamp_ns == last:
+            self._reject('duplicate_stamp', f'stamp {stamp_ns * 1e-9:.9f} s seen before; '
+                         'answering with the last command again')
+            return self._last_command
+        restart = self._needs_restart(stamp_ns)
+        if restart is None:
+            return None
+        qdot = self._joint_velocity(q, velocity, perm, stamp_ns, restart)
+        if qdot is None:
+            return None
+        if restart:
+            self._restart(q)
+        self.stale = False
+        if last is not None and not restart:
+            self._period.append((stamp_ns - last) * 1e-9)
+        q_v = self.spg.step(q, qdot, stamp_ns * 1e-9)
+        self._after_tick(stamp_ns)
+        self._last_stamp, self._last_q = stamp_ns, q
+        qdot_v = np.array(self.spg.qdot_v, dtype=float)
+        self._last_command = Command(stamp_ns, self.joint_names, q_v, qdot_v, self.ticks,
+                                     restart)
+        self._last_seen = self.clock()
+        return self._last_command
+
+    def _measured(self, names, position, velocity, stamp_ns):
+        """The checked message: (q in model order, velocity, permutation, stamp [ns]) or None."""
         names = tuple(names)
         perm = self._perm.get(names)
         if perm is None:
@@ -301,44 +335,46 @@ class SpgRunner:
         stamp_ns = _stamp_ns(stamp_ns)
         if stamp_ns is None:
             return self._reject('non_finite', 'the stamp is not a finite whole number of ns')
-        last = self._last_stamp
-        timeout_ns = int(self.config.watchdog_timeout * 1e9)
+        return q, velocity, perm, stamp_ns
+
+    def _needs_restart(self, stamp_ns):
+        """Whether a new stamp restarts from the measured q; None if it is rejected."""
         restart = not self.started or self._restart_requested
-        if last is not None:
-            if stamp_ns == last:
-                self._reject('duplicate_stamp', f'stamp {stamp_ns * 1e-9:.9f} s seen before; '
-                             'answering with the last command again')
-                return self._last_command
-            if stamp_ns < last:
-                if not self.stale:
-                    return self._reject('stamp_backwards', f'stamp {stamp_ns * 1e-9:.9f} s is '
-                                        f'older than the last one {last * 1e-9:.9f} s')
-                restart = True  # a new session (restarted driver or simulator)
-            elif timeout_ns and stamp_ns - last > timeout_ns:
-                if not self.stale:
-                    self._trip(f'joint-state stamps jumped by {(stamp_ns - last) * 1e-9:.3f} s'
-                               f' > watchdog.timeout {self.config.watchdog_timeout} s')
-                restart = True
+        last = self._last_stamp
+        if last is None:
+            return restart
+        timeout_ns = int(self.config.watchdog_timeout * 1e9)
+        if stamp_ns < last:
+            if not self.stale:
+                return self._reject('stamp_backwards', f'stamp {stamp_ns * 1e-9:.9f} s is '
+                                    f'older than the last one {last * 1e-9:.9f} s')
+            return True  # a new session (restarted driver or simulator)
+        if timeout_ns and stamp_ns - last > timeout_ns:
+            if not self.stale:
+                self._trip(f'joint-state stamps jumped by {(stamp_ns - last) * 1e-9:.3f} s'
+                           f' > watchdog.timeout {self.config.watchdog_timeout} s')
+            return True
+        return restart
+
+    def _joint_velocity(self, q, velocity, perm, stamp_ns, restart):
+        """The joint velocities in model order (measured, else differenced); None if absurd."""
         if velocity.size:
             qdot = np.empty(self._n)
             qdot[perm] = velocity
-        elif not restart:
-            with np.errstate(over='ignore', invalid='ignore'):
-                qdot = (q - self._last_q) / ((stamp_ns - last) * 1e-9)
-            if not np.all(np.isfinite(qdot)):
-                return self._reject('non_finite', 'the finite-difference joint velocity '
-                                    'overflows (absurd positions)')
-        else:
-            qdot = np.zeros(self._n)
-        resumed = restart
+            return qdot
         if restart:
-            self._restart(q)
-        self.stale = False
-        if last is not None and not resumed:
-            self._period.append((stamp_ns - last) * 1e-9)
-        q_v = self.spg.step(q, qdot, stamp_ns * 1e-9)
+            return np.zeros(self._n)
+        with np.errstate(over='ignore', invalid='ignore'):
+            qdot = (q - self._last_q) / ((stamp_ns - self._last_stamp) * 1e-9)
+        if not np.all(np.isfinite(qdot)):
+            return self._reject('non_finite', 'the finite-difference joint velocity '
+                                'overflows (absurd positions)')
+        return qdot
+
+    def _after_tick(self, stamp_ns):
+        """Book-keeping after a tick: the stack taken over, errors and stalls, counters."""
         if self._pending_name is not None and self.spg.stack is not None and \
-                self.spg._pending is None:
+                self.spg.pending_stack is None:
             self.stack_id, self.stack_name = self._next_id, self._pending_name
             self.stack_text = self._pending_text
             self._pending_name = None
@@ -356,12 +392,6 @@ class SpgRunner:
             self._error('pspm', info.message)
         self.ticks += 1
         self._tick_times.append(info.tick_time or 0.0)
-        self._last_stamp, self._last_q = stamp_ns, q
-        qdot_v = np.array(self.spg.qdot_v, dtype=float)
-        self._last_command = Command(stamp_ns, self.joint_names, q_v, qdot_v, self.ticks,
-                                     resumed)
-        self._last_seen = self.clock()
-        return self._last_command
 
     def _check_names(self, names):
         if len(names) != self._n:
@@ -372,7 +402,6 @@ class SpgRunner:
             return self._reject('duplicate_name', f'joint names repeated: {dup}')
         unknown = [n for n in names if n not in self._index]
         if unknown:
-            from ifc_spg.errors import did_you_mean
             return self._reject('unknown_name', f"unknown joint '{unknown[0]}' for robot "
                                 f"'{self.robot.name}'{did_you_mean(unknown[0], self.joint_names)}")
         perm = np.array([self._index[n] for n in names], dtype=int)
@@ -381,8 +410,9 @@ class SpgRunner:
         return perm
 
     def request_restart(self):
-        """Restart from the measured q at the next joint state (e.g. after the node was
-        disabled: the robot may have been moved meanwhile).
+        """Restart from the measured q at the next joint state.
+
+        For example after the node was disabled: the robot may have been moved meanwhile.
         """
         self._restart_requested = True
 
@@ -454,14 +484,6 @@ class SpgRunner:
             event: Optional event name and message, e.g. ``('stack_rejected', text)``.
         """
         info = self.spg.info
-        levels = []
-        for i, name in enumerate(info.level_names or []):
-            residual = info.residuals[i] if i < len(info.residuals or []) else np.zeros(0)
-            slack = info.slacks[i] if i < len(info.slacks or []) else None
-            levels.append({
-                'name': name,
-                'residual': float(np.max(residual)) if np.size(residual) else 0.0,
-                'slack': None if slack is None else [float(x) for x in np.ravel(slack)]})
         doc = {
             'robot': self.robot.name,
             'state': self.state,
@@ -473,7 +495,7 @@ class SpgRunner:
             {'id': self._next_id, 'name': self._pending_name},
             'spg': {'status': info.status, 'message': info.message or '',
                     'solver': info.solver},
-            'levels': levels,
+            'levels': _levels_status(info),
             'tank_energy': None if info.tank_energy is None else
             [float(x) for x in info.tank_energy],
             'solve_time': info.solve_time,
@@ -494,8 +516,10 @@ class SpgRunner:
         return doc
 
     def config_doc(self):
-        """The ``spg/config`` document (JSON-ready): what a replay needs besides the
-        recorded joint states to recompute q_v from any tick on.
+        """The ``spg/config`` document (JSON-ready).
+
+        What a replay needs besides the recorded joint states to recompute q_v from any
+        tick on.
 
         Keys: config (the :class:`SpgConfig` as a dict), robot_params (:func:`robot_params`),
         stack (None, or {id, name, text (the document as received), since [s] (stamp of its
@@ -523,9 +547,11 @@ class SpgRunner:
                 ('qdot_v', n), ('tank_energy', n), ('shuffled', n))
 
     def state_vector(self):
-        """The ``spg/state`` data after the last tick (floats, layout ``state_layout`` of
-        :meth:`config_doc`; NaN where there are no tanks): the tick count, its stamp, the
-        measured q and the SPG's state the next tick starts from.
+        """The ``spg/state`` data after the last tick.
+
+        Floats in the layout ``state_layout`` of :meth:`config_doc` (NaN where there are no
+        tanks): the tick count, its stamp, the measured q and the SPG's state the next tick
+        starts from.
         """
         snap = self.spg.snapshot()
         nan = np.full(self._n, np.nan)
@@ -536,8 +562,13 @@ class SpgRunner:
             nan if snap.shuffled is None else snap.shuffled))
 
     def restore(self, vector, doc):
-        """Continue from a recorded ``spg/state`` ``vector`` and ``spg/config`` ``doc`` (a
-        replay that starts mid-run); the stack of ``doc`` becomes the running one.
+        """Continue from a recorded ``spg/state`` ``vector`` and ``spg/config`` ``doc``.
+
+        For a replay that starts mid-run; the stack of ``doc`` becomes the running one.
+
+        Args:
+            vector: The ``spg/state`` data (:meth:`state_vector`).
+            doc: The ``spg/config`` document (:meth:`config_doc`).
 
         Returns:
             The stamp [ns] of the restored tick (the next state must be newer).
@@ -545,8 +576,6 @@ class SpgRunner:
         Raises:
             ParameterError: A vector or document that does not fit this robot.
         """
-        from ifc_spg.spg import Activation, SpgState
-
         vector = np.asarray(vector, dtype=float)
         parts, i = {}, 0
         for name, size in self._state_layout():
@@ -580,6 +609,7 @@ class SpgRunner:
         return stamp
 
     def _pspm_status(self, info):
+        """The ``pspm`` entry of the status: the tick's PSPM document with the stall count."""
         doc = info.pspm
         if doc is not None:
             doc['stalls'] = self.pspm_stalls
@@ -591,6 +621,12 @@ class SpgRunner:
         A PSPM stall (an empty tank clipping the stack) is a WARN naming the joints, the
         power the stack asks for and the setting that would allow it.
         """
+        values = self._diag_values()
+        level, message = self._diag_level(values)
+        return DiagItem(level, 'spg_node', message, values)
+
+    def _diag_values(self):
+        """The key-value pairs of :meth:`diagnostics` (strings)."""
         values = {'ticks': str(self.ticks), 'state': self.state,
                   'stack': f'{self.stack_name} (id {self.stack_id})' if self.stack_id else '',
                   'spg_status': self.spg.info.status,
@@ -614,21 +650,26 @@ class SpgRunner:
             tt = np.sort(np.array(self._tick_times))
             values['tick_time_p50_ms'] = f'{tt[len(tt) // 2] * 1e3:.3f}'
             values['tick_time_max_ms'] = f'{tt[-1] * 1e3:.3f}'
+        return values
+
+    def _diag_level(self, values):
+        """The (level, message) of :meth:`diagnostics`, the most severe condition first."""
+        info = self.spg.info
         if self.state == 'waiting':
-            return DiagItem('STALE', 'spg_node', 'waiting for joint states', values)
+            return 'STALE', 'waiting for joint states'
         if self.state == 'stale':
-            return DiagItem('STALE', 'spg_node', self._last_error_of('watchdog'), values)
-        if self.spg.info.status in ('hold', 'bad_input'):
-            return DiagItem('ERROR', 'spg_node', self.spg.info.message, values)
-        if stall is not None:
-            return DiagItem('WARN', 'spg_node', self.spg.info.message, values)
-        if self.spg.info.status == 'fallback' or any(self.rejected.values()):
-            return DiagItem('WARN', 'spg_node', self.last_error, values)
+            return 'STALE', self._last_error_of('watchdog')
+        if info.status in ('hold', 'bad_input'):
+            return 'ERROR', info.message
+        if info.stall is not None:
+            return 'WARN', info.message
+        if info.status == 'fallback' or any(self.rejected.values()):
+            return 'WARN', self.last_error
         if self._period and abs(float(np.median(self._period)) - self.config.dt) > \
                 0.2 * self.config.dt:
-            return DiagItem('WARN', 'spg_node', f'joint-state period {values["period_median_s"]}'
-                            f' s differs from dt {self.config.dt} s', values)
-        return DiagItem('OK', 'spg_node', 'running', values)
+            return 'WARN', (f'joint-state period {values["period_median_s"]} s differs from '
+                            f'dt {self.config.dt} s')
+        return 'OK', 'running'
 
     def _last_error_of(self, source):
         for err in reversed(self.errors):

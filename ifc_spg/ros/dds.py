@@ -253,6 +253,24 @@ class Publisher:
                                  f'{self.msg_type._TYPE}, got {type(msg).__name__}')
         _write(self._writer, self._ser, msg)
 
+    def publish_serialized(self, data):
+        """Write one message already serialized (CDR with its 4-byte header, e.g. from a bag).
+
+        Padded to a multiple of 4 bytes as rmw_cyclonedds pads.
+
+        Raises:
+            IfcSpgError: The DDS write failed.
+        """
+        # cyclonedds' public DataWriter.write serializes an IdlStruct itself; bytes that are
+        # CDR already can only be written through its C layer (as DataWriter.write does)
+        from cyclonedds._clayer import ddspy_write
+
+        b = bytes(data)
+        pad = -len(b) & 3
+        ret = ddspy_write(self._writer._ref, b + b'\0' * pad if pad else b)
+        if ret < 0:
+            raise IfcSpgError(f"DDS write on '{self.topic_name}' failed with code {ret}")
+
     def get_subscription_count(self):
         """Number of matched DDS readers (subscriptions) of this publisher."""
         return len(self._writer.get_matched_subscriptions())
@@ -313,6 +331,23 @@ class Subscription:
                 f"dropping undecodable {self.msg_type._TYPE} on '{self.topic_name}': {exc}")
             return
         self.callback(msg)
+
+    @property
+    def read_condition(self):
+        """The DDS ReadCondition that triggers while samples wait (to attach to a WaitSet)."""
+        return self._condition
+
+    def take_serialized(self):
+        """Take every sample that arrived, without running the callback.
+
+        Returns:
+            The serialized messages (CDR with header, as on the wire), oldest first.
+        """
+        while self._take():
+            pass
+        out = list(self._queue)
+        self._queue.clear()
+        return out
 
     def get_publisher_count(self):
         """Number of matched DDS writers (publishers) of this subscription."""
@@ -429,6 +464,13 @@ class Node:
     def get_fully_qualified_name(self):
         """``/ns/name``."""
         return fully_qualified_node_name(self._name, self._namespace)
+
+    def parameter_overrides(self):
+        """``{name: value}`` of the parameter values given (-p, --params-file, the argument).
+
+        rclpy keeps these private; :func:`ifc_spg.node.config.overrides` reads both.
+        """
+        return dict(self._overrides)
 
     def resolve_topic_name(self, topic, *, only_expand=False):
         """Expand (and remap) a topic name as rcl does for this node."""
