@@ -7,8 +7,14 @@ import pytest
 from ifc_spg import RobotModel
 from ifc_spg.errors import IfcSpgError, UnknownFrame
 from ifc_spg.kinematics import Kinematics
-from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
-from ifc_spg.tasks.subspace import AXES, WRENCH_AXES
+from ifc_spg.tasks import (
+    CartesianPoseTask,
+    JointPositionTask,
+    JointTorqueTask,
+    Task,
+    WrenchTask,
+)
+from ifc_spg.tasks.subspace import AXES, WRENCH_AXES, subspace_in_base
 
 ROBOTS = {name: RobotModel.from_config(name) for name in
           ('lbr_iiwa14', 'icub_upper_body', 'accrea_dual_arm')}
@@ -52,40 +58,38 @@ def make_tasks(robot, rng):
     ]
 
 
+def frozen_twin(task, robot, kin):
+    """The same task with its subspace in base coordinates and its reference held fixed.
+
+    An end-effector subspace turns with the robot, and a free rotation axis turns the
+    reference orientation with R_v every tick; the Jacobian is the derivative with both held
+    at the nominal configuration, so the finite differences run on a twin that holds them.
+    """
+    if isinstance(task, CartesianPoseTask):
+        R = kin.frame(task.frame_id, virtual=True)[1]
+        twin = CartesianPoseTask(robot, frame=task.frame, equal=0.0,
+                                 subspace=subspace_in_base(task.S, task.subspace_frame, R),
+                                 orientation=task.reference_orientation(R))
+        twin.free_axis = None
+        return twin
+    if isinstance(task, WrenchTask):
+        R = kin.frame(robot.frame_id(task.frame), virtual=False)[1]
+        return WrenchTask(robot, frame=task.frame, equal=0.0,
+                          subspace=subspace_in_base(task.S, task.subspace_frame, R),
+                          include_damping=task.include_damping)
+    return task
+
+
 def fd_jacobian(task, robot, q, qdot, q_v, eps=1e-6):
-    """Central differences of the task value w.r.t. q_v, with the subspace held fixed."""
-    kin = kin_at(robot, q, qdot, q_v)
-    S_fixed = None
-    if hasattr(task, 'S'):  # freeze an end-effector subspace at the nominal configuration
-        from ifc_spg.tasks.subspace import subspace_in_base
-        if isinstance(task, CartesianPoseTask):
-            R = kin.frame(task.frame_id, virtual=True)[1]
-        else:
-            R = kin.frame(robot.frame_id(task.frame), virtual=False)[1]
-        S_fixed = subspace_in_base(task.S, task.subspace_frame, R)
-    # and the reference orientation: a free rotation axis turns it with R_v every tick
-    saved_ref = None
-    if isinstance(task, CartesianPoseTask) and task.free_axis is not None:
-        saved_ref = task._R_ref, task.free_axis
-        task._R_ref = task.reference_orientation(kin.frame(task.frame_id, virtual=True)[1])
-        task.free_axis = None
+    """Central differences of the task value w.r.t. q_v, with subspace and reference fixed."""
+    twin = frozen_twin(task, robot, kin_at(robot, q, qdot, q_v))
     cols = []
     for i in range(robot.n):
-        vals = []
-        for sgn in (1, -1):
-            dq = np.zeros(robot.n)
-            dq[i] = sgn * eps
-            k = kin_at(robot, q, qdot, q_v + dq)
-            if S_fixed is None:
-                vals.append(task.compute_value(k))
-            else:
-                saved = task.S, task.subspace_frame
-                task.S, task.subspace_frame = S_fixed, 'base'
-                vals.append(task.compute_value(k))
-                task.S, task.subspace_frame = saved
-        cols.append((vals[0] - vals[1]) / (2 * eps))
-    if saved_ref is not None:
-        task._R_ref, task.free_axis = saved_ref
+        dq = np.zeros(robot.n)
+        dq[i] = eps
+        plus = twin.compute_value(kin_at(robot, q, qdot, q_v + dq))
+        minus = twin.compute_value(kin_at(robot, q, qdot, q_v - dq))
+        cols.append((plus - minus) / (2 * eps))
     return np.array(cols).T
 
 
@@ -306,3 +310,76 @@ def test_deactivate_recaptures_init_targets_at_the_next_level():
     assert task.active
     np.testing.assert_allclose(task.bounds_at(0.0)[0], q_v1)
     np.testing.assert_allclose(fresh.lower, 0.0, atol=1e-12)
+
+
+def test_a_task_without_value_or_jacobian_fails_at_construction():
+    """The contract is explicit: no default calls another in a loop (no RecursionError)."""
+    robot = ROBOTS['lbr_iiwa14']
+
+    class Nothing(Task):
+        pass
+
+    class OnlyCompute(Task):  # the fused computation alone is not enough
+        def compute(self, kin):
+            return np.zeros(1), np.zeros((1, robot.n)), np.zeros(1)
+
+    class OnlyValue(Task):
+        def compute_value(self, kin):
+            return kin.q_v[:1]
+
+    for cls, missing in ((Nothing, 'compute_jacobian, compute_value'),
+                         (OnlyCompute, 'compute_jacobian, compute_value'),
+                         (OnlyValue, 'compute_jacobian')):
+        with pytest.raises(TypeError, match=missing):
+            cls(robot, dim=1, equal=0.0)
+    with pytest.raises(TypeError, match='abstract'):
+        Task(robot, dim=1, equal=0.0)
+
+
+def test_a_task_with_value_and_jacobian_gets_compute_and_a_level():
+    robot = ROBOTS['lbr_iiwa14']
+
+    class FirstJoint(Task):
+        def compute_value(self, kin):
+            return kin.q_v[:1]
+
+        def compute_jacobian(self, kin):
+            return np.eye(1, robot.n)
+
+    rng = np.random.default_rng(4)
+    q, qdot, q_v = random_state(robot, rng)
+    kin = kin_at(robot, q, qdot, q_v)
+    task = FirstJoint(robot, dim=1, equal=0.5, gain=3.0)
+    alpha, A, gamma = task.compute(kin)
+    np.testing.assert_array_equal(alpha, q_v[:1])
+    np.testing.assert_array_equal(A, np.eye(1, robot.n))
+    np.testing.assert_array_equal(gamma, [0.0])
+    lev = task.level(kin, 0.0)
+    np.testing.assert_allclose(lev.lower, 3.0 * (0.5 - q_v[:1]) + 0.0, atol=1e-15)
+    reference = JointPositionTask(robot, joints=[robot.joint_names[0]], equal=0.5, gain=3.0)
+    np.testing.assert_array_equal(lev.lower, reference.level(kin, 0.0).lower)
+
+
+def test_fused_compute_agrees_with_the_separate_methods():
+    robot = ROBOTS['lbr_iiwa14']
+    rng = np.random.default_rng(6)
+    q, qdot, q_v = random_state(robot, rng)
+    kin = kin_at(robot, q, qdot, q_v)
+    for task in make_tasks(robot, rng):
+        task.activate(kin_at(robot, q, qdot, q_v + 0.1))
+        alpha, A, gamma = task.compute(kin)
+        np.testing.assert_array_equal(task.compute_value(kin), alpha)
+        np.testing.assert_array_equal(task.compute_jacobian(kin), A)
+        np.testing.assert_array_equal(task.compute_gamma(kin), gamma)
+
+
+def test_reference_rotation_is_captured_at_activation_and_read_only():
+    robot = ROBOTS['lbr_iiwa14']
+    kin = kin_at(robot, robot.q_home, np.zeros(7), robot.q_home)
+    task = CartesianPoseTask(robot, frame='tool', axes=['rx', 'ry', 'rz'], equal='init')
+    assert task.reference_rotation is None
+    task.activate(kin)
+    R0 = kin.frame(robot.frame_id('tool'), virtual=True)[1]
+    np.testing.assert_array_equal(task.reference_rotation, R0)
+    with pytest.raises(ValueError):
+        task.reference_rotation[0, 0] = 2.0

@@ -17,7 +17,11 @@ free axis of the current frame, d_v = R_v a, onto the reference's, d_ref = R_ref
 R_v R_ref'^T = M^T is then the pure tilt between d_ref and d_v, perpendicular to d_v.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -25,6 +29,10 @@ import pinocchio as pin
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.tasks.subspace import cartesian_subspace, subspace_in_base
 from ifc_spg.tasks.task import Task
+
+if TYPE_CHECKING:
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = ['CartesianPoseTask']
 
@@ -46,8 +54,9 @@ class CartesianPoseTask(Task):
     kind = 'cartesian_pose'
     has_gamma = False
 
-    def __init__(self, robot, *, frame, axes=None, subspace=None, subspace_frame='base',
-                 orientation='init', relative=False, **kwargs):
+    def __init__(self, robot: RobotModel, *, frame: str, axes: Sequence[str] | None = None,
+                 subspace: Any = None, subspace_frame: str = 'base', orientation: Any = 'init',
+                 relative: bool = False, **kwargs: Any) -> None:
         self.frame = frame
         self.frame_id = robot.frame_id(frame)
         S = cartesian_subspace(axes, subspace, subspace_frame)
@@ -57,7 +66,7 @@ class CartesianPoseTask(Task):
             if orientation != 'init':
                 raise IfcSpgError(f"orientation must be 'init' or a rotation matrix, got "
                                   f'{orientation!r}')
-            self._R_ref = None
+            self._R_ref: np.ndarray | None = None
         else:
             R = np.asarray(orientation, dtype=float)
             if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 \
@@ -76,7 +85,17 @@ class CartesianPoseTask(Task):
         self._zero = np.zeros(self.dim)
         self._zero.setflags(write=False)
 
-    def activate(self, kin):
+    @property
+    def reference_rotation(self) -> np.ndarray | None:
+        """R_ref (3 x 3, read-only), or None until activation captures it (``'init'``)."""
+        if self._R_ref is None:
+            return None
+        view = self._R_ref.view()
+        view.setflags(write=False)
+        return view
+
+    def activate(self, kin: Kinematics) -> None:
+        """Capture R_ref (``'init'``) and p_ref (``relative``), then the ``init`` bounds."""
         p, R, _ = kin.frame(self.frame_id, virtual=True)
         if self._R_ref is None:
             self._R_ref = R.copy()
@@ -84,45 +103,71 @@ class CartesianPoseTask(Task):
             self._p_ref = p.copy()
         super().activate(kin)
 
-    def _S_base(self, R):
+    def _S_base(self, R: np.ndarray) -> np.ndarray:
         return subspace_in_base(self.S, self.subspace_frame, R)
 
-    def reference_orientation(self, R):
-        """R_ref used at the current orientation R (turned about a free axis, if any)."""
+    def reference_orientation(self, R: np.ndarray) -> np.ndarray:
+        """R_ref used at the current orientation R (turned about a free axis, if any).
+
+        Before activation (``orientation='init'``) R_ref is taken as R itself.
+        """
+        R_ref = R if self._R_ref is None else self._R_ref
         a = self.free_axis
         if a is None:
-            return self._R_ref
+            return R_ref
         if self.subspace_frame == 'base':  # free rotation about the base axis a
-            return R @ _minimal_rotation(R.T @ a, self._R_ref.T @ a).T
-        return _minimal_rotation(R @ a, self._R_ref @ a) @ R
+            return R @ _minimal_rotation(R.T @ a, R_ref.T @ a).T
+        return _minimal_rotation(R @ a, R_ref @ a) @ R
 
-    def compute(self, kin):
+    def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``(alpha, A, 0)`` in one computation (gamma is zero: a position task)."""
         p, R, J = kin.frame(self.frame_id, virtual=True)
         if self._R_ref is None:
             self._R_ref = R.copy()
-        St = None if self._full_base else self._S_base(R).T
+        if self._full_base:
+            x, Jx = self._pose_error(p, R, J)
+            return x, Jx, self._zero
+        St = self._S_base(R).T
         if not self._rotational:  # position rows only: the orientation error is not needed
             return St[:, :3] @ (p - self._p_ref), St[:, :3] @ J[:3], self._zero
-        R_e = R @ self.reference_orientation(R).T
-        J_rot = pin.Jlog3(R_e) @ R_e.T @ J[3:]
         if not self._translational:
-            return St[:, 3:] @ pin.log3(R_e), St[:, 3:] @ J_rot, self._zero
+            e_rot, J_rot = self._rotation_error(R, J)
+            return St[:, 3:] @ e_rot, St[:, 3:] @ J_rot, self._zero
+        x, Jx = self._pose_error(p, R, J)
+        return St @ x, St @ Jx, self._zero
+
+    def _rotation_error(self, R: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(log3(R_e), Jlog3(R_e) R_e^T J_ang)`` with R_e = R R_ref^T."""
+        R_e = R @ self.reference_orientation(R).T
+        return pin.log3(R_e), pin.Jlog3(R_e) @ R_e.T @ J[3:]
+
+    def _pose_error(self, p: np.ndarray, R: np.ndarray,
+                    J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The full 6D error and its Jacobian in base coordinates."""
+        e_rot, J_rot = self._rotation_error(R, J)
         x = np.empty(6)
         x[:3] = p - self._p_ref
-        x[3:] = pin.log3(R_e)
+        x[3:] = e_rot
         Jx = np.empty_like(J)
         Jx[:3] = J[:3]
         Jx[3:] = J_rot
-        if self._full_base:
-            return x, Jx, self._zero
-        return St @ x, St @ Jx, self._zero
+        return x, Jx
 
-    def compute_measured_rate(self, kin):
+    def compute_value(self, kin: Kinematics) -> np.ndarray:
+        """alpha = S^T [p_v - p_ref; log3(R_v R_ref^T)]."""
+        return self.compute(kin)[0]
+
+    def compute_jacobian(self, kin: Kinematics) -> np.ndarray:
+        """A = S^T [J_lin; Jlog3(R_e) R_e^T J_ang] (S and R_ref held fixed)."""
+        return self.compute(kin)[1]
+
+    def compute_measured_rate(self, kin: Kinematics) -> np.ndarray:
+        """S^T J(q) qdot: the task-space velocity of the measured motion."""
         _, R, J = kin.frame(self.frame_id, virtual=False)
         return self._S_base(kin.frame(self.frame_id, virtual=True)[1]).T @ (J @ kin.qdot)
 
 
-def _free_rotation_axis(S):
+def _free_rotation_axis(S: np.ndarray) -> np.ndarray | None:
     """The unit free rotation axis if the rotational rows of S span exactly two directions."""
     rot = S[3:]
     if np.linalg.matrix_rank(rot, tol=1e-9) != 2:
@@ -131,7 +176,7 @@ def _free_rotation_axis(S):
     return u[:, 2].copy()
 
 
-def _minimal_rotation(u, v):
+def _minimal_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The rotation of least angle taking unit vector u onto unit vector v."""
     # (3-vector algebra in Python floats: np.cross costs ~20 us per call)
     u0, u1, u2 = u.tolist()

@@ -1,13 +1,23 @@
 """Joint position task: alpha = q_v (selected joints), A = rows of I_n, gamma = 0 (Table 3.1)."""
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ifc_spg.tasks.task import Task
 
+if TYPE_CHECKING:
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
+
 __all__ = ['JointPositionTask', 'joint_indices']
 
 
-def joint_indices(robot, joints, exclude_stiff=False):
+def joint_indices(robot: RobotModel, joints: Sequence[str] | None,
+                  exclude_stiff: bool = False) -> np.ndarray:
     """Indices of ``joints`` (names) in q; all joints (optionally without stiff ones) if None."""
     if joints is None:
         idx = [i for i in range(robot.n) if not (exclude_stiff and robot.stiff_mask[i])]
@@ -29,18 +39,22 @@ class JointPositionTask(Task):
     kind = 'joint_position'
     has_gamma = False
 
-    def __init__(self, robot, *, joints=None, **kwargs):
+    def __init__(self, robot: RobotModel, *, joints: Sequence[str] | None = None,
+                 **kwargs: Any) -> None:
         self.indices = joint_indices(robot, joints)
         super().__init__(robot, dim=len(self.indices), **kwargs)
         self._A = np.zeros((self.dim, robot.n))
         self._A[np.arange(self.dim), self.indices] = 1.0
         self._A.setflags(write=False)
 
-    def compute_value(self, kin):
+    def compute_value(self, kin: Kinematics) -> np.ndarray:
+        """The virtual positions of the selected joints, q_v[i]."""
         return kin.q_v[self.indices]
 
-    def compute_jacobian(self, kin):
+    def compute_jacobian(self, kin: Kinematics) -> np.ndarray:
+        """The selected rows of the identity (constant, read-only)."""
         return self._A
 
-    def compute_measured_rate(self, kin):
+    def compute_measured_rate(self, kin: Kinematics) -> np.ndarray:
+        """The measured velocities of the selected joints, qdot[i]."""
         return kin.qdot[self.indices]

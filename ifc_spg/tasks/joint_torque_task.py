@@ -1,5 +1,10 @@
 """Joint torque task: alpha = tau_s (selected joints), A = K, gamma = K qdot (Table 3.1)."""
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
@@ -7,6 +12,10 @@ from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.tasks.joint_position_task import joint_indices
 from ifc_spg.tasks.static_interaction import static_torque
 from ifc_spg.tasks.task import Task
+
+if TYPE_CHECKING:
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = ['JointTorqueTask']
 
@@ -25,7 +34,8 @@ class JointTorqueTask(Task):
 
     kind = 'joint_torque'
 
-    def __init__(self, robot, *, joints=None, include_damping=False, **kwargs):
+    def __init__(self, robot: RobotModel, *, joints: Sequence[str] | None = None,
+                 include_damping: bool = False, **kwargs: Any) -> None:
         self.include_damping = bool(include_damping)
         self.indices = joint_indices(robot, joints, exclude_stiff=True)
         stiff = [robot.joint_names[i] for i in self.indices if robot.stiff_mask[i]]
@@ -43,7 +53,8 @@ class JointTorqueTask(Task):
             A.setflags(write=False)
             self._A = A
 
-    def compute(self, kin):
+    def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``(tau_s, A, gamma)`` of the selected joints in one computation."""
         i = self.indices
         if self._fast:
             tau = self._K * (kin.q_v[i] - kin.q[i])
@@ -53,5 +64,14 @@ class JointTorqueTask(Task):
         tau, A, g = static_torque(self.robot, kin, self.include_damping)
         return tau[i], A[i], g[i]
 
-    def compute_gamma(self, kin):
+    def compute_value(self, kin: Kinematics) -> np.ndarray:
+        """The static torque tau_s of the selected joints in [Nm]."""
+        return self.compute(kin)[0]
+
+    def compute_jacobian(self, kin: Kinematics) -> np.ndarray:
+        """A = d(tau_s)/d(q_v) of the selected joints (K on their columns)."""
+        return self.compute(kin)[1]
+
+    def compute_gamma(self, kin: Kinematics) -> np.ndarray:
+        """Gamma = K qdot of the selected joints (Table 3.1)."""
         return self.compute(kin)[2]

@@ -11,12 +11,19 @@ joint velocity (Table 3.1). Bounds alpha_m <= alpha <= alpha_M become velocity b
 and the cascade asks for beta_m <= A qdot_v <= beta_M. Equal bounds make an equality task.
 """
 
-from typing import NamedTuple
+from __future__ import annotations
+
+import abc
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.tasks.bounds import INIT, Bound, as_bound
+
+if TYPE_CHECKING:  # annotations only: the model and kinematics do not import tasks
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = ['Level', 'Task']
 
@@ -39,8 +46,14 @@ class Level(NamedTuple):
     equality: bool
 
 
-class Task:
-    """Base class of the four task archetypes.
+class Task(abc.ABC):
+    """Base class of the four task archetypes (abstract).
+
+    A subclass implements :meth:`compute_value` and :meth:`compute_jacobian` (and
+    :meth:`compute_gamma` where gamma is not zero); it may also override :meth:`compute`
+    with a fused computation of the three, which must agree with them. A subclass that
+    implements neither value nor Jacobian cannot be instantiated (``TypeError`` names the
+    missing methods).
 
     Args:
         robot: The :class:`~ifc_spg.model.RobotModel`.
@@ -61,8 +74,10 @@ class Task:
     kind = 'task'
     has_gamma = True  # False where gamma is identically zero (position tasks)
 
-    def __init__(self, robot, *, dim, name=None, equal=None, lower=None, upper=None, gain=1.0,
-                 feedforward='trajectory', velocity_gain=0.0, compensate_velocity=True):
+    def __init__(self, robot: RobotModel, *, dim: int, name: str | None = None,
+                 equal: Any = None, lower: Any = None, upper: Any = None, gain: Any = 1.0,
+                 feedforward: Any = 'trajectory', velocity_gain: float = 0.0,
+                 compensate_velocity: bool = True) -> None:
         self.robot = robot
         self.name = name or self.kind
         self.dim = int(dim)
@@ -93,7 +108,7 @@ class Task:
             if feedforward != 'trajectory':
                 raise IfcSpgError(f"task '{self.name}': feedforward must be 'trajectory', "
                                   f'none or numbers, got {feedforward!r}')
-            self._ff = None
+            self._ff: np.ndarray | None = None
         elif feedforward is None:
             self._ff = np.zeros(self.dim)
         else:
@@ -102,40 +117,43 @@ class Task:
         if not np.isfinite(self.velocity_gain):
             raise IfcSpgError(f"task '{self.name}': velocity_gain must be finite")
         self.compensate_velocity = bool(compensate_velocity)
-        self._active_lower = None
-        self._active_upper = None
+        self._active_lower: Bound | None = None
+        self._active_upper: Bound | None = None
 
-    # -- to implement: either compute() or the compute_* methods ----------------------------
-    def compute(self, kin):
-        """Return ``(alpha (m,), A (m, n), gamma (m,))`` at this tick's configuration."""
-        return self.compute_value(kin), self.compute_jacobian(kin), self.compute_gamma(kin)
-
-    def compute_value(self, kin):
+    # -- to implement: compute_value and compute_jacobian ---------------------------------
+    @abc.abstractmethod
+    def compute_value(self, kin: Kinematics) -> np.ndarray:
         """Task value alpha (m,) at this tick's configuration."""
-        return self.compute(kin)[0]
 
-    def compute_jacobian(self, kin):
+    @abc.abstractmethod
+    def compute_jacobian(self, kin: Kinematics) -> np.ndarray:
         """Task Jacobian A = d(alpha)/d(q_v), shape (m, n)."""
-        return self.compute(kin)[1]
 
-    def compute_gamma(self, kin):
+    def compute_gamma(self, kin: Kinematics) -> np.ndarray:
         """Velocity compensation gamma (m,) (Table 3.1); zero for position tasks."""
         return np.zeros(self.dim)
 
-    def compute_measured_rate(self, kin):
+    def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``(alpha (m,), A (m, n), gamma (m,))`` at this tick's configuration.
+
+        Calls the three ``compute_*`` methods; subclasses may fuse them.
+        """
+        return self.compute_value(kin), self.compute_jacobian(kin), self.compute_gamma(kin)
+
+    def compute_measured_rate(self, kin: Kinematics) -> np.ndarray:
         """Rate of alpha due to the measured joint velocity (m,)."""
         return -self.compute_gamma(kin)
 
     # -- activation and levels ------------------------------------------------------------
     @property
-    def active(self):
+    def active(self) -> bool:
         """True once :meth:`activate` captured the ``init`` values."""
         return self._active_lower is not None
 
-    def activate(self, kin):
+    def activate(self, kin: Kinematics) -> None:
         """Capture ``init`` bounds from the current value; called when the stack starts."""
         init = None
-        bounds = []
+        bounds: list[Bound] = []
         for b in (self._lower, self._upper):
             if b is INIT or type(b).activate is not Bound.activate:
                 if init is None:
@@ -146,7 +164,13 @@ class Task:
         if self.equality:
             self._active_upper = self._active_lower
 
-    def deactivate(self):
+    def _active_bounds(self) -> tuple[Bound, Bound]:
+        lower, upper = self._active_lower, self._active_upper
+        if lower is None or upper is None:
+            raise IfcSpgError(f"task '{self.name}' is not active; call activate(kin) first")
+        return lower, upper
+
+    def deactivate(self) -> None:
         """Forget the captured ``init`` bounds, so the next :meth:`level` re-activates.
 
         A stack that starts again (a new task stack, or one resumed after a hold) calls
@@ -156,16 +180,17 @@ class Task:
         self._active_lower = None
         self._active_upper = None
 
-    def level(self, kin, t):
+    def level(self, kin: Kinematics, t: float) -> Level:
         """Build this task's :class:`Level` at task time ``t`` in [s]."""
         if not self.active:
             self.activate(kin)
         alpha, A, gamma = self.compute(kin)
-        lo, lo_rate = self._active_lower.evaluate(t)
+        lower, upper = self._active_bounds()
+        lo, lo_rate = lower.evaluate(t)
         if self.equality:
             hi, hi_rate = lo, lo_rate
         else:
-            hi, hi_rate = self._active_upper.evaluate(t)
+            hi, hi_rate = upper.evaluate(t)
         if self._ff is None:
             ff_lo, ff_hi = lo_rate, hi_rate
         else:
@@ -188,9 +213,10 @@ class Task:
             beta_hi = beta_lo if self.equality else self.gain * (hi - alpha) + ff_hi
         return Level(self.name, A, beta_lo, beta_hi, self.equality)
 
-    def bounds_at(self, t):
+    def bounds_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(lower, upper)`` task bounds at task time t (after activation)."""
-        return self._active_lower.evaluate(t)[0], self._active_upper.evaluate(t)[0]
+        lower, upper = self._active_bounds()
+        return lower.evaluate(t)[0], upper.evaluate(t)[0]
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f'{type(self).__name__}({self.name!r}, dim={self.dim})'

@@ -1,10 +1,20 @@
 """Wrench task: alpha = S^T h_s at a chain end, A = S^T J^{+T} K, gamma = S^T J^{+T} K qdot."""
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.tasks.static_interaction import check_admittance_chain, static_wrench
 from ifc_spg.tasks.subspace import cartesian_subspace, subspace_in_base
 from ifc_spg.tasks.task import Task
+
+if TYPE_CHECKING:
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = ['WrenchTask']
 
@@ -26,8 +36,9 @@ class WrenchTask(Task):
 
     kind = 'wrench'
 
-    def __init__(self, robot, *, frame, axes=None, subspace=None, subspace_frame='base',
-                 include_damping=False, **kwargs):
+    def __init__(self, robot: RobotModel, *, frame: str, axes: Sequence[str] | None = None,
+                 subspace: Any = None, subspace_frame: str = 'base',
+                 include_damping: bool = False, **kwargs: Any) -> None:
         self.frame = frame
         self.include_damping = bool(include_damping)
         robot.frame_id(frame)
@@ -38,10 +49,20 @@ class WrenchTask(Task):
         self.subspace_frame = subspace_frame
         super().__init__(robot, dim=S.shape[1], **kwargs)
 
-    def compute(self, kin):
+    def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``(S^T h_s, S^T A, S^T gamma)`` in one computation."""
         h, A, g, R = static_wrench(self.robot, kin, self.frame, self.include_damping)
         St = subspace_in_base(self.S, self.subspace_frame, R).T
         return St @ h, St @ A, St @ g
 
-    def compute_gamma(self, kin):
+    def compute_value(self, kin: Kinematics) -> np.ndarray:
+        """The static wrench in the subspace, S^T h_s, in [N] / [Nm]."""
+        return self.compute(kin)[0]
+
+    def compute_jacobian(self, kin: Kinematics) -> np.ndarray:
+        """A = S^T J^{+T} K (S held fixed)."""
+        return self.compute(kin)[1]
+
+    def compute_gamma(self, kin: Kinematics) -> np.ndarray:
+        """Gamma = S^T J^{+T} K qdot (Table 3.1)."""
         return self.compute(kin)[2]
