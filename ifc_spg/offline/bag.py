@@ -20,12 +20,29 @@ already received are written, then the MCAP index and ``metadata.yaml``.
 """
 
 import argparse
+import importlib
 from pathlib import Path
 import signal
 import sys
 import time
 
+from mcap.writer import CompressionType, Writer
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag2 import Reader
+from rosbags.rosbag2.metadata import dump_qos_v9
+from rosbags.typesys import Stores, get_typestore
+import yaml
+
+from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.ros import messages
 from ifc_spg.ros.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -75,15 +92,6 @@ def stamp_ns(stamp):
 
 def to_rosbags_qos(qos):
     """Translate our :class:`~ifc_spg.ros.qos.QoSProfile` into a rosbags ``Qos`` (offered)."""
-    from rosbags.interfaces import (
-        Qos,
-        QosDurability,
-        QosHistory,
-        QosLiveliness,
-        QosReliability,
-        QosTime,
-    )
-
     inf = QosTime(*_INFINITE_NS)
     return Qos(history=QosHistory(int(qos.history)), depth=int(qos.depth),
                reliability=QosReliability(int(qos.reliability)),
@@ -112,8 +120,6 @@ def from_rosbags_qos(profiles, default):
 
 
 def _typestore():
-    from rosbags.typesys import Stores, get_typestore
-
     return get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -161,14 +167,14 @@ def rosbag2_metadata(topics, files, custom_data=None):
 
 
 def _yaml_dump(doc):
-    import yaml
-
     return yaml.safe_dump(doc, sort_keys=False, default_flow_style=False, width=1 << 16)
 
 
 class BagWriter:
-    """Writes a rosbag2 MCAP bag as rosbag2 Jazzy does (metadata version 9, ``ros_distro:
-    jazzy``, ``type_description_hash`` per topic, ``topic_type_hash`` per MCAP channel).
+    """Writes a rosbag2 MCAP bag as rosbag2 Jazzy does.
+
+    That is: metadata version 9, ``ros_distro: jazzy``, ``type_description_hash`` per topic,
+    ``topic_type_hash`` per MCAP channel.
 
     Args:
         path: Bag directory to create (must not exist).
@@ -180,8 +186,6 @@ class BagWriter:
     """
 
     def __init__(self, path):
-        from mcap.writer import CompressionType, Writer
-
         self.path = Path(path)
         if self.path.exists():
             raise ParameterError(f"cannot create bag '{self.path}': it exists (choose a new "
@@ -211,8 +215,6 @@ class BagWriter:
             msgtype: ROS type name (``sensor_msgs/msg/JointState``).
             qos: A QoSProfile, a list of rosbags ``Qos``, or None (reliable depth 10).
         """
-        from rosbags.rosbag2.metadata import dump_qos_v9
-
         if topic in self._connections:
             return self._connections[topic][0]
         if msgtype not in self._store.types:
@@ -249,11 +251,9 @@ class BagWriter:
 
     def write_msg(self, topic, t_ns, msg):
         """Serialize a built-in message (:mod:`ifc_spg.ros.messages`) and write it."""
-        from ifc_spg.ros.messages import serialize
-
         if topic not in self._connections:
-            self.add_topic(topic, msg._TYPE)
-        self.write(topic, t_ns, serialize(msg))
+            self.add_topic(topic, type(msg)._TYPE)
+        self.write(topic, t_ns, messages.serialize(msg))
 
     def set_custom_data(self, key, value):
         """Store a string in the metadata's ``custom_data``."""
@@ -301,8 +301,6 @@ class BagReader:
     """
 
     def __init__(self, path):
-        from rosbags.rosbag2 import Reader
-
         self.path = Path(path)
         if not (self.path / 'metadata.yaml').is_file():
             raise ParameterError(f"'{self.path}' is not a rosbag2 bag (no metadata.yaml); give "
@@ -314,8 +312,6 @@ class BagReader:
             old = self.topics.get(c.topic)
             count = c.msgcount + (old[1] if old else 0)
             self.topics[c.topic] = (c.msgtype, count, list(c.ext.offered_qos_profiles))
-        import yaml
-
         with open(self.path / 'metadata.yaml', encoding='utf8') as f:
             meta = yaml.safe_load(f)['rosbag2_bagfile_information']
         self.custom_data = dict(meta.get('custom_data') or {})
@@ -333,13 +329,11 @@ class BagReader:
 
     def messages(self, topics=None):
         """Yield ``(topic, log time [ns], message)`` decoded with the built-in classes."""
-        from ifc_spg.ros.messages import REGISTRY, deserialize
-
         for topic, msgtype, t, data in self.raw(topics):
-            cls = REGISTRY.get(msgtype)
+            cls = messages.REGISTRY.get(msgtype)
             if cls is None:
                 raise ParameterError(f"topic '{topic}': no built-in decoder for '{msgtype}'")
-            yield topic, t, deserialize(cls, data)
+            yield topic, t, messages.deserialize(cls, data)
 
     def close(self):
         """Close the reader."""
@@ -390,8 +384,10 @@ def _discovered(participant, reader):
 
 
 class _Recording:
-    """What both recorders share: the topics they record, and writing what arrived, then
-    looking for new topics on the graph (at most every 0.2 s).
+    """What both recorders share.
+
+    The topics they record, and writing what arrived, then looking for new topics on the
+    graph (at most every 0.2 s).
     """
 
     _last_discovery = 0.0
@@ -421,6 +417,7 @@ class Recorder(_Recording):
     """
 
     def __init__(self, node, writer, topics=None, discover_all=False):
+        # the built-in backend's DDS library: imported on its path only (rclpy has its own)
         from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication
         from cyclonedds.core import WaitSet
 
@@ -442,8 +439,6 @@ class Recorder(_Recording):
 
 
     def _subscribe(self, topic, msgtype, qos):
-        from ifc_spg.ros import dds, messages
-
         cls = messages.REGISTRY.get(msgtype)
         if cls is None:
             self.node.get_logger().warning(f"not recording '{topic}': type '{msgtype}' has no "
@@ -453,10 +448,9 @@ class Recorder(_Recording):
         # keep everything until it is written: reliable readers never drop samples
         reader_qos = QoSProfile(depth=1, reliability=qos.reliability, durability=qos.durability,
                                 history=HistoryPolicy.KEEP_ALL)
-        sub = dds.Subscription(self.node, cls, topic, lambda msg: None, reader_qos)
-        self.node.subscriptions.append(sub)
-        self.node.context.changed()
-        self._waitset.attach(sub._condition)
+        # no executor spins this node: drain() takes the serialized samples
+        sub = self.node.create_subscription(cls, topic, lambda msg: None, reader_qos)
+        self._waitset.attach(sub.read_condition)
         self.writer.add_topic(topic, msgtype, qos)
         self._subs[topic] = sub
 
@@ -475,14 +469,12 @@ class Recorder(_Recording):
         for topic, sub in self._subs.items():
             if sub is None:
                 continue
-            while sub._take():
-                pass
-            if sub._queue:
+            samples = sub.take_serialized()
+            if samples:
                 t = time.time_ns()
-                for data in sub._queue:
+                for data in samples:
                     self.writer.write(topic, t, data)
-                n += len(sub._queue)
-                sub._queue.clear()
+                n += len(samples)
         return n
 
     def spin_once(self, timeout_s=0.1):
@@ -493,11 +485,11 @@ class Recorder(_Recording):
 
 
 def _rclpy_message_class(msgtype):
-    """The rclpy class of ROS type ``pkg/msg/T`` (rosidl_runtime_py is not among the Jazzy
-    wheels, so the generated module is imported by name).
-    """
-    import importlib
+    """The rclpy class of ROS type ``pkg/msg/T``.
 
+    rosidl_runtime_py is not among the Jazzy wheels, so the generated module is imported by
+    name.
+    """
     pkg, kind, name = msgtype.split('/')
     return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
 
@@ -510,8 +502,10 @@ def _from_rclpy_qos(profile):
 
 
 class RclpyRecorder(_Recording):
-    """Records topics over rclpy into a bag: raw (serialized CDR) subscriptions, written with
-    their receive time, so the bytes are those on the wire (as ``ros2 bag record``).
+    """Records topics over rclpy into a bag.
+
+    Raw (serialized CDR) subscriptions, written with their receive time, so the bytes are
+    those on the wire (as ``ros2 bag record``).
 
     Args:
         node: An rclpy node (``ifc_spg.ros.Node`` with the rclpy backend).
@@ -521,8 +515,6 @@ class RclpyRecorder(_Recording):
     """
 
     def __init__(self, node, writer, topics=None, discover_all=False):
-        from ifc_spg import ros
-
         self.node, self.writer, self.discover_all = node, writer, discover_all
         self._executor = ros.executor((node,))
         self._subs, self._wanted, self._pending = {}, set(), []
@@ -535,8 +527,6 @@ class RclpyRecorder(_Recording):
         self._last_discovery = 0.0
 
     def _subscribe(self, topic, msgtype, qos):
-        from ifc_spg import ros
-
         try:
             cls = _rclpy_message_class(msgtype)
         except (ImportError, AttributeError, ValueError):
@@ -594,8 +584,6 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
         args: Command line with ``--ros-args`` for the recorder node.
         quiet: Do not print the summary.
     """
-    from ifc_spg import ros
-
     stop = _Stop()
     ros.init(args=['ifc-spg', *(args or [])])
     # after init: rclpy's own SIGINT handler would invalidate the context mid-spin
@@ -638,12 +626,19 @@ def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0, wait_sub
     between two processes can take a DDS announcement period (Fast DDS: 3 s), so a fixed
     delay alone may publish to nobody.
 
+    Args:
+        path: Bag directory.
+        rate: Playback speed factor (> 0).
+        delay: Seconds to wait for discovery before the first message.
+        topics: Only these topics (absolute or relative names); None: all.
+        args: Command line with ``--ros-args`` for the player node.
+        wait_s: Seconds to wait for reliable readers' acknowledgements at the end.
+        wait_subscribers: Wait until every topic has this many matched subscriptions.
+        wait_timeout: At most this long [s] for ``wait_subscribers``.
+
     Returns:
         {topic: messages published}.
     """
-    from ifc_spg import ros
-    from ifc_spg.ros import messages
-
     if not rate > 0:
         raise ParameterError(f'--rate must be > 0, got {rate}')
     bag = BagReader(path)
@@ -651,49 +646,12 @@ def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0, wait_sub
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     ros.init(args=['ifc-spg', *(args or [])])
     node = ros.Node('bag_player')
-    pubs, counts = {}, {}
+    counts = {}
     try:
-        for topic, (msgtype, _, profiles) in bag.topics.items():
-            if topics and topic not in topics and topic.lstrip('/') not in topics:
-                continue
-            cls = messages.REGISTRY.get(msgtype) if ros.BACKEND == 'cyclonedds' else None
-            if ros.BACKEND == 'cyclonedds' and cls is None:
-                node.get_logger().warning(f"skipping '{topic}': no message class for {msgtype}")
-                continue
-            if cls is None:
-                cls = _rclpy_message_class(msgtype)
-            default = TOPICS.get(topic.lstrip('/'), (None, QoSProfile(depth=10)))[1]
-            qos = from_rosbags_qos(profiles, default)
-            if ros.BACKEND != 'cyclonedds':
-                qos = ros.QoSProfile(depth=qos.depth, reliability=int(qos.reliability),
-                                     durability=int(qos.durability))
-            pubs[topic] = node.create_publisher(cls, topic, qos)
-            counts[topic] = 0
-        deadline = time.monotonic() + delay
-        while time.monotonic() < deadline and not stop.requested:
-            ros.spin_once(node, timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
-        if wait_subscribers > 0:
-            def matched():
-                return all(p.get_subscription_count() >= wait_subscribers
-                           for p in pubs.values())
-
-            if not ros.spin_until(lambda: matched() or stop.requested, wait_timeout, [node]):
-                node.get_logger().warning(
-                    f'not every topic has {wait_subscribers} subscriber(s) after '
-                    f'{wait_timeout} s; playing anyway')
-            ros.spin_until(lambda: stop.requested, 0.5, [node])
-        start_wall = time.monotonic()
-        for topic, _, t, data in bag.raw(set(pubs)):
-            if stop.requested:
-                break
-            due = start_wall + (t - bag.start_ns) * 1e-9 / rate
-            while not stop.requested:
-                wait = due - time.monotonic()
-                if wait <= 0:
-                    break
-                time.sleep(min(wait, 0.05))
-            _publish_raw(pubs[topic], data)
-            counts[topic] += 1
+        pubs = _publishers(node, bag, topics)
+        counts.update(dict.fromkeys(pubs, 0))
+        _wait_for_discovery(node, pubs, delay, stop, wait_subscribers, wait_timeout)
+        _publish_timed(bag, pubs, rate, stop, counts)
         for pub in pubs.values():
             if not stop.requested:
                 ros.wait_for_acks(pub, wait_s)
@@ -707,18 +665,66 @@ def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0, wait_sub
     return counts
 
 
-def _publish_raw(pub, data):
-    writer = getattr(pub, '_writer', None)
-    if writer is None:  # rclpy publishes serialized bytes as they are
-        pub.publish(bytes(data))
-        return
-    from cyclonedds._clayer import ddspy_write
+def _publishers(node, bag, topics):
+    """A publisher per bag topic to play (in ``topics``, if given), with the recorded QoS."""
+    pubs = {}
+    for topic, (msgtype, _, profiles) in bag.topics.items():
+        if topics and topic not in topics and topic.lstrip('/') not in topics:
+            continue
+        if ros.BACKEND == 'cyclonedds':
+            cls = messages.REGISTRY.get(msgtype)
+            if cls is None:
+                node.get_logger().warning(f"skipping '{topic}': no message class for {msgtype}")
+                continue
+        else:
+            cls = _rclpy_message_class(msgtype)
+        default = TOPICS.get(topic.lstrip('/'), (None, QoSProfile(depth=10)))[1]
+        qos = from_rosbags_qos(profiles, default)
+        if ros.BACKEND != 'cyclonedds':
+            qos = ros.QoSProfile(depth=qos.depth, reliability=int(qos.reliability),
+                                 durability=int(qos.durability))
+        pubs[topic] = node.create_publisher(cls, topic, qos)
+    return pubs
 
-    b = bytes(data)
-    pad = -len(b) & 3
-    ret = ddspy_write(writer._ref, b + b'\0' * pad if pad else b)
-    if ret < 0:
-        raise IfcSpgError(f"DDS write on '{pub.topic_name}' failed with code {ret}")
+
+def _wait_for_discovery(node, pubs, delay, stop, wait_subscribers, wait_timeout):
+    """Spin ``delay`` [s]; with ``wait_subscribers``, until every topic has that many."""
+    deadline = time.monotonic() + delay
+    while time.monotonic() < deadline and not stop.requested:
+        ros.spin_once(node, timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
+    if wait_subscribers <= 0:
+        return
+
+    def matched():
+        return all(p.get_subscription_count() >= wait_subscribers for p in pubs.values())
+
+    if not ros.spin_until(lambda: matched() or stop.requested, wait_timeout, [node]):
+        node.get_logger().warning(f'not every topic has {wait_subscribers} subscriber(s) after '
+                                  f'{wait_timeout} s; playing anyway')
+    ros.spin_until(lambda: stop.requested, 0.5, [node])
+
+
+def _publish_timed(bag, pubs, rate, stop, counts):
+    """Publish the messages of ``pubs``' topics at their log times / ``rate``."""
+    start_wall = time.monotonic()
+    for topic, _, t, data in bag.raw(set(pubs)):
+        if stop.requested:
+            break
+        due = start_wall + (t - bag.start_ns) * 1e-9 / rate
+        while not stop.requested:
+            wait = due - time.monotonic()
+            if wait <= 0:
+                break
+            time.sleep(min(wait, 0.05))  # pacing to the bag's timing, not polling
+        _publish_raw(pubs[topic], data)
+        counts[topic] += 1
+
+
+def _publish_raw(pub, data):
+    if ros.BACKEND == 'cyclonedds':
+        pub.publish_serialized(data)
+    else:  # rclpy publishes serialized bytes as they are
+        pub.publish(bytes(data))
 
 
 # -- info ---------------------------------------------------------------------------------
