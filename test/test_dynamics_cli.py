@@ -138,3 +138,25 @@ def test_missing_problem_file(capsys):
 def test_bench_scaling_smoke():
     res = bench_scaling(np.random.default_rng(0), [2, 4, 8], 20)
     assert res['dof'] == [2, 4, 8] and len(res['median_us']) == 3 and 'r2' in res
+
+
+@pytest.mark.parametrize('verb', sorted(top_cli.VERBS))
+def test_every_ifc_spg_verb_has_a_module_with_main(verb, capsys):
+    """Each verb of ``ifc-spg`` dispatches to a module that exists and answers --help."""
+    import importlib
+
+    module = importlib.import_module(top_cli.VERBS[verb][0])
+    assert callable(module.main)
+    try:
+        code = top_cli.main([verb, '--help'])
+    except SystemExit as exc:  # argparse's --help
+        code = exc.code
+    assert code == 0
+    assert f'ifc-spg {verb}' in capsys.readouterr().out
+
+
+def test_ifc_spg_usage_lists_every_verb(capsys):
+    assert top_cli.main([]) == 2
+    out = capsys.readouterr().out
+    assert all(f'  {verb} ' in out for verb in top_cli.VERBS) and 'pending' not in out
+    assert top_cli.main(['no-such-verb']) == 2

@@ -39,6 +39,11 @@ import sys
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.model import RobotModel
+from ifc_spg.node.config import SpgConfig
+from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params
+from ifc_spg.offline.bag import BagReader, stamp_ns
+from ifc_spg.offline.runner import CONFIG_KEY, ROBOT_PARAMS_KEY
 
 __all__ = ['ReplayResult', 'main', 'read_robot_params', 'read_spg_config', 'replay',
            'replay_robot']
@@ -85,12 +90,17 @@ class ReplayResult:
 
 
 def read_spg_config(bag, statuses, robot=None, configs=()):
-    """The :class:`~ifc_spg.node.config.SpgConfig` a bag was recorded with (``configs``: the
-    recorded ``spg/config`` documents).
-    """
-    from ifc_spg.node.config import SpgConfig
-    from ifc_spg.offline.runner import CONFIG_KEY
+    """The :class:`~ifc_spg.node.config.SpgConfig` a bag was recorded with.
 
+    Args:
+        bag: The :class:`~ifc_spg.offline.bag.BagReader`.
+        statuses: The recorded ``spg/status`` documents, ``[(log time, dict)]``.
+        robot: Robot name to use (None: the recorded one).
+        configs: The recorded ``spg/config`` documents, ``[(log time, dict)]``.
+
+    Raises:
+        ParameterError: The bag holds no configuration and no ``robot`` is given.
+    """
     doc = None
     if CONFIG_KEY in bag.custom_data:
         doc = json.loads(bag.custom_data[CONFIG_KEY])
@@ -113,9 +123,16 @@ def read_spg_config(bag, statuses, robot=None, configs=()):
 
 
 def read_robot_params(bag, statuses, configs=()):
-    """The robot-parameter record of a bag (dict), or None for bags without one."""
-    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
+    """The robot-parameter record of a bag (dict), or None for bags without one.
 
+    Args:
+        bag: The :class:`~ifc_spg.offline.bag.BagReader`.
+        statuses: The recorded ``spg/status`` documents, ``[(log time, dict)]``.
+        configs: The recorded ``spg/config`` documents, ``[(log time, dict)]``.
+
+    Raises:
+        ParameterError: The metadata's record is not a JSON object.
+    """
     if ROBOT_PARAMS_KEY in bag.custom_data:
         try:
             doc = json.loads(bag.custom_data[ROBOT_PARAMS_KEY])
@@ -147,9 +164,6 @@ def replay_robot(config, doc, where='bag'):
     Raises:
         ParameterError: A record whose K or D is not a valid per-joint vector.
     """
-    from ifc_spg.model import RobotModel
-    from ifc_spg.offline.runner import ROBOT_PARAMS_KEY
-
     robot = RobotModel.from_config(config.robot)
     if doc is None:
         return robot, False, [
@@ -231,8 +245,10 @@ def _activation_times(stack_msgs, statuses, accepted):
 
 
 def _resume_point(snapshots, state_stamps):
-    """The recorded ``spg/state`` to start from: the earliest tick j whose successor j+1 has
-    a snapshot too, stamped like a recorded joint state (so no tick between them is lost).
+    """The recorded ``spg/state`` to start from.
+
+    That is the earliest tick j whose successor j+1 has a snapshot too, stamped like a
+    recorded joint state (so no tick between them is lost).
 
     Returns:
         The snapshot vector of tick j, or None.
@@ -248,8 +264,10 @@ def _resume_point(snapshots, state_stamps):
 
 
 def _config_at(configs, stamp_s):
-    """The ``spg/config`` document in force after the tick at ``stamp_s`` [s]: the one whose
-    stack's latest activation is the newest not after it (None: no document).
+    """The ``spg/config`` document in force after the tick at ``stamp_s`` [s].
+
+    That is the one whose stack's latest activation is the newest not after it (None: no
+    document).
     """
     best, best_t = None, None
     for _, doc in configs:
@@ -260,6 +278,161 @@ def _config_at(configs, stamp_s):
     return best
 
 
+@dataclasses.dataclass
+class _Recorded:
+    """What a bag holds for the replay, topic by topic."""
+
+    states: list = dataclasses.field(default_factory=list)      # (stamp [ns], JointState)
+    commands: dict = dataclasses.field(default_factory=dict)    # stamp [ns] -> JointState
+    stack_msgs: list = dataclasses.field(default_factory=list)  # (log time [ns], text)
+    statuses: list = dataclasses.field(default_factory=list)    # (log time [ns], doc)
+    configs: list = dataclasses.field(default_factory=list)     # (log time [ns], doc)
+    snapshots: list = dataclasses.field(default_factory=list)   # spg/state vectors
+
+    def add(self, name, t_log, msg):
+        """File one message of topic ``name`` (relative) logged at ``t_log`` [ns]."""
+        if name == 'joint_states':
+            self.states.append((stamp_ns(msg.header.stamp), msg))
+        elif name == 'command/joint_position':
+            self.commands.setdefault(stamp_ns(msg.header.stamp), msg)
+        elif name == 'spg/task_stack':
+            self.stack_msgs.append((t_log, msg.data))
+        elif name == 'spg/state':
+            self.snapshots.append(np.asarray(msg.data, dtype=float))
+        else:
+            try:
+                doc = json.loads(msg.data)
+            except json.JSONDecodeError:
+                return
+            if isinstance(doc, dict):
+                (self.configs if name == 'spg/config' else self.statuses).append((t_log, doc))
+
+
+def _read_bag(path, robot):
+    """``(recorded, config, model, gains_recorded, warnings)`` of the bag at ``path``."""
+    with BagReader(path) as bag:
+        topics = {t.lstrip('/'): t for t in bag.topics}
+        for need in ('joint_states', 'command/joint_position'):
+            if need not in topics:
+                raise ParameterError(f"bag '{path}' has no '{need}' topic; topics: "
+                                     f"{', '.join(sorted(bag.topics)) or 'none'}")
+        rec = _Recorded()
+        wanted = {topics[k] for k in ('joint_states', 'command/joint_position', 'spg/task_stack',
+                                      'spg/status', 'spg/config', 'spg/state') if k in topics}
+        for topic, t_log, msg in bag.messages(wanted):
+            rec.add(topic.lstrip('/'), t_log, msg)
+        config = read_spg_config(bag, rec.statuses, robot, rec.configs)
+        model, gains_recorded, warnings = replay_robot(
+            config, read_robot_params(bag, rec.statuses, rec.configs), where=f"bag '{bag.path}'")
+    rec.states.sort(key=lambda x: x[0])
+    return rec, config, model, gains_recorded, warnings
+
+
+def _watchdog_trips(statuses):
+    """Tick counts of the recorded ``watchdog`` status events (the live node's timer trips)."""
+    return sorted({int(doc['tick']) for _, doc in statuses
+                   if isinstance(doc, dict) and isinstance(doc.get('event'), dict)
+                   and doc['event'].get('type') == 'watchdog'
+                   and isinstance(doc.get('tick'), int)})
+
+
+@dataclasses.dataclass
+class _Plan:
+    """Where the replay starts and what it hands to the SPG on the way."""
+
+    stack_msgs: list        # (when, text) of the stacks to hand over
+    pending: list           # sorted (when [s], index into stack_msgs)
+    trips: list             # tick counts after which the runner is marked stale
+    after: int = None       # stamp [ns] of the restored state (None: from the first tick)
+
+
+def _resume_plan(spg, rec, start, trips, path):
+    """Restore ``spg`` from the recorded state ``start``; later stacks from spg/config."""
+    start_s = (int(start[1]) * 1_000_000_000 + int(start[2])) * 1e-9
+    doc = _config_at(rec.configs, start_s)
+    if doc is None:
+        raise ParameterError(f"bag '{path}' has spg/state but no spg/config in force at "
+                             f'{start_s:.3f} s; record spg/config (latched) too')
+    after = spg.restore(start, doc)
+    running = (doc.get('stack') or {}).get('id')
+    # later stacks, from the spg/config documents: each at its first tick
+    stack_msgs, seen_ids = [], {running}
+    for _, later in rec.configs:
+        st = later.get('stack')
+        if st and st.get('id') not in seen_ids and st.get('since') is not None and \
+                st['since'] > start_s:
+            seen_ids.add(st['id'])
+            stack_msgs.append((st['since'], st['text']))
+    pending = sorted((w, i) for i, (w, _) in enumerate(stack_msgs))
+    return _Plan(stack_msgs, pending, [t for t in trips if t > spg.ticks], after)
+
+
+def _first_tick_plan(spg, rec, trips):
+    """From the first tick: each recorded stack at the tick the recorded run activated it."""
+    accepted = []
+    for _, text in rec.stack_msgs:
+        try:
+            parse_task_stack(text).build(spg.robot)
+            accepted.append(True)
+        except IfcSpgError:
+            accepted.append(False)
+    when = _activation_times(rec.stack_msgs, rec.statuses, accepted)
+    pending = sorted(((w, i) for i, w in enumerate(when) if w is not None))
+    return _Plan(rec.stack_msgs, pending, trips)
+
+
+class _Tally:
+    """The comparison of recomputed with recorded commands, tick by tick."""
+
+    def __init__(self, commands):
+        self.commands = commands
+        self.last_command = max(commands, default=None)
+        self.worst, self.worst_stamp, self.worst_joint = 0.0, None, ''
+        self.compared = self.missing = self.handed = self.skipped = self.unanswered = 0
+        self.seen = set()
+
+    def compare(self, stamp, cmd):
+        """Compare the recomputed ``cmd`` of the state at ``stamp`` [ns] with the recording."""
+        rec = self.commands.get(stamp)
+        if rec is None and cmd is not None and (self.last_command is None or
+                                                stamp > self.last_command):
+            self.unanswered += 1  # the recorder stopped before this state's command arrived
+            return
+        if cmd is None or rec is None:
+            self.missing += 1
+            return
+        recorded = np.array(_in_order(rec, cmd.names), dtype=float)
+        diff = np.abs(cmd.position - recorded)
+        self.compared += 1
+        j = int(np.argmax(diff)) if diff.size else 0
+        d = float(diff[j]) if diff.size else 0.0
+        if not np.all(np.isfinite(diff)):
+            d = float('inf')
+        if d > self.worst or self.worst_stamp is None:
+            self.worst, self.worst_stamp, self.worst_joint = d, stamp * 1e-9, cmd.names[j]
+
+
+def _run_ticks(spg, states, plan, tally):
+    """Feed every recorded joint state (once per stamp) to ``spg``, as the live node did."""
+    pending, trips = plan.pending, plan.trips
+    for stamp, msg in states:
+        if stamp in tally.seen:  # a lockstep bridge re-publishes a state it got no answer for
+            continue
+        tally.seen.add(stamp)
+        if plan.after is not None and stamp <= plan.after:
+            tally.skipped += 1  # before the first recorded SPG state: not reproducible
+            continue
+        while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
+            _, i = pending.pop(0)
+            spg.handle_task_stack(plan.stack_msgs[i][1])
+            tally.handed += 1
+        cmd = spg.handle_joint_state(msg.name, msg.position, msg.velocity, stamp)
+        while trips and trips[0] <= spg.ticks:
+            if trips.pop(0) == spg.ticks:
+                spg.mark_stale('watchdog event recorded in the bag')
+        tally.compare(stamp, cmd)
+
+
 def replay(path, robot=None):
     """Recompute the commands of a bag; returns a :class:`ReplayResult`.
 
@@ -268,117 +441,30 @@ def replay(path, robot=None):
     ``spg/config``; later stacks are handed to it at the tick each became active. Recorded
     joint states before that point (``skipped``) and after the last recorded command
     (``unanswered``: the recorder stopped first) are the recording's edges, not failures.
-    """
-    from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params
-    from ifc_spg.offline.bag import BagReader, stamp_ns
 
-    with BagReader(path) as bag:
-        topics = {t.lstrip('/'): t for t in bag.topics}
-        for need in ('joint_states', 'command/joint_position'):
-            if need not in topics:
-                raise ParameterError(f"bag '{path}' has no '{need}' topic; topics: "
-                                     f"{', '.join(sorted(bag.topics)) or 'none'}")
-        states, commands, stack_msgs, statuses = [], {}, [], []
-        configs, snapshots = [], []
-        wanted = {topics[k] for k in ('joint_states', 'command/joint_position', 'spg/task_stack',
-                                      'spg/status', 'spg/config', 'spg/state') if k in topics}
-        for topic, t_log, msg in bag.messages(wanted):
-            name = topic.lstrip('/')
-            if name == 'joint_states':
-                states.append((stamp_ns(msg.header.stamp), msg))
-            elif name == 'command/joint_position':
-                commands.setdefault(stamp_ns(msg.header.stamp), msg)
-            elif name == 'spg/task_stack':
-                stack_msgs.append((t_log, msg.data))
-            elif name == 'spg/state':
-                snapshots.append(np.asarray(msg.data, dtype=float))
-            else:
-                try:
-                    doc = json.loads(msg.data)
-                except json.JSONDecodeError:
-                    continue
-                if isinstance(doc, dict):
-                    (configs if name == 'spg/config' else statuses).append((t_log, doc))
-        config = read_spg_config(bag, statuses, robot, configs)
-        model, gains_recorded, warnings = replay_robot(
-            config, read_robot_params(bag, statuses, configs), where=f"bag '{bag.path}'")
+    Args:
+        path: Bag directory.
+        robot: Robot name to replay as (the bag's, if None).
+
+    Raises:
+        ParameterError: The bag lacks the topics or the configuration a replay needs.
+    """
+    rec, config, model, gains_recorded, warnings = _read_bag(path, robot)
     # a fixed clock: the runner never trips by itself; the live node's timer trips are
     # replayed at the tick count their 'watchdog' status event recorded
     spg = SpgRunner(config, robot=model, clock=lambda: 0.0)
-    trips = sorted({int(doc['tick']) for _, doc in statuses
-                    if isinstance(doc, dict) and isinstance(doc.get('event'), dict)
-                    and doc['event'].get('type') == 'watchdog'
-                    and isinstance(doc.get('tick'), int)})
-    states.sort(key=lambda x: x[0])
-    start = _resume_point(snapshots, {stamp for stamp, _ in states}) if snapshots else None
-    after = None
-    if start is not None:
-        start_s = (int(start[1]) * 1_000_000_000 + int(start[2])) * 1e-9
-        doc = _config_at(configs, start_s)
-        if doc is None:
-            raise ParameterError(f"bag '{path}' has spg/state but no spg/config in force at "
-                                 f'{start_s:.3f} s; record spg/config (latched) too')
-        after = spg.restore(start, doc)
-        running = (doc.get('stack') or {}).get('id')
-        # later stacks, from the spg/config documents: each at its first tick
-        stack_msgs, seen_ids = [], {running}
-        for _, later in configs:
-            st = later.get('stack')
-            if st and st.get('id') not in seen_ids and st.get('since') is not None and \
-                    st['since'] > start_s:
-                seen_ids.add(st['id'])
-                stack_msgs.append((st['since'], st['text']))
-        pending = sorted((w, i) for i, (w, _) in enumerate(stack_msgs))
-        trips = [t for t in trips if t > spg.ticks]
-    else:
-        accepted = []
-        for _, text in stack_msgs:
-            try:
-                parse_task_stack(text).build(spg.robot)
-                accepted.append(True)
-            except IfcSpgError:
-                accepted.append(False)
-        when = _activation_times(stack_msgs, statuses, accepted)
-        pending = sorted(((w, i) for i, w in enumerate(when) if w is not None))
-    last_command = max(commands, default=None)
-    worst, worst_stamp, worst_joint = 0.0, None, ''
-    compared = missing = handed = skipped = unanswered = 0
-    seen = set()
-    for stamp, msg in states:
-        if stamp in seen:  # a lockstep bridge re-publishes a state it got no answer for
-            continue
-        seen.add(stamp)
-        if after is not None and stamp <= after:
-            skipped += 1  # before the first recorded SPG state: not reproducible
-            continue
-        while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
-            _, i = pending.pop(0)
-            spg.handle_task_stack(stack_msgs[i][1])
-            handed += 1
-        cmd = spg.handle_joint_state(msg.name, msg.position, msg.velocity, stamp)
-        while trips and trips[0] <= spg.ticks:
-            if trips.pop(0) == spg.ticks:
-                spg.mark_stale('watchdog event recorded in the bag')
-        rec = commands.get(stamp)
-        if rec is None and cmd is not None and (last_command is None or stamp > last_command):
-            unanswered += 1  # the recorder stopped before this state's command arrived
-            continue
-        if cmd is None or rec is None:
-            missing += 1
-            continue
-        recorded = np.array(_in_order(rec, cmd.names), dtype=float)
-        diff = np.abs(cmd.position - recorded)
-        compared += 1
-        j = int(np.argmax(diff)) if diff.size else 0
-        d = float(diff[j]) if diff.size else 0.0
-        if not np.all(np.isfinite(diff)):
-            d = float('inf')
-        if d > worst or worst_stamp is None:
-            worst, worst_stamp, worst_joint = d, stamp * 1e-9, cmd.names[j]
-    return ReplayResult(worst if compared else float('inf'), worst_stamp, worst_joint,
-                        len(seen) - skipped, compared, missing, handed,
-                        dataclasses.asdict(config), robot_params(model), gains_recorded,
-                        warnings, skipped, unanswered, start is not None)
+    trips = _watchdog_trips(rec.statuses)
+    start = _resume_point(rec.snapshots, {stamp for stamp, _ in rec.states}) \
+        if rec.snapshots else None
+    plan = _first_tick_plan(spg, rec, trips) if start is None else \
+        _resume_plan(spg, rec, start, trips, path)
+    tally = _Tally(rec.commands)
+    _run_ticks(spg, rec.states, plan, tally)
+    return ReplayResult(tally.worst if tally.compared else float('inf'), tally.worst_stamp,
+                        tally.worst_joint, len(tally.seen) - tally.skipped, tally.compared,
+                        tally.missing, tally.handed, dataclasses.asdict(config),
+                        robot_params(model), gains_recorded, warnings, tally.skipped,
+                        tally.unanswered, start is not None)
 
 
 def _in_order(msg, names):

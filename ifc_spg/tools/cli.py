@@ -5,7 +5,6 @@ dispatches, so ``ifc-spg VERB --help`` is answered by the module that implements
 """
 
 import importlib
-import importlib.util
 import sys
 
 __all__ = ['main', 'VERBS']
@@ -27,13 +26,8 @@ VERBS = {
 
 def _usage():
     lines = ['usage: ifc-spg VERB [ARGS...]   (ifc-spg VERB --help for a verb)', '', 'verbs:']
-    for verb, (module, text) in VERBS.items():
-        try:
-            found = importlib.util.find_spec(module) is not None
-        except ModuleNotFoundError:
-            found = False
-        mark = '' if found else '  (pending)'
-        lines.append(f'  {verb:<9} {text}{mark}')
+    for verb, (_, text) in VERBS.items():
+        lines.append(f'  {verb:<9} {text}')
     return '\n'.join(lines)
 
 
@@ -47,15 +41,7 @@ def main(argv=None):
     if verb not in VERBS:
         print(f"ifc-spg: unknown verb '{verb}'\n\n{_usage()}", file=sys.stderr)
         return 2
-    module = VERBS[verb][0]
-    try:
-        mod = importlib.import_module(module)
-    except ModuleNotFoundError as exc:
-        if exc.name and module.startswith(exc.name):
-            print(f"ifc-spg {verb}: pending (module '{module}' not implemented yet)",
-                  file=sys.stderr)
-            return 2
-        raise
+    mod = importlib.import_module(VERBS[verb][0])
     return int(mod.main(rest) or 0)
 
 
