@@ -40,32 +40,9 @@ def box_qp(G, g, f):
     for _ in range(20 * k + 20):
         grad = G @ x + g
         if newton:
-            fi = np.flatnonzero(state == 0)
-            if fi.size:
-                H = G[np.ix_(fi, fi)] + eps * np.eye(fi.size)
-                try:
-                    c = np.linalg.cholesky(H)
-                except np.linalg.LinAlgError:
-                    return x, False
-                p = -np.linalg.solve(c.T, np.linalg.solve(c, grad[fi]))
-            else:
-                p = np.zeros(0)
-            alpha, block, side = 1.0, -1, 0
-            for a, i in enumerate(fi):
-                if p[a] > 0 and x[i] + p[a] > f[i]:
-                    t = (f[i] - x[i]) / p[a]
-                    if t < alpha:
-                        alpha, block, side = t, i, 1
-                elif p[a] < 0 and x[i] + p[a] < -f[i]:
-                    t = (-f[i] - x[i]) / p[a]
-                    if t < alpha:
-                        alpha, block, side = t, i, -1
-            x[fi] += max(alpha, 0.0) * p
-            if block >= 0:
-                state[block] = side
-                x[block] = side * f[block]
-            else:
-                newton = False
+            newton = _newton_step(G, grad, f, x, state, eps)
+            if newton is None:
+                return x, False
             continue
         viol = np.where(state == 1, grad, np.where(state == -1, -grad, 0.0))
         worst = int(np.argmax(viol))
@@ -73,8 +50,55 @@ def box_qp(G, g, f):
             break
         state[worst] = 0
         newton = True
+    return x, _kkt_holds(G, g, f, x, state, tol)
+
+
+def _newton_step(G, grad, f, x, state, eps):
+    """A Newton step on the free coordinates, cut at the first bound it crosses.
+
+    Updates ``x`` and ``state`` in place.
+
+    Returns:
+        True if a bound was hit (that coordinate joined the active set: step again), False
+        at the minimum of the face, None if the free block is not positive definite.
+    """
+    fi = np.flatnonzero(state == 0)
+    if fi.size:
+        H = G[np.ix_(fi, fi)] + eps * np.eye(fi.size)
+        try:
+            c = np.linalg.cholesky(H)
+        except np.linalg.LinAlgError:
+            return None
+        p = -np.linalg.solve(c.T, np.linalg.solve(c, grad[fi]))
+    else:
+        p = np.zeros(0)
+    alpha, block, side = _ratio_test(fi, p, x, f)
+    x[fi] += max(alpha, 0.0) * p
+    if block >= 0:
+        state[block] = side
+        x[block] = side * f[block]
+        return True
+    return False
+
+
+def _ratio_test(fi, p, x, f):
+    """``(alpha, block, side)``: the step length along ``p`` to the first bound crossed."""
+    alpha, block, side = 1.0, -1, 0
+    for a, i in enumerate(fi):
+        if p[a] > 0 and x[i] + p[a] > f[i]:
+            t = (f[i] - x[i]) / p[a]
+            if t < alpha:
+                alpha, block, side = t, i, 1
+        elif p[a] < 0 and x[i] + p[a] < -f[i]:
+            t = (-f[i] - x[i]) / p[a]
+            if t < alpha:
+                alpha, block, side = t, i, -1
+    return alpha, block, side
+
+
+def _kkt_holds(G, g, f, x, state, tol):
+    """Whether ``x`` with the active set ``state`` satisfies the KKT conditions to ``tol``."""
     grad = G @ x + g
     free = state == 0
-    ok = bool(np.all(np.abs(grad[free]) <= tol) and np.all(np.abs(x[free]) <= f[free])
-              and np.all(grad[state == 1] <= tol) and np.all(grad[state == -1] >= -tol))
-    return x, ok
+    return bool(np.all(np.abs(grad[free]) <= tol) and np.all(np.abs(x[free]) <= f[free])
+                and np.all(grad[state == 1] <= tol) and np.all(grad[state == -1] >= -tol))

@@ -131,25 +131,7 @@ def chain_from_model(model, tip_frame=None):
     unbounded = np.zeros(n, dtype=bool)
     axis = np.zeros((n, 3))
     for i in range(n):
-        jm = model.joints[i + 1]
-        kind = jm.shortname()
-        for table, is_rev, is_ub in ((_REVOLUTE, True, False), (_UNBOUNDED, True, True),
-                                     (_PRISMATIC, False, False)):
-            if kind in table:
-                fixed_axis = table[kind]
-                ax = np.array(fixed_axis) if fixed_axis is not None else np.array(
-                    jm.extract().axis, dtype=float)
-                revolute[i], unbounded[i] = is_rev, is_ub
-                break
-        else:
-            raise ModelError(
-                f"joint '{names[i]}' is a {kind}; the Popov-Vereshchagin solver supports "
-                'revolute, continuous and prismatic joints only (fixed joints are folded by '
-                'the URDF/MJCF parser); lock it with pinocchio.buildReducedModel')
-        norm = np.linalg.norm(ax)
-        if not norm > 0:
-            raise ModelError(f"joint '{names[i]}' has a zero axis")
-        axis[i] = ax / norm
+        revolute[i], unbounded[i], axis[i] = _joint_axis(model.joints[i + 1], names[i])
     R_parent = np.array([model.jointPlacements[i].rotation for i in range(1, n + 1)])
     p_parent = np.array([model.jointPlacements[i].translation for i in range(1, n + 1)])
     mass = np.array([model.inertias[i].mass for i in range(1, n + 1)])
@@ -163,17 +145,7 @@ def chain_from_model(model, tip_frame=None):
         tip_frame = names[-1]
         tip = np.eye(4)
     else:
-        if not model.existFrame(tip_frame):
-            raise UnknownFrame(f"tip frame '{tip_frame}' not in the model"
-                               + did_you_mean(tip_frame, [f.name for f in model.frames])
-                               + '; it must be a frame on the last segment')
-        frame = model.frames[model.getFrameId(tip_frame)]
-        if frame.parentJoint != n:
-            raise UnknownFrame(
-                f"tip frame '{tip_frame}' is attached to joint "
-                f"'{model.names[frame.parentJoint]}', not to the last joint '{names[-1]}'; "
-                'A_N acts on the last segment, so pick a frame of that segment')
-        tip = frame.placement.homogeneous
+        tip = _tip_placement(model, tip_frame)
     skew = np.array([_skew(a) for a in axis])
     return Chain(model=model, n=n, joint_names=names, revolute=_readonly(revolute, bool),
                  axis=_readonly(axis), axis_skew=_readonly(skew),
@@ -182,3 +154,47 @@ def chain_from_model(model, tip_frame=None):
                  inertia_com=_readonly(inertia_com), armature=_readonly(armature),
                  idx_q=_readonly(idx_q, int), unbounded=_readonly(unbounded, bool),
                  tip_frame=str(tip_frame), tip_placement=_readonly(tip))
+
+
+def _joint_axis(jm, name):
+    """``(revolute, unbounded, unit axis (3,))`` of a 1-DoF pinocchio joint model.
+
+    Raises:
+        ModelError: Another joint type, or a zero axis.
+    """
+    kind = jm.shortname()
+    for table, is_rev, is_ub in ((_REVOLUTE, True, False), (_UNBOUNDED, True, True),
+                                 (_PRISMATIC, False, False)):
+        if kind in table:
+            fixed_axis = table[kind]
+            ax = np.array(fixed_axis) if fixed_axis is not None else np.array(
+                jm.extract().axis, dtype=float)
+            norm = np.linalg.norm(ax)
+            if not norm > 0:
+                raise ModelError(f"joint '{name}' has a zero axis")
+            return is_rev, is_ub, ax / norm
+    raise ModelError(
+        f"joint '{name}' is a {kind}; the Popov-Vereshchagin solver supports "
+        'revolute, continuous and prismatic joints only (fixed joints are folded by '
+        'the URDF/MJCF parser); lock it with pinocchio.buildReducedModel')
+
+
+def _tip_placement(model, tip_frame):
+    """The placement (4, 4) of ``tip_frame`` in the last joint's frame.
+
+    Raises:
+        UnknownFrame: No such frame, or it is not on the last segment.
+    """
+    n = model.njoints - 1
+    if not model.existFrame(tip_frame):
+        raise UnknownFrame(f"tip frame '{tip_frame}' not in the model"
+                           + did_you_mean(tip_frame, [f.name for f in model.frames])
+                           + '; it must be a frame on the last segment')
+    frame = model.frames[model.getFrameId(tip_frame)]
+    if frame.parentJoint != n:
+        raise UnknownFrame(
+            f"tip frame '{tip_frame}' is attached to joint "
+            f"'{model.names[frame.parentJoint]}', not to the last joint "
+            f"'{model.names[n]}'; A_N acts on the last segment, so pick a frame of that "
+            'segment')
+    return frame.placement.homogeneous

@@ -1,5 +1,6 @@
-"""The compiled Popov-Vereshchagin kernel (``ifc_spg.dynamics._native_dynamics``, built from
-``_native_dynamics.c`` at install time), or None where it was not built.
+"""The compiled Popov-Vereshchagin kernel, or None where it was not built.
+
+``ifc_spg.dynamics._native_dynamics`` is built from ``_native_dynamics.c`` at install time.
 
 The numpy kernel (:class:`ifc_spg.dynamics.vereshchagin.NumpyKernel`) is the reference the
 tests compare it with, and runs wherever the module is missing. ``IFC_SPG_NATIVE=0`` in the
@@ -65,6 +66,7 @@ if _mod is not None:
         """
 
         def __new__(cls, chain, gravity0, rank_tol, damping, result_type, check):
+            """The C kernel of ``chain``, its workspace allocated once."""
             return super().__new__(
                 cls, n=chain.n, nq=chain.model.nq, revolute=chain.revolute.astype(float),
                 axis=chain.axis, axis_skew=chain.axis_skew, axis_skew2=chain.axis_skew2,

@@ -139,11 +139,51 @@ def _vec(doc, key, size, path, default=None):
 def load_problem(path):
     """Read a problem file (format in the module docstring).
 
+    Args:
+        path: The problem file (YAML).
+
     Raises:
         ParameterError: Missing/ill-typed fields (the message names the file and field).
         ModelError: The model file is missing or cannot be parsed.
         UnknownFrame: A frame name is not in the model.
     """
+    doc = _read_doc(path)
+    model = _load_model(path, doc)
+    n = model.nv
+    q = _vec(doc, 'q', model.nq, path, default=pin.neutral(model))
+    qd = _vec(doc, 'qd', n, path, default=np.zeros(n))
+    tau = _vec(doc, 'tau', n, path, default=np.zeros(n))
+    kwargs = {}
+    if 'base_acceleration' in doc and 'gravity' in doc:
+        raise ParameterError(f"{path}: give either 'gravity' or 'base_acceleration', not both")
+    if 'base_acceleration' in doc:
+        kwargs['base_acceleration'] = _vec(doc, 'base_acceleration', 6, path)
+    elif 'gravity' in doc:
+        g = _vec(doc, 'gravity', 3, path)
+        kwargs['base_acceleration'] = np.concatenate((-g, np.zeros(3)))
+    if doc.get('external_wrenches'):
+        kwargs['external_wrenches'] = _wrenches(model, q, doc['external_wrenches'], path)
+    if doc.get('constraints'):
+        kwargs['A_N'], kwargs['b_N'] = _constraints(doc['constraints'], path)
+    breakaway, eps = None, 1e-6
+    fr = doc.get('friction')
+    if fr:
+        if not isinstance(fr, dict):
+            raise ParameterError(f"{path}: 'friction' must be a mapping with 'breakaway'")
+        breakaway = _vec(fr, 'breakaway', n, path)
+        eps = float(fr.get('eps', 1e-6))
+    prob = Problem(name=str(doc.get('name', os.path.splitext(os.path.basename(path))[0])),
+                   model=model, tip_frame=doc.get('tip_frame'), q=q, qd=qd, tau=tau,
+                   kwargs=kwargs, breakaway=breakaway, eps=eps)
+    try:
+        prob.solver()
+    except IfcSpgError as exc:
+        raise type(exc)(f'{path}: {exc}') from None
+    return prob
+
+
+def _read_doc(path):
+    """The problem file's mapping, its keys checked (ParameterError naming the file)."""
     if not os.path.isfile(path):
         raise ParameterError(f"problem file '{path}' does not exist")
     try:
@@ -160,70 +200,46 @@ def load_problem(path):
                                  f"valid keys: {', '.join(_KEYS)}")
     if 'model' not in doc:
         raise ParameterError(f"{path}: missing 'model' (path of a URDF or MJCF file)")
+    return doc
+
+
+def _load_model(path, doc):
+    """The pinocchio model of ``doc['model']`` (relative to the problem file's folder)."""
     mpath = os.path.join(os.path.dirname(os.path.abspath(path)), str(doc['model']))
     if not os.path.isfile(mpath):
         raise ModelError(f"{path}: model file '{mpath}' does not exist")
     ext = os.path.splitext(mpath)[1].lower()
     try:
         if ext == '.urdf':
-            model = pin.buildModelFromUrdf(mpath)
-        elif ext in ('.xml', '.mjcf'):
-            model = pin.buildModelFromMJCF(mpath)
-        else:
-            raise ModelError(f"{path}: model file '{mpath}' must end in .urdf (URDF) or "
-                             '.xml / .mjcf (MJCF)')
+            return pin.buildModelFromUrdf(mpath)
+        if ext in ('.xml', '.mjcf'):
+            return pin.buildModelFromMJCF(mpath)
     except (RuntimeError, ValueError) as exc:
         raise ModelError(f"{path}: could not load model '{mpath}': {exc}") from None
-    tip = doc.get('tip_frame')
-    n = model.nv
-    q = _vec(doc, 'q', model.nq, path, default=pin.neutral(model))
-    qd = _vec(doc, 'qd', n, path, default=np.zeros(n))
-    tau = _vec(doc, 'tau', n, path, default=np.zeros(n))
-    kwargs = {}
-    if 'base_acceleration' in doc and 'gravity' in doc:
-        raise ParameterError(f"{path}: give either 'gravity' or 'base_acceleration', not both")
-    if 'base_acceleration' in doc:
-        kwargs['base_acceleration'] = _vec(doc, 'base_acceleration', 6, path)
-    elif 'gravity' in doc:
-        g = _vec(doc, 'gravity', 3, path)
-        kwargs['base_acceleration'] = np.concatenate((-g, np.zeros(3)))
-    if doc.get('external_wrenches'):
-        kwargs['external_wrenches'] = _wrenches(model, q, doc['external_wrenches'], path)
-    cons = doc.get('constraints')
-    if cons:
-        if not isinstance(cons, dict) or 'A_N' not in cons:
-            raise ParameterError(f"{path}: 'constraints' needs 'A_N' (list of 6-vectors) and "
-                                 "'b_N'")
-        try:
-            A = np.array(cons['A_N'], dtype=float)
-        except (TypeError, ValueError):
-            raise ParameterError(f'{path}: constraints.A_N must be a list of 6-number '
-                                 'columns') from None
-        if A.ndim == 1:
-            A = A[None]
-        if A.ndim != 2 or A.shape[1] != 6 or A.shape[0] > 6:
-            raise ParameterError(f'{path}: constraints.A_N must be a list of at most 6 '
-                                 f'columns with 6 numbers each, got shape {A.shape}')
-        kwargs['A_N'] = A.T
-        kwargs['b_N'] = _vec(cons, 'b_N', A.shape[0], path, default=np.zeros(A.shape[0]))
-    breakaway, eps = None, 1e-6
-    fr = doc.get('friction')
-    if fr:
-        if not isinstance(fr, dict):
-            raise ParameterError(f"{path}: 'friction' must be a mapping with 'breakaway'")
-        breakaway = _vec(fr, 'breakaway', n, path)
-        eps = float(fr.get('eps', 1e-6))
-    prob = Problem(name=str(doc.get('name', os.path.splitext(os.path.basename(path))[0])),
-                   model=model, tip_frame=tip, q=q, qd=qd, tau=tau, kwargs=kwargs,
-                   breakaway=breakaway, eps=eps)
+    raise ModelError(f"{path}: model file '{mpath}' must end in .urdf (URDF) or "
+                     '.xml / .mjcf (MJCF)')
+
+
+def _constraints(cons, path):
+    """``(A_N (6, m), b_N (m,))`` of the ``constraints`` entry (columns given as rows)."""
+    if not isinstance(cons, dict) or 'A_N' not in cons:
+        raise ParameterError(f"{path}: 'constraints' needs 'A_N' (list of 6-vectors) and "
+                             "'b_N'")
     try:
-        prob.solver()
-    except IfcSpgError as exc:
-        raise type(exc)(f'{path}: {exc}') from None
-    return prob
+        A = np.array(cons['A_N'], dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f'{path}: constraints.A_N must be a list of 6-number '
+                             'columns') from None
+    if A.ndim == 1:
+        A = A[None]
+    if A.ndim != 2 or A.shape[1] != 6 or A.shape[0] > 6:
+        raise ParameterError(f'{path}: constraints.A_N must be a list of at most 6 '
+                             f'columns with 6 numbers each, got shape {A.shape}')
+    return A.T, _vec(cons, 'b_N', A.shape[0], path, default=np.zeros(A.shape[0]))
 
 
 def _wrenches(model, q, items, path):
+    """The ``external_wrenches`` entries as per-segment wrenches (n, 6) at the joints."""
     if not isinstance(items, list):
         raise ParameterError(f"{path}: 'external_wrenches' must be a list of "
                              '{frame, force, torque}')

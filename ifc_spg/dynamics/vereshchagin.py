@@ -132,8 +132,13 @@ def check_inputs(chain, gravity0, q, qd, tau, a0, fext, A, b):
     Args:
         chain: The :class:`~ifc_spg.dynamics.chain.Chain`.
         gravity0: Base acceleration used when ``a0`` is None, shape (6,).
-        q, qd, tau, a0, fext, A, b: As :meth:`VereshchaginSolver.solve` (``a0`` is
-            ``base_acceleration``, ``fext`` ``external_wrenches``, ``A``/``b`` ``A_N``/``b_N``).
+        q: Configuration, as :meth:`VereshchaginSolver.solve`.
+        qd: Joint velocities.
+        tau: Feed-forward joint torques, or None (zero).
+        a0: ``base_acceleration``, or None (``gravity0``).
+        fext: ``external_wrenches``, or None.
+        A: ``A_N``, or None (no constraint).
+        b: ``b_N``, or None (zero).
 
     Returns:
         ``(th, qd, tau, a0, fext, A, b)`` as float arrays: joint angles (n,), qd (n,),
@@ -154,35 +159,13 @@ def check_inputs(chain, gravity0, q, qd, tau, a0, fext, A, b):
         tau = np.asarray(tau, dtype=float)
         if tau.shape != (n,):
             raise ParameterError(f'tau must have shape ({n},), got {tau.shape}')
-    if a0 is None:
-        a0 = gravity0
-    else:
-        a0 = np.asarray(a0, dtype=float)
-        if a0.shape != (6,):
-            raise ParameterError(f'base_acceleration must have shape (6,) [linear; '
-                                 f'angular], got {a0.shape}; gravity enters as -g, e.g. '
-                                 '[0, 0, 9.81, 0, 0, 0]')
+    a0 = gravity0 if a0 is None else _base_acceleration(a0)
     if fext is not None:
         fext = np.asarray(fext, dtype=float)
         if fext.shape != (n, 6):
             raise ParameterError(f'external_wrenches must have shape ({n}, 6) (one '
                                  f'[force; moment] per segment), got {fext.shape}')
-    if A is None:
-        if b is not None and np.size(b):
-            raise ParameterError('b_N given without A_N')
-        A = np.zeros((6, 0))
-        b = np.zeros(0)
-    else:
-        A = np.asarray(A, dtype=float)
-        if A.ndim == 1:
-            A = A[:, None]
-        if A.ndim != 2 or A.shape[0] != 6 or A.shape[1] > 6:
-            raise ParameterError(f'A_N must have shape (6, m) with m <= 6 (one unit '
-                                 f'constraint wrench per column), got {A.shape}')
-        b = np.zeros(A.shape[1]) if b is None else np.asarray(b, dtype=float).reshape(-1)
-        if b.shape != (A.shape[1],):
-            raise ParameterError(f'b_N must have shape ({A.shape[1]},) to match the '
-                                 f'{A.shape[1]} columns of A_N, got {b.shape}')
+    A, b = _constraint(A, b)
     for name, x in (('q', th), ('qd', qd), ('tau', tau), ('base_acceleration', a0),
                     ('A_N', A), ('b_N', b)):
         if not np.isfinite(x).all():
@@ -190,6 +173,35 @@ def check_inputs(chain, gravity0, q, qd, tau, a0, fext, A, b):
     if fext is not None and not np.isfinite(fext).all():
         raise ParameterError('external_wrenches must be finite')
     return th, qd, tau, a0, fext, A, b
+
+
+def _base_acceleration(a0):
+    """``base_acceleration`` as a float array (6,) (ParameterError for another shape)."""
+    a0 = np.asarray(a0, dtype=float)
+    if a0.shape != (6,):
+        raise ParameterError(f'base_acceleration must have shape (6,) [linear; '
+                             f'angular], got {a0.shape}; gravity enters as -g, e.g. '
+                             '[0, 0, 9.81, 0, 0, 0]')
+    return a0
+
+
+def _constraint(A, b):
+    """``(A_N (6, m), b_N (m,))`` as float arrays; none given: m = 0 (ParameterError)."""
+    if A is None:
+        if b is not None and np.size(b):
+            raise ParameterError('b_N given without A_N')
+        return np.zeros((6, 0)), np.zeros(0)
+    A = np.asarray(A, dtype=float)
+    if A.ndim == 1:
+        A = A[:, None]
+    if A.ndim != 2 or A.shape[0] != 6 or A.shape[1] > 6:
+        raise ParameterError(f'A_N must have shape (6, m) with m <= 6 (one unit '
+                             f'constraint wrench per column), got {A.shape}')
+    b = np.zeros(A.shape[1]) if b is None else np.asarray(b, dtype=float).reshape(-1)
+    if b.shape != (A.shape[1],):
+        raise ParameterError(f'b_N must have shape ({A.shape[1]},) to match the '
+                             f'{A.shape[1]} columns of A_N, got {b.shape}')
+    return A, b
 
 
 class NumpyKernel:
@@ -279,11 +291,24 @@ class NumpyKernel:
     # -- the three sweeps ------------------------------------------------------------------
     def _sweeps(self, th, qd, T, a0, fext, A, b):
         """Run the sweeps for the torque columns T (n, r); column 0 carries the bias terms."""
+        Tw, S, cb, Iw, pb = self._outward_bias(th, qd, fext)
+        p = Tw[:, :3, 3]
+        ptip = (Tw[self.n - 1] @ self.chain.tip_placement)[:3, 3]
+        Aw = np.empty((6, A.shape[1]))               # A_N moved to the base origin
+        Aw[:3] = A[:3]
+        Aw[3:] = A[3:] + (ptip @ _SKEW3).reshape(3, 3) @ A[:3]
+        xs, Ds, Es, E0 = self._inward(S, cb, Iw, pb, T, Aw)
+        nu, L, rank, singular, K, Uv = self._balance(xs, Ds, Es, E0, cb, a0, b, T.shape[1])
+        qdd, acc = self._outward_accelerations(S, cb, a0, K, Uv)
+        return {'qdd': qdd, 'acc': acc, 'nu': nu, 'L': L, 'rank': rank, 'singular': singular,
+                'S': S, 'p': p, 'ptip': ptip, 'Aw': Aw, 'Iw': Iw, 'pb': pb}
+
+    def _poses(self, th):
+        """Outward sweep 1a: the joint frames' poses in base coordinates, (n, 4, 4).
+
+        Writes the workspace arrays of this kernel (the result is one of them).
+        """
         c = self.chain
-        n = self.n
-        r = T.shape[1]
-        m = A.shape[1]
-        # ---- outward sweep 1: poses, velocities, bias accelerations and forces ----------
         s = np.sin(th) * self._revf
         cm = (1.0 - np.cos(th)) * self._revf
         Rj = self._eye3 + s[:, None, None] * c.axis_skew + cm[:, None, None] * c.axis_skew2
@@ -293,11 +318,38 @@ class NumpyKernel:
                                              c.axis * (th * self._prisf)[:, None])
         Tw = self._T
         Tw[0] = H[0]
-        for i in range(1, n):                       # pose composition (the only loop here)
+        for i in range(1, self.n):                  # pose composition (the only loop here)
             np.matmul(Tw[i - 1], H[i], out=Tw[i])
+        return Tw
+
+    def _inertias(self, R, p):
+        """Outward sweep 1c: the spatial inertias in base coordinates (at the base origin)."""
+        c = self.chain
+        n = self.n
+        cw = p + np.einsum('nij,nj->ni', R, c.com)
+        Icw = R @ c.inertia_com @ R.transpose(0, 2, 1)
+        C = (cw @ _SKEW3).reshape(n, 3, 3)
+        mC = c.mass[:, None, None] * C
+        Iw = np.empty((n, 6, 6))
+        Iw[:, :3, :3] = self._mI
+        Iw[:, :3, 3:] = -mC
+        Iw[:, 3:, :3] = mC
+        Iw[:, 3:, 3:] = Icw - mC @ C
+        return Iw
+
+    def _outward_bias(self, th, qd, fext):
+        """Outward sweep 1: poses, motion subspaces, bias accelerations and forces.
+
+        Returns:
+            ``(Tw, S, cb, Iw, pb)``: poses (n, 4, 4), motion subspaces S_i (n, 6), bias
+            accelerations c_i (n, 6), spatial inertias (n, 6, 6) and bias forces (n, 6),
+            all in base coordinates.
+        """
+        n = self.n
+        Tw = self._poses(th)
         R = Tw[:, :3, :3]
         p = Tw[:, :3, 3]
-        z = np.einsum('nij,nj->ni', R, c.axis)       # joint axes in base axes
+        z = np.einsum('nij,nj->ni', R, self.chain.axis)  # joint axes in base axes
         S = np.empty((n, 6))                         # motion subspaces, base coordinates
         pz = ((p @ _SKEW3).reshape(n, 3, 3) @ z[:, :, None])[:, :, 0]  # p x z
         S[:, :3] = np.where(self._rev3, pz, z)
@@ -305,17 +357,7 @@ class NumpyKernel:
         Sq = S * qd[:, None]
         V = np.cumsum(Sq, axis=0)                    # segment velocities
         crm = (V @ _CRM).reshape(n, 6, 6)           # v x (motion cross product)
-        # spatial inertias in base coordinates (at the base origin)
-        cw = p + np.einsum('nij,nj->ni', R, c.com)
-        Icw = R @ c.inertia_com @ R.transpose(0, 2, 1)
-        mass = c.mass
-        C = (cw @ _SKEW3).reshape(n, 3, 3)
-        mC = mass[:, None, None] * C
-        Iw = np.empty((n, 6, 6))
-        Iw[:, :3, :3] = self._mI
-        Iw[:, :3, 3:] = -mC
-        Iw[:, 3:, :3] = mC
-        Iw[:, 3:, 3:] = Icw - mC @ C
+        Iw = self._inertias(R, p)
         h = (Iw @ V[:, :, None])
         cb = (crm @ Sq[:, :, None])[:, :, 0]         # c_i = v_i x S_i qd_i
         pb = -(crm.transpose(0, 2, 1) @ h)[:, :, 0]  # v_i x* I_i v_i  (x* = -crm^T)
@@ -323,14 +365,21 @@ class NumpyKernel:
             pb[:, :3] -= fext[:, :3]
             pb[:, 3:] -= fext[:, 3:] + (
                 (p @ _SKEW3).reshape(n, 3, 3) @ fext[:, :3, None])[:, :, 0]
-        # ---- inward sweep: articulated inertias, bias forces, constraint propagation ----
-        Ttip = Tw[n - 1] @ c.tip_placement
-        ptip = Ttip[:3, 3]
-        Aw = np.empty((6, m))                        # A_N moved to the base origin
-        Aw[:3] = A[:3]
-        Aw[3:] = A[3:] + (ptip @ _SKEW3).reshape(3, 3) @ A[:3]
-        # Mx = [I^A | p^A (r columns) | E (m columns)] of the current articulated body;
-        # one rank-1 update per joint projects all of them (report Alg. 1, lines 13-21).
+        return Tw, S, cb, Iw, pb
+
+    def _inward(self, S, cb, Iw, pb, T, Aw):
+        """Inward sweep: articulated inertias, bias forces, constraint propagation.
+
+        Mx = [I^A | p^A (r columns) | E (m columns)] of the current articulated body; one
+        rank-1 update per joint projects all of them (report Alg. 1, lines 13-21).
+
+        Returns:
+            ``(xs, Ds, Es, E0)``: per joint [U_i | S^T p^A - tau | S^T E_i] (n, k), D_i
+            (n,), E_{i-1} = P_i E_i (n, 6, m), and E_0 (6, m) at the base.
+        """
+        n = self.n
+        r = T.shape[1]
+        m = Aw.shape[1]
         k = 6 + r + m
         Aug = np.zeros((n, 6, k))                    # rigid-body terms added per segment
         Aug[:, :, :6] = Iw
@@ -342,7 +391,7 @@ class NumpyKernel:
         xs = np.empty((n, k))                        # [U_i | S^T p^A - tau | S^T E_i]
         Ds = np.empty(n)
         Es = np.empty((n, 6, m))                     # E_{i-1} = P_i E_i
-        d = c.armature
+        d = self.chain.armature
         for i in range(n - 1, -1, -1):
             Mx += Aug[i]
             Si = S[i]
@@ -354,37 +403,50 @@ class NumpyKernel:
             xs[i] = x
             Ds[i] = D
             Es[i] = Mx[:, 6 + r:]
-        E0 = Mx[:, 6 + r:]
+        return xs, Ds, Es, Mx[:, 6 + r:]
+
+    def _balance(self, xs, Ds, Es, E0, cb, a0, b, r):
+        """Balance of acceleration energy at the base: nu = L0^-1 (b - E0^T a0 - U0).
+
+        Returns:
+            ``(nu, L, rank, singular, K, Uv)``: constraint magnitudes (m, r), the coupling
+            matrix L0 (m, m), its numerical rank, whether it is rank-deficient, and the
+            terms of the outward sweep (n, r) and (n, 6).
+        """
+        m = E0.shape[1]
         Uv = xs[:, :6] / Ds[:, None]
         u = -xs[:, 6:6 + r]
+        if not m:
+            return np.zeros((0, r)), np.zeros((0, 0)), 0, False, u / Ds[:, None], Uv
         sE = xs[:, 6 + r:]
-        # ---- balance of acceleration energy at the base: nu = L0^-1 (b - E0^T a0 - U0) --
-        if m:
-            sED = sE / Ds[:, None]
-            L = -(sED.T @ sE)
-            U0 = sED.T @ u
-            U0[:, 0] += np.einsum('nkm,nk->m', Es, cb)
-            rhs = -U0
-            rhs[:, 0] += b - E0.T @ a0
-            lam, vec = np.linalg.eigh(-L)            # -L is symmetric positive semidefinite
-            lmax = max(lam[-1], 0.0)
-            tol = self.rank_tol * lmax
-            rank = int(np.count_nonzero(lam > tol)) if lmax > 0 else 0
-            singular = rank < m
-            if singular:
-                delta2 = (self.damping * lmax) ** 2 if lmax > 0 else 1e-300
-                inv = lam / (lam * lam + delta2)
-            else:
-                inv = 1.0 / lam
-            nu = -(vec * inv) @ (vec.T @ rhs)        # L^-1 = -V diag(1/lam) V^T
-            K = (u - sE @ nu) / Ds[:, None]
+        sED = sE / Ds[:, None]
+        L = -(sED.T @ sE)
+        U0 = sED.T @ u
+        U0[:, 0] += np.einsum('nkm,nk->m', Es, cb)
+        rhs = -U0
+        rhs[:, 0] += b - E0.T @ a0
+        lam, vec = np.linalg.eigh(-L)                # -L is symmetric positive semidefinite
+        lmax = max(lam[-1], 0.0)
+        tol = self.rank_tol * lmax
+        rank = int(np.count_nonzero(lam > tol)) if lmax > 0 else 0
+        singular = rank < m
+        if singular:
+            delta2 = (self.damping * lmax) ** 2 if lmax > 0 else 1e-300
+            inv = lam / (lam * lam + delta2)
         else:
-            L = np.zeros((0, 0))
-            nu = np.zeros((0, r))
-            rank, singular = 0, False
-            K = u / Ds[:, None]
-        # ---- outward sweep 2: joint and segment accelerations ----------------------------
-        # a_i = a0 + C_i + sum_{k<=i} S_k qdd_k with C_i = sum_{k<=i} c_k (cumulative sum)
+            inv = 1.0 / lam
+        nu = -(vec * inv) @ (vec.T @ rhs)            # L^-1 = -V diag(1/lam) V^T
+        K = (u - sE @ nu) / Ds[:, None]
+        return nu, L, rank, singular, K, Uv
+
+    def _outward_accelerations(self, S, cb, a0, K, Uv):
+        """Outward sweep 2: joint accelerations (n, r) and segment accelerations (n, 6, r).
+
+        a_i = a0 + C_i + sum_{k<=i} S_k qdd_k with C_i = sum_{k<=i} c_k (cumulative sum).
+        Subtracts the bias of column 0 from ``K`` in place.
+        """
+        n = self.n
+        r = K.shape[1]
         Cb = np.cumsum(cb, axis=0) + a0
         K[:, 0] -= np.einsum('ni,ni->n', Uv, Cb)
         qdd = np.empty((n, r))
@@ -395,8 +457,7 @@ class NumpyKernel:
             qdd[i] = qi
         acc = np.cumsum(S[:, :, None] * qdd[:, None, :], axis=0)
         acc[:, :, 0] += Cb
-        return {'qdd': qdd, 'acc': acc, 'nu': nu, 'L': L, 'rank': rank, 'singular': singular,
-                'S': S, 'p': p, 'ptip': ptip, 'Aw': Aw, 'Iw': Iw, 'pb': pb}
+        return qdd, acc
 
     def _result(self, out, wts, tau, A, b, gauss):
         """Combine the columns of a sweep with weights ``wts`` into a result."""
@@ -426,8 +487,10 @@ KERNELS = ('native', 'numpy')
 
 
 def default_kernel():
-    """The kernel new solvers use: 'native' where the C module was built (and
-    ``IFC_SPG_NATIVE`` is not 0), else 'numpy' (see :func:`ifc_spg.dynamics.native.describe`).
+    """The kernel new solvers use: 'native' or 'numpy'.
+
+    'native' where the C module was built (and ``IFC_SPG_NATIVE`` is not 0), else 'numpy'
+    (see :func:`ifc_spg.dynamics.native.describe`).
     """
     return 'native' if native.module is not None else 'numpy'
 
