@@ -4,7 +4,9 @@ Every error a user can trigger is an :class:`IfcSpgError`; messages name the bad
 the valid choices and the fix.
 """
 
+from collections.abc import Iterable
 import difflib
+from typing import Any
 
 __all__ = [
     'IfcSpgError',
@@ -46,7 +48,7 @@ class SolverError(IfcSpgError):
     """A QP solver is unknown or could not be constructed."""
 
 
-def did_you_mean(name, choices):
+def did_you_mean(name: Any, choices: Iterable[Any]) -> str:
     """Return ``"; did you mean 'x'?"`` for the closest of ``choices`` to ``name``, else ``''``.
 
     Args:

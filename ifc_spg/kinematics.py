@@ -7,8 +7,18 @@ All Jacobians are 6 x n, LOCAL_WORLD_ALIGNED: linear velocity of the frame origi
 angular velocity, both in the base frame (SPEC notation).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
+
+if TYPE_CHECKING:
+    from ifc_spg.model.robot_model import RobotModel
+
+#: A frame's ``(position (3,), rotation (3, 3), jacobian (6, n))``.
+FrameQuantities = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 __all__ = ['Kinematics']
 
@@ -22,7 +32,7 @@ class Kinematics:
         robot: The :class:`~ifc_spg.model.RobotModel`.
     """
 
-    def __init__(self, robot):
+    def __init__(self, robot: RobotModel) -> None:
         self.robot = robot
         self._model = robot.model
         self._data_v = robot.create_data()
@@ -31,12 +41,12 @@ class Kinematics:
         self.q = np.zeros(n)
         self.qdot = np.zeros(n)
         self.q_v = np.zeros(n)
-        self._cache_v = {}
-        self._cache_m = {}
+        self._cache_v: dict[int, FrameQuantities] = {}
+        self._cache_m: dict[int, FrameQuantities] = {}
         self._valid_v = False
         self._valid_m = False
 
-    def update(self, q, qdot, q_v):
+    def update(self, q: np.ndarray, qdot: np.ndarray, q_v: np.ndarray) -> None:
         """Set the configuration of this tick (arrays are copied; nothing is computed yet).
 
         Args:
@@ -52,7 +62,7 @@ class Kinematics:
         self._valid_v = False
         self._valid_m = False
 
-    def _ensure(self, virtual):
+    def _ensure(self, virtual: bool) -> None:
         if virtual and not self._valid_v:
             pin.computeJointJacobians(self._model, self._data_v, self.q_v)
             pin.updateFramePlacements(self._model, self._data_v)
@@ -62,7 +72,7 @@ class Kinematics:
             pin.updateFramePlacements(self._model, self._data_m)
             self._valid_m = True
 
-    def frame(self, frame_id, virtual):
+    def frame(self, frame_id: int, virtual: bool) -> FrameQuantities:
         """Return ``(position (3,), rotation (3, 3), jacobian (6, n))`` of a frame.
 
         Args:

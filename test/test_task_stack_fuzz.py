@@ -152,7 +152,7 @@ def test_fuzz_only_task_stack_errors():
         else:
             counts['accepted'] += 1
             if counts['accepted'] % 4 == 1:  # a sample: the schema check is slow
-                validator.validate(stack._doc.data)  # the data as loaded
+                validator.validate(stack.document.data)  # the data as loaded
                 validator.validate(stack.to_dict())
         worst = max(worst, time.perf_counter() - t0)
         assert worst < MAX_SECONDS_PER_DOC, (k, text[:300])

@@ -66,7 +66,12 @@ def test_starts_at_init_and_keeps_other_components():
         centre = init[[1, 3]] - [0.2, 0.0]
         assert abs(np.hypot(*(v[[1, 3]] - centre)) - 0.2) < 1e-12
     # the spec object is not changed by activation (reusable)
-    assert c is not None and Circle(5, plane=(0, 1), radius=1, frequency=1)._init is None
+    spec = Circle(5, plane=(1, 3), radius=0.2, frequency=0.5)
+    first = spec.activate(init)
+    with pytest.raises(IfcSpgError, match='activate'):
+        spec.evaluate(0.0)
+    again = spec.activate(init + 1.0)
+    np.testing.assert_allclose(again.evaluate(0.7)[0], first.evaluate(0.7)[0] + 1.0)
 
 
 def test_square_wave_levels_and_ramp_end():
@@ -101,12 +106,12 @@ tasks:
 """
     pose, joints = TaskStack.from_yaml(text).build(robot)
     init = np.array([0.5, 0.1, 0.0, 0.0, 0.0])
-    b = pose._lower.activate(init)
+    b = pose.lower_bound.activate(init)
     for t in (0.0, 0.7, 3.1):
         x = init[0] + 0.1 * np.cos(2 * np.pi * 0.1 * t) - 0.1
         y = init[1] + 0.03 * np.sin(2 * np.pi * 0.4 * t)
         np.testing.assert_allclose(b.evaluate(t)[0], [x, y, 0, 0, 0], atol=1e-12)
-    j = joints._lower.activate(np.array([0.2, 0.1]))
+    j = joints.lower_bound.activate(np.array([0.2, 0.1]))
     np.testing.assert_allclose(j.evaluate(0.0)[0], [0.2, 0.1])
     np.testing.assert_allclose(j.evaluate(1.0)[0], [0.2, 0.3])
     np.testing.assert_allclose(j.evaluate(2.5)[0], [0.2, 0.5])

@@ -7,7 +7,12 @@ constructed; any error from a task constructor is reported at the task's path, s
 that validates also builds.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
 import importlib
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,6 +30,16 @@ from ifc_spg.tasks import (
 )
 from ifc_spg.tasks.subspace import AXES, WRENCH_AXES
 
+if TYPE_CHECKING:
+    from ifc_spg.model.robot_model import RobotModel
+    from ifc_spg.task_stack.spec import BoundSpec, TaskSpec
+    from ifc_spg.task_stack.task_stack import TaskStack
+    from ifc_spg.tasks.bounds import Bound
+    from ifc_spg.tasks.task import Task
+
+#: A field's path in the document, e.g. ``('tasks', 2, 'subspace')``.
+Path = tuple[str | int, ...]
+
 __all__ = ['CONSTRAINED_MODULE', 'bound_list', 'build_tasks']
 
 CONSTRAINED_MODULE = 'ifc_spg.constrained'
@@ -40,13 +55,13 @@ _CLASSES = {
 class _Components:
     """Dimension and names of a task's components (for sizes and name lookups)."""
 
-    def __init__(self, dim, names, describe):
+    def __init__(self, dim: int, names: Sequence[str] | None, describe: str) -> None:
         self.dim = dim
         self.names = tuple(names) if names is not None else None
         self.describe = describe  # e.g. 'subspace directions y z rx ry rz'
 
 
-def _constrained_module():
+def _constrained_module() -> ModuleType | None:
     try:
         return importlib.import_module(CONSTRAINED_MODULE)
     except ModuleNotFoundError as exc:
@@ -56,15 +71,15 @@ def _constrained_module():
 
 
 class _Builder:
-    def __init__(self, doc, robot):
-        self.doc = doc
+    def __init__(self, stack: TaskStack, robot: RobotModel) -> None:
+        self.stack = stack
         self.robot = robot
 
-    def err(self, path, reason):
-        return self.doc.error(path, reason)
+    def err(self, path: Path, reason: str) -> TaskStackError:
+        return self.stack.error(path, reason)
 
     # -- components ------------------------------------------------------------------------
-    def components(self, spec, path):
+    def components(self, spec: TaskSpec, path: Path) -> _Components:
         robot = self.robot
         if spec.type in ('cartesian_pose', 'wrench'):
             names = AXES if spec.type == 'cartesian_pose' else WRENCH_AXES
@@ -83,7 +98,7 @@ class _Builder:
                                    f"joint '{j}' not in model '{robot.name}'"
                                    f'{did_you_mean(j, robot.joint_names)}; joints: '
                                    f"{', '.join(robot.joint_names)}")
-            joints = spec.joints
+            joints: Sequence[str] = spec.joints
             if spec.type == 'joint_torque':
                 stiff = [j for j in joints if robot.stiff_mask[robot.joint_index(j)]]
                 if stiff:
@@ -96,14 +111,16 @@ class _Builder:
                       if not (spec.type == 'joint_torque' and robot.stiff_mask[i])]
         return _Components(len(joints), joints, f"joints {' '.join(joints)}")
 
-    def frame(self, spec, path):
+    def frame(self, spec: TaskSpec, path: Path) -> None:
         if spec.frame not in self.robot.chains:
             raise self.err(path + ('frame',),
                            f"'{spec.frame}' not in model '{self.robot.name}'"
                            f'{did_you_mean(spec.frame, self.robot.chains)}; frames (chain '
                            f"ids): {', '.join(self.robot.chains)}")
 
-    def vector(self, path, v, comp, *, what, fill=0.0, allow_init=False, allow_open=None):
+    def vector(self, path: Path, v: Any, comp: _Components, *, what: str, fill: float = 0.0,
+               allow_init: bool = False,
+               allow_open: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Resolve a component vector to ``(values (m,), init_mask (m,))``."""
         m = comp.dim
         if isinstance(v, ByName):
@@ -135,7 +152,7 @@ class _Builder:
             return np.zeros(m), np.ones(m, bool)
         return np.full(m, float(v)), np.zeros(m, bool)
 
-    def index(self, path, c, comp):
+    def index(self, path: Path, c: str | int, comp: _Components) -> int:
         if isinstance(c, int):
             if not 0 <= c < comp.dim:
                 raise self.err(path, f'component index {c} out of range 0..{comp.dim - 1} '
@@ -150,63 +167,72 @@ class _Builder:
         return comp.names.index(c)
 
     # -- bounds ----------------------------------------------------------------------------
-    def bound(self, path, b, comp, which):
+    def bound(self, path: Path, b: BoundSpec, comp: _Components, which: str) -> Bound:
         """Return a :class:`~ifc_spg.tasks.bounds.Bound` of dimension m."""
-        m = comp.dim
-        open_fill = np.inf if which == 'upper' else -np.inf
         if b.kind == 'init':
             return Init()
         if b.kind == 'constant':
+            open_fill = np.inf if which == 'upper' else -np.inf
             values, mask = self.vector(path, b.get('value'), comp, what=which,
                                        allow_open=open_fill)
             if mask.any():
                 return Init(mask=mask, other=Constant(values)) if not mask.all() else Init()
             return Constant(values)
         p = dict(b.params)
-
-        def vec(name, **kw):
-            return self.vector(path + (name,), p[name], comp, what=name, **kw)
-
-        def anchor(name):
-            values, mask = vec(name, allow_init=True)
-            return Anchor(values, mask)
-
         if b.kind == 'circle':
-            plane = [self.index(path + ('plane', k), c, comp) for k, c in enumerate(p['plane'])]
-            if plane[0] == plane[1]:
-                raise self.err(path + ('plane',), 'plane: the two components must differ')
-            two = _Components(2, None, 'the 2 plane components')
-            kw = {}
-            for name in ('center', 'start'):
-                if p[name] is not None:
-                    values, mask = self.vector(path + (name,), p[name], two, what=name)
-                    kw[name] = Anchor(values, mask)
-            return Circle(m, plane=plane, radius=p['radius'], frequency=p['frequency'],
-                          phase=p['phase'], **kw)
+            return self._circle(path, p, comp)
         if b.kind == 'sine':
-            return Sine(m, amplitude=vec('amplitude')[0], frequency=vec('frequency')[0],
-                        phase=vec('phase')[0], offset=vec('offset')[0], center=anchor('center'))
+            return Sine(comp.dim, amplitude=self._values(path, p, 'amplitude', comp),
+                        frequency=self._values(path, p, 'frequency', comp),
+                        phase=self._values(path, p, 'phase', comp),
+                        offset=self._values(path, p, 'offset', comp),
+                        center=self._anchor(path, p, 'center', comp))
         if b.kind == 'square':
             offs = [self.vector(path + ('offsets', i), o, comp, what='offset')[0]
                     for i, o in enumerate(p['offsets'])]
-            return SquareWave(m, offsets=np.array(offs), period=p['period'], duty=p['duty'],
-                              transition=p['transition'], center=anchor('center'))
-        # ramp / min_jerk
-        kw = {'duration': p['duration'], 'delay': p['delay'], 'start': anchor('from'),
-                  'profile': 'linear' if b.kind == 'ramp' else 'min_jerk'}
-        if p['to'] is not None:
-            to = p['to']
-            values, mask = self.vector(path + ('to',), to, comp, what='to', allow_init=True)
-            same = np.zeros(m, bool)
-            if isinstance(to, ByName):  # unnamed components stay where they start
-                named = {k for k, _ in to.items}
-                same = np.array([n not in named for n in comp.names], bool)
-            kw.update(end=Anchor(values, mask), end_same=same)
-        else:
-            kw['delta'] = vec('by')[0]
-        return Ramp(m, **kw)
+            return SquareWave(comp.dim, offsets=np.array(offs), period=p['period'],
+                              duty=p['duty'], transition=p['transition'],
+                              center=self._anchor(path, p, 'center', comp))
+        return self._ramp(path, p, comp, 'linear' if b.kind == 'ramp' else 'min_jerk')
 
-    def check_order(self, path, spec, lower, upper):
+    def _values(self, path: Path, p: dict[str, Any], name: str,
+                comp: _Components) -> np.ndarray:
+        """Trajectory parameter ``name`` as m numbers."""
+        return self.vector(path + (name,), p[name], comp, what=name)[0]
+
+    def _anchor(self, path: Path, p: dict[str, Any], name: str, comp: _Components) -> Anchor:
+        """Trajectory parameter ``name`` as an :class:`Anchor` of m (``init`` allowed)."""
+        values, mask = self.vector(path + (name,), p[name], comp, what=name, allow_init=True)
+        return Anchor(values, mask)
+
+    def _circle(self, path: Path, p: dict[str, Any], comp: _Components) -> Circle:
+        i, j = (self.index(path + ('plane', k), c, comp) for k, c in enumerate(p['plane']))
+        if i == j:
+            raise self.err(path + ('plane',), 'plane: the two components must differ')
+        two = _Components(2, None, 'the 2 plane components')
+        anchors: dict[str, Anchor | None] = {'center': None, 'start': None}
+        for name in anchors:
+            if p[name] is not None:
+                values, mask = self.vector(path + (name,), p[name], two, what=name)
+                anchors[name] = Anchor(values, mask)
+        return Circle(comp.dim, plane=(i, j), radius=p['radius'], frequency=p['frequency'],
+                      phase=p['phase'], center=anchors['center'], start=anchors['start'])
+
+    def _ramp(self, path: Path, p: dict[str, Any], comp: _Components, profile: str) -> Ramp:
+        start = self._anchor(path, p, 'from', comp)
+        to = p['to']
+        if to is None:
+            return Ramp(comp.dim, duration=p['duration'], delay=p['delay'], start=start,
+                        profile=profile, delta=self._values(path, p, 'by', comp))
+        values, mask = self.vector(path + ('to',), to, comp, what='to', allow_init=True)
+        same = np.zeros(comp.dim, bool)
+        if isinstance(to, ByName):  # unnamed components stay where they start
+            named = {k for k, _ in to.items}
+            same = np.array([n not in named for n in comp.names or ()], bool)
+        return Ramp(comp.dim, duration=p['duration'], delay=p['delay'], start=start,
+                    profile=profile, end=Anchor(values, mask), end_same=same)
+
+    def check_order(self, path: Path, spec: TaskSpec, lower: Bound, upper: Bound) -> None:
         if not (isinstance(lower, Constant) and isinstance(upper, Constant)):
             return
         bad = np.flatnonzero(lower.value > upper.value)
@@ -217,11 +243,12 @@ class _Builder:
                            f'{upper.value[i]:g} (lower {bound_list(lower.value)}, upper '
                            f'{bound_list(upper.value)}); swap them or use equal')
 
-    def check_joint_targets(self, path, spec, comp, bound):
+    def check_joint_targets(self, path: Path, spec: TaskSpec, comp: _Components,
+                            bound: Bound) -> None:
         if spec.type != 'joint_position' or not isinstance(bound, Constant):
             return
         robot = self.robot
-        for k, name in enumerate(comp.names):
+        for k, name in enumerate(comp.names or ()):
             j = robot.joint_index(name)
             v = bound.value[k]
             if not robot.q_min[j] <= v <= robot.q_max[j]:
@@ -230,53 +257,78 @@ class _Builder:
                                f'[{robot.q_min[j]:.4g}, {robot.q_max[j]:.4g}] rad')
 
     # -- tasks -----------------------------------------------------------------------------
-    def task(self, spec, construct):
+    def task(self, spec: TaskSpec, construct: bool | str) -> list[Task]:
+        """Check ``spec`` against the robot; return its task objects (``[]`` unless built)."""
         path = ('tasks', spec.index)
-        robot = self.robot
         if spec.type == 'constrained_manipulation':
-            self.frame(spec, path)
-            mod = _constrained_module()
-            if mod is None or not hasattr(mod, 'build_tasks'):
-                if construct is True:
-                    raise self.err(path + ('type',),
-                                   "task type 'constrained_manipulation' is not available: "
-                                   f"module '{CONSTRAINED_MODULE}' (build_tasks) is not "
-                                   'installed in this ifc_spg')
-                return []
-            try:
-                data = task_to_data(spec)
-                data.pop('description', None)
-                return list(mod.build_tasks(robot, data))
-            except TaskStackError:
-                raise
-            except IfcSpgError as exc:
-                raise self.err(path, str(exc)) from None
-            except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
-                # the module got a value of the wrong shape/type it did not check itself
-                raise self.err(path, f'invalid constrained_manipulation fields: '
-                                     f'{type(exc).__name__}: {exc}') from None
+            return self._constrained(spec, path, construct)
         if spec.type in ('cartesian_pose', 'wrench'):
             self.frame(spec, path)
         comp = self.components(spec, path)
-        kw = {'name': spec.name}
-        bounds = {}
+        kw: dict[str, Any] = {'name': spec.name}
+        kw.update(self._bounds(spec, path, comp))
+        kw.update(self._regulation(spec, path, comp))
+        kw.update(self._geometry(spec, comp))
+        if not construct:
+            return []
+        try:
+            return [_CLASSES[spec.type](self.robot, **kw)]
+        except TaskStackError:
+            raise
+        except IfcSpgError as exc:
+            raise self.err(path, str(exc)) from None
+
+    def _constrained(self, spec: TaskSpec, path: Path, construct: bool | str) -> list[Task]:
+        """Expand a ``constrained_manipulation`` entry through its module's build_tasks."""
+        self.frame(spec, path)
+        mod = _constrained_module()
+        if mod is None or not hasattr(mod, 'build_tasks'):
+            if construct is True:
+                raise self.err(path + ('type',),
+                               "task type 'constrained_manipulation' is not available: "
+                               f"module '{CONSTRAINED_MODULE}' (build_tasks) is not "
+                               'installed in this ifc_spg')
+            return []
+        try:
+            data = task_to_data(spec)
+            data.pop('description', None)
+            return list(mod.build_tasks(self.robot, data))
+        except TaskStackError:
+            raise
+        except IfcSpgError as exc:
+            raise self.err(path, str(exc)) from None
+        except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:
+            # the module got a value of the wrong shape/type it did not check itself
+            raise self.err(path, f'invalid constrained_manipulation fields: '
+                                 f'{type(exc).__name__}: {exc}') from None
+
+    def _bounds(self, spec: TaskSpec, path: Path, comp: _Components) -> dict[str, Bound]:
+        """The task's bounds (``equal`` or ``lower``/``upper``), checked against each other."""
+        bounds: dict[str, Bound] = {}
         for which in ('equal', 'lower', 'upper'):
             b = getattr(spec, which)
-            if b is not None:
-                if b.kind == 'constant' and which == 'equal':
-                    v = b.get('value')
-                    items = v.items if isinstance(v, ByName) else (
-                        enumerate(v) if isinstance(v, tuple) else ())
-                    for k, x in items:
-                        if x is None:
-                            raise self.err(path + (which, k), 'equal: null (open) entries '
-                                                              'are only allowed in lower/upper')
-                bounds[which] = self.bound(path + (which,), b, comp, which)
-                kw[which] = bounds[which]
+            if b is None:
+                continue
+            if b.kind == 'constant' and which == 'equal':
+                self._check_no_open_entries(path + (which,), b.get('value'))
+            bounds[which] = self.bound(path + (which,), b, comp, which)
         if 'lower' in bounds and 'upper' in bounds:
             self.check_order(path, spec, bounds['lower'], bounds['upper'])
         if 'equal' in bounds:
             self.check_joint_targets(path, spec, comp, bounds['equal'])
+        return bounds
+
+    def _check_no_open_entries(self, path: Path, v: Any) -> None:
+        items = v.items if isinstance(v, ByName) else (
+            enumerate(v) if isinstance(v, tuple) else ())
+        for k, x in items:
+            if x is None:
+                raise self.err(path + (k,), 'equal: null (open) entries are only allowed in '
+                                            'lower/upper')
+
+    def _regulation(self, spec: TaskSpec, path: Path, comp: _Components) -> dict[str, Any]:
+        """Gain, feed-forward and velocity options of the task's constructor."""
+        kw: dict[str, Any] = {}
         kw['gain'] = self.vector(path + ('gain',), spec.gain, comp, what='gain')[0]
         ff = spec.feedforward
         if ff is None or ff == 'trajectory':
@@ -288,38 +340,35 @@ class _Builder:
         kw['compensate_velocity'] = spec.compensate_velocity
         if spec.type in ('wrench', 'joint_torque'):
             kw['include_damping'] = spec.include_damping
-        if spec.type in ('cartesian_pose', 'wrench'):
-            kw['frame'] = spec.frame
-            sub = spec.subspace
-            if sub is not None:
-                kw['subspace_frame'] = sub.frame
-                if sub.axes is not None:
-                    kw['axes'] = list(sub.axes)
-                else:
-                    kw['subspace'] = sub.matrix()
-            if spec.type == 'cartesian_pose':
-                kw['orientation'] = spec.orientation if isinstance(spec.orientation, str) \
-                    else np.array(spec.orientation)
-                kw['relative'] = spec.relative
-        else:
-            kw['joints'] = list(comp.names)
-        if not construct:
-            return []
-        try:
-            return [_CLASSES[spec.type](robot, **kw)]
-        except TaskStackError:
-            raise
-        except IfcSpgError as exc:
-            raise self.err(path, str(exc)) from None
+        return kw
+
+    def _geometry(self, spec: TaskSpec, comp: _Components) -> dict[str, Any]:
+        """Frame, subspace and orientation (Cartesian tasks) or joints of the constructor."""
+        if spec.type not in ('cartesian_pose', 'wrench'):
+            return {'joints': list(comp.names or ())}
+        kw: dict[str, Any] = {'frame': spec.frame}
+        sub = spec.subspace
+        if sub is not None:
+            kw['subspace_frame'] = sub.frame
+            if sub.axes is not None:
+                kw['axes'] = list(sub.axes)
+            else:
+                kw['subspace'] = sub.matrix()
+        if spec.type == 'cartesian_pose':
+            kw['orientation'] = spec.orientation if isinstance(spec.orientation, str) \
+                else np.array(spec.orientation)
+            kw['relative'] = spec.relative
+        return kw
 
 
-def bound_list(v):
+def bound_list(v: Iterable[Any]) -> str:
     """Short text of a list of bound entries."""
     return '[' + ', '.join(x if isinstance(x, str) else ('null' if x is None else f'{x:g}')
                            for x in v) + ']'
 
 
-def build_tasks(stack, robot, construct=True):
+def build_tasks(stack: TaskStack, robot: RobotModel,
+                construct: bool | str = True) -> list[Task]:
     """Validate ``stack`` against ``robot`` and build its tasks.
 
     Args:
@@ -335,8 +384,8 @@ def build_tasks(stack, robot, construct=True):
     Raises:
         TaskStackError: With the path, line and column of the offending field.
     """
-    b = _Builder(stack._doc, robot)
-    tasks = []
+    b = _Builder(stack, robot)
+    tasks: list[Task] = []
     for spec in stack.tasks:
         tasks.extend(b.task(spec, construct))
     return tasks

@@ -12,6 +12,7 @@ import sys
 import yaml
 
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.model import RobotModel
 from ifc_spg.task_stack.errors import TaskStackError
 from ifc_spg.task_stack.task_stack import TaskStack
 
@@ -33,20 +34,19 @@ def _parser():
     return p
 
 
-def _robot(name, cache):
-    from ifc_spg.model import RobotModel
+def _robot(name: str, cache: dict[str, RobotModel]) -> RobotModel:
     if name not in cache:
         cache[name] = RobotModel.from_config(name)
     return cache[name]
 
 
-def main(argv=None):
+def main(argv: list[str] | None = None) -> int:
     """Run the check; returns the exit status (0 valid, 2 invalid)."""
     try:
         args = _parser().parse_args(argv)
     except SystemExit as exc:
         return 0 if exc.code == 0 else 2
-    cache = {}
+    cache: dict[str, RobotModel] = {}
     if args.robot is not None:
         try:
             _robot(args.robot, cache)
@@ -64,7 +64,7 @@ def main(argv=None):
             try:
                 robot = _robot(name, cache)
             except IfcSpgError as exc:
-                raise stack._doc.error(('robot',), str(exc)) from None
+                raise stack.error(('robot',), str(exc)) from None
             stack.validate(robot)
         except TaskStackError as exc:
             print(exc if exc.source else exc.with_source(path), file=sys.stderr)

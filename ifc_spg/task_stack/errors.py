@@ -1,11 +1,15 @@
 """The one error type of the task-stack language: where, what and how to fix it."""
 
+from __future__ import annotations
+
+from collections.abc import Iterable
+
 from ifc_spg.errors import IfcSpgError
 
 __all__ = ['TaskStackError', 'format_path']
 
 
-def format_path(path):
+def format_path(path: Iterable[str | int]) -> str:
     """Return ``tasks[2].subspace`` for the path tuple ``('tasks', 2, 'subspace')``."""
     out = ''
     for p in path:
@@ -29,7 +33,8 @@ class TaskStackError(IfcSpgError):
         source: Name of the source (file name), or None.
     """
 
-    def __init__(self, reason, path=(), line=None, column=None, source=None):
+    def __init__(self, reason: object, path: Iterable[str | int] = (), line: int | None = None,
+                 column: int | None = None, source: str | None = None) -> None:
         self.reason = str(reason)
         self.path = tuple(path)
         self.line = line
@@ -38,11 +43,11 @@ class TaskStackError(IfcSpgError):
         super().__init__(self._message())
 
     @property
-    def location(self):
+    def location(self) -> str:
         """``tasks[2].subspace`` (empty for the document root)."""
         return format_path(self.path)
 
-    def _message(self):
+    def _message(self) -> str:
         where = []
         if self.source:
             where.append(str(self.source))
@@ -54,6 +59,6 @@ class TaskStackError(IfcSpgError):
         parts = [p for p in (head, self.location) if p]
         return ': '.join(parts + [self.reason])
 
-    def with_source(self, source):
+    def with_source(self, source: str) -> TaskStackError:
         """Return a copy of this error naming ``source`` (e.g. a file name)."""
         return TaskStackError(self.reason, self.path, self.line, self.column, source)

@@ -10,16 +10,22 @@ Component vectors (bounds, gains, trajectory parameters) are written as one numb
 ``amplitude: {y: 0.1, z: 0.05}`` (unnamed components: 0).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
 import math
 import re
 from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ifc_spg.errors import did_you_mean
 from ifc_spg.task_stack.errors import TaskStackError
 from ifc_spg.tasks.subspace import AXES, SUBSPACE_FRAMES, WRENCH_AXES
+
+if TYPE_CHECKING:
+    from ifc_spg.task_stack.loader import Document
 
 __all__ = [
     'BOUND_FIELDS',
@@ -95,7 +101,7 @@ class ByName:
 
     items: tuple
 
-    def to_data(self):
+    def to_data(self) -> dict[str, Any]:
         """Plain mapping."""
         return {k: v for k, v in self.items}
 
@@ -113,7 +119,7 @@ class BoundSpec:
     kind: str
     params: tuple = ()
 
-    def get(self, name, default=None):
+    def get(self, name: str, default: Any = None) -> Any:
         """Parameter ``name`` (or ``default``)."""
         for k, v in self.params:
             if k == name:
@@ -131,16 +137,18 @@ class SubspaceSpec:
         frame: 'base', 'ee' or 'ee_orientation'.
     """
 
-    axes: tuple = None
-    columns: tuple = None
+    axes: tuple | None = None
+    columns: tuple | None = None
     frame: str = 'base'
 
     @property
-    def dim(self):
+    def dim(self) -> int:
         """Number of task directions m."""
-        return len(self.axes) if self.axes is not None else len(self.columns)
+        if self.axes is not None:
+            return len(self.axes)
+        return 0 if self.columns is None else len(self.columns)
 
-    def matrix(self):
+    def matrix(self) -> np.ndarray | None:
         """S as a 6 x m array (None when given by axes; the task builds it)."""
         return None if self.columns is None else np.array(self.columns, dtype=float).T
 
@@ -171,12 +179,12 @@ class TaskSpec:
     name: str
     type: str
     index: int = 0
-    frame: str = None
-    joints: tuple = None
-    subspace: SubspaceSpec = None
-    equal: BoundSpec = None
-    lower: BoundSpec = None
-    upper: BoundSpec = None
+    frame: str | None = None
+    joints: tuple | None = None
+    subspace: SubspaceSpec | None = None
+    equal: BoundSpec | None = None
+    lower: BoundSpec | None = None
+    upper: BoundSpec | None = None
     gain: object = 1.0
     feedforward: object = 'trajectory'
     velocity_gain: float = 0.0
@@ -185,7 +193,7 @@ class TaskSpec:
     relative: bool = False
     include_damping: bool = False
     options: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
-    description: str = None
+    description: str | None = None
 
 
 # -- to plain data (the normalized stack) -------------------------------------------------
@@ -197,7 +205,7 @@ def _vec_to_data(v):
     return v
 
 
-def bound_to_data(b):
+def bound_to_data(b: BoundSpec) -> Any:
     """Plain data of a :class:`BoundSpec` (number, list, 'init' or a trajectory mapping)."""
     if b.kind == 'init':
         return 'init'
@@ -218,9 +226,9 @@ def _thaw(x):
     return x
 
 
-def task_to_data(t):
+def task_to_data(t: TaskSpec) -> dict[str, Any]:
     """Plain data of a :class:`TaskSpec` (every field explicit, defaults filled in)."""
-    out = {'name': t.name, 'type': t.type}
+    out: dict[str, Any] = {'name': t.name, 'type': t.type}
     if t.description is not None:
         out['description'] = t.description
     if t.type == 'constrained_manipulation':
@@ -236,7 +244,8 @@ def task_to_data(t):
         elif sub.axes is not None:
             out['subspace'] = {'axes': list(sub.axes), 'frame': sub.frame}
         else:
-            out['subspace'] = {'columns': [list(c) for c in sub.columns], 'frame': sub.frame}
+            out['subspace'] = {'columns': [list(c) for c in sub.columns or ()],
+                               'frame': sub.frame}
     else:
         out['joints'] = None if t.joints is None else list(t.joints)
     for k in BOUND_FIELDS:
@@ -248,8 +257,9 @@ def task_to_data(t):
     out['velocity_gain'] = t.velocity_gain
     out['compensate_velocity'] = t.compensate_velocity
     if t.type == 'cartesian_pose':
-        out['orientation'] = t.orientation if isinstance(t.orientation, str) \
-            else [list(r) for r in t.orientation]
+        orientation: Any = t.orientation  # 'init' or 3 rows of 3 numbers
+        out['orientation'] = orientation if isinstance(orientation, str) \
+            else [list(r) for r in orientation]
         out['relative'] = t.relative
     if t.type in ('wrench', 'joint_torque'):
         out['include_damping'] = t.include_damping
@@ -362,7 +372,7 @@ class _Parser:
         if len(tasks) > MAX_TASKS:
             raise self.err(('tasks',), f'{len(tasks)} tasks, more than the limit {MAX_TASKS}')
         specs = tuple(self.task(('tasks', i), t, i) for i, t in enumerate(tasks))
-        seen = {}
+        seen: dict[str, int] = {}
         for t in specs:
             if t.name in seen:
                 raise self.err(('tasks', t.index, 'name'),
@@ -666,7 +676,7 @@ def _freeze(x):
     return x
 
 
-def parse_document(doc):
+def parse_document(doc: Document) -> dict[str, Any]:
     """Parse a loaded :class:`~ifc_spg.task_stack.loader.Document`.
 
     Returns:

@@ -11,14 +11,21 @@ The order of ``tasks`` is the priority (first = highest). See docs/ARCHITECTURE.
 "Task stack" and ``ifc_spg/schema/task_stack.schema.json``.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass, field
 import json
 import os
+from typing import TYPE_CHECKING, Any
 
 from ifc_spg.task_stack.builder import build_tasks
 from ifc_spg.task_stack.errors import TaskStackError
 from ifc_spg.task_stack.loader import MAX_TEXT_BYTES, Document, load
 from ifc_spg.task_stack.spec import VERSION, parse_document, task_to_data
+
+if TYPE_CHECKING:
+    from ifc_spg.model.robot_model import RobotModel
+    from ifc_spg.tasks.task import Task
 
 __all__ = ['TaskStack']
 
@@ -42,21 +49,21 @@ class TaskStack:
 
     name: str
     tasks: tuple
-    robot: str = None
-    description: str = None
-    power_budget: float = None
+    robot: str | None = None
+    description: str | None = None
+    power_budget: float | None = None
     version: int = VERSION
-    source: str = field(default=None, compare=False)
-    _doc: Document = field(default=None, compare=False, repr=False)
+    source: str | None = field(default=None, compare=False)
+    _doc: Document | None = field(default=None, compare=False, repr=False)
 
     # -- construction ------------------------------------------------------------------
     @classmethod
-    def _from(cls, text, fmt, source):
+    def _from(cls, text: str | bytes, fmt: str, source: str | None) -> TaskStack:
         doc = load(text, fmt, source)
         return cls._from_document(doc)
 
     @classmethod
-    def _from_document(cls, doc):
+    def _from_document(cls, doc: Document) -> TaskStack:
         kw = parse_document(doc)
         return cls(name=kw['name'], tasks=kw['tasks'], robot=kw['robot'],
                    description=kw['description'], power_budget=kw['power_budget'],
@@ -64,22 +71,22 @@ class TaskStack:
                    _doc=doc)
 
     @classmethod
-    def from_yaml(cls, text, source=None):
+    def from_yaml(cls, text: str | bytes, source: str | None = None) -> TaskStack:
         """Parse YAML text (raises :class:`TaskStackError`)."""
         return cls._from(text, 'yaml', source)
 
     @classmethod
-    def from_json(cls, text, source=None):
+    def from_json(cls, text: str | bytes, source: str | None = None) -> TaskStack:
         """Parse JSON text (raises :class:`TaskStackError`)."""
         return cls._from(text, 'json', source)
 
     @classmethod
-    def from_text(cls, text, source=None):
+    def from_text(cls, text: str | bytes, source: str | None = None) -> TaskStack:
         """Parse YAML or JSON text, detected from the text (JSON if it starts with '{')."""
         return cls._from(text, 'auto', source)
 
     @classmethod
-    def from_dict(cls, data, source=None):
+    def from_dict(cls, data: Any, source: str | None = None) -> TaskStack:
         """Build from plain data (as loaded from YAML/JSON; no source positions).
 
         The data goes through the same checks as text (size, depth, finite numbers).
@@ -94,7 +101,7 @@ class TaskStack:
         return cls._from(text, 'json', source)
 
     @classmethod
-    def from_file(cls, path):
+    def from_file(cls, path: str | os.PathLike[str]) -> TaskStack:
         """Read a ``.yaml`` / ``.yml`` / ``.json`` file (format by extension, else detected)."""
         path = os.fspath(path)
         try:
@@ -112,12 +119,12 @@ class TaskStack:
         return cls._from(data, fmt, path)
 
     # -- use ---------------------------------------------------------------------------
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         """The normalized stack as plain data (every field explicit, defaults filled in).
 
         ``TaskStack.from_dict(stack.to_dict())`` equals ``stack``.
         """
-        out = {'version': self.version, 'name': self.name}
+        out: dict[str, Any] = {'version': self.version, 'name': self.name}
         if self.robot is not None:
             out['robot'] = self.robot
         if self.description is not None:
@@ -127,11 +134,11 @@ class TaskStack:
         out['tasks'] = [task_to_data(t) for t in self.tasks]
         return out
 
-    def to_json(self, indent=2):
+    def to_json(self, indent: int | None = 2) -> str:
         """The normalized stack as JSON text."""
         return json.dumps(self.to_dict(), indent=indent)
 
-    def validate(self, robot):
+    def validate(self, robot: RobotModel) -> None:
         """Check the stack against ``robot`` (frames, joints, dimensions, limits).
 
         Tasks are built on trial (and discarded), so a stack that validates also builds.
@@ -143,7 +150,7 @@ class TaskStack:
         """
         build_tasks(self, robot, construct='available')
 
-    def build(self, robot):
+    def build(self, robot: RobotModel) -> list[Task]:
         """Validate and build fresh task objects for ``robot``, highest priority first.
 
         ``init`` values are captured when the tasks become active (first SPG tick).
@@ -153,5 +160,19 @@ class TaskStack:
         """
         return build_tasks(self, robot, construct=True)
 
-    def __len__(self):
+    @property
+    def document(self) -> Document | None:
+        """The loaded text: its data as written, with source positions (None if built directly)."""
+        return self._doc
+
+    def error(self, path: tuple, reason: str) -> TaskStackError:
+        """Return a :class:`TaskStackError` at field ``path`` (e.g. ``('robot',)``).
+
+        The error names the field and, where the stack came from text, its line and column.
+        """
+        if self._doc is None:
+            return TaskStackError(reason, path, source=self.source)
+        return self._doc.error(path, reason)
+
+    def __len__(self) -> int:
         return len(self.tasks)

@@ -19,6 +19,10 @@ Ramp            from -> to in ``duration`` after ``delay``, linear or min-jerk p
 ==============  ===========================================================================
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
@@ -29,7 +33,7 @@ __all__ = ['Anchor', 'Circle', 'Ramp', 'Sine', 'SquareWave', 'min_jerk']
 TWO_PI = 2.0 * np.pi
 
 
-def min_jerk(s):
+def min_jerk(s: float) -> tuple[float, float]:
     """Min-jerk profile ``(p(s), dp/ds(s))`` for s in [0, 1] (clipped)."""
     s = min(max(float(s), 0.0), 1.0)
     return s ** 3 * (10.0 - 15.0 * s + 6.0 * s * s), 30.0 * s * s * (1.0 - s) ** 2
@@ -43,7 +47,7 @@ class Anchor:
         init_mask: True where the entry is the value at activation.
     """
 
-    def __init__(self, values, init_mask=None):
+    def __init__(self, values: Any, init_mask: Any = None) -> None:
         self.values = np.array(values, dtype=float).reshape(-1)
         self.init_mask = np.zeros(self.values.size, dtype=bool) if init_mask is None \
             else np.array(init_mask, dtype=bool).reshape(-1)
@@ -51,15 +55,15 @@ class Anchor:
             raise IfcSpgError('anchor: values and init_mask differ in size')
 
     @classmethod
-    def init(cls, size):
+    def init(cls, size: int) -> Anchor:
         """An anchor that is the value at activation in every component."""
         return cls(np.zeros(size), np.ones(size, dtype=bool))
 
-    def resolve(self, init_value):
+    def resolve(self, init_value: np.ndarray) -> np.ndarray:
         """Return the numbers, with ``init`` entries taken from ``init_value``."""
         return np.where(self.init_mask, init_value, self.values)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return 'Anchor([' + ', '.join('init' if m else f'{v:g}' for v, m in
                                       zip(self.values, self.init_mask)) + '])'
 
@@ -67,11 +71,14 @@ class Anchor:
 class _Generator(Bound):
     """Base of the generators: ``activate`` returns a resolved copy, then ``evaluate``."""
 
-    def __init__(self, dim):
-        self.dim = int(dim)
-        self._init = None
+    dim: int
 
-    def activate(self, init_value):
+    def __init__(self, dim: int) -> None:
+        self.dim = int(dim)
+        self._init: np.ndarray | None = None
+
+    def activate(self, init_value: np.ndarray) -> _Generator:
+        """Return a copy resolved against the task value at activation (this one unchanged)."""
         init_value = np.array(init_value, dtype=float).reshape(-1)
         if init_value.size != self.dim:
             raise IfcSpgError(f'{type(self).__name__}: task value at activation has '
@@ -82,16 +89,17 @@ class _Generator(Bound):
         out._resolve(init_value)
         return out
 
-    def _resolve(self, init_value):
+    def _resolve(self, init_value: np.ndarray) -> None:
         """Resolve anchors from the task value at activation (subclasses)."""
 
-    def evaluate(self, t):
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return ``(value (m,), rate (m,))`` at task time ``t`` [s] (after :meth:`activate`)."""
         if self._init is None:
             raise IfcSpgError(f'{type(self).__name__}: activate() before evaluate() (the '
                               'generator needs the task value at activation)')
         return self._evaluate(float(t))
 
-    def _evaluate(self, t):
+    def _evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
 
@@ -109,7 +117,9 @@ class Circle(_Generator):
             used when ``center`` is None (default: the value at activation).
     """
 
-    def __init__(self, dim, *, plane, radius, frequency, phase=0.0, center=None, start=None):
+    def __init__(self, dim: int, *, plane: tuple[int, int], radius: float, frequency: float,
+                 phase: float = 0.0, center: Anchor | None = None,
+                 start: Anchor | None = None) -> None:
         super().__init__(dim)
         self.plane = (int(plane[0]), int(plane[1]))
         self.radius = float(radius)
@@ -118,18 +128,19 @@ class Circle(_Generator):
         self.center = center
         self.start = Anchor.init(2) if center is None and start is None else start
 
-    def _resolve(self, init_value):
+    def _resolve(self, init_value: np.ndarray) -> None:
         i, j = self.plane
         here = init_value[[i, j]]
         if self.center is not None:
             self._c = self.center.resolve(here)
         else:
+            assert self.start is not None  # set in __init__ when center is None
             self._c = self.start.resolve(here) - self.radius * np.array(
                 [np.cos(self.phase), np.sin(self.phase)])
         self._value = init_value.copy()
         self._rate = np.zeros(self.dim)
 
-    def _evaluate(self, t):
+    def _evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         i, j = self.plane
         a = self.omega * t + self.phase
         c, s = np.cos(a), np.sin(a)
@@ -151,7 +162,8 @@ class Sine(_Generator):
         center: :class:`Anchor` of m (default: the value at activation).
     """
 
-    def __init__(self, dim, *, amplitude, frequency, phase=0.0, offset=0.0, center=None):
+    def __init__(self, dim: int, *, amplitude: Any, frequency: Any, phase: Any = 0.0,
+                 offset: Any = 0.0, center: Anchor | None = None) -> None:
         super().__init__(dim)
         shape = (self.dim,)
         self.amplitude = np.broadcast_to(np.asarray(amplitude, float), shape).copy()
@@ -160,10 +172,10 @@ class Sine(_Generator):
         self.offset = np.broadcast_to(np.asarray(offset, float), shape).copy()
         self.center = Anchor.init(self.dim) if center is None else center
 
-    def _resolve(self, init_value):
+    def _resolve(self, init_value: np.ndarray) -> None:
         self._base = self.center.resolve(init_value) + self.offset
 
-    def _evaluate(self, t):
+    def _evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         a = self.omega * t + self.phase
         return (self._base + self.amplitude * np.sin(a),
                 self.amplitude * self.omega * np.cos(a))
@@ -182,7 +194,8 @@ class SquareWave(_Generator):
         center: :class:`Anchor` of m (default: the value at activation).
     """
 
-    def __init__(self, dim, *, offsets, period, duty=0.5, transition=0.0, center=None):
+    def __init__(self, dim: int, *, offsets: Any, period: float, duty: float = 0.5,
+                 transition: float = 0.0, center: Anchor | None = None) -> None:
         super().__init__(dim)
         self.offsets = np.broadcast_to(np.asarray(offsets, float), (2, self.dim)).copy()
         self.period = float(period)
@@ -190,11 +203,11 @@ class SquareWave(_Generator):
         self.transition = float(transition)
         self.center = Anchor.init(self.dim) if center is None else center
 
-    def _resolve(self, init_value):
+    def _resolve(self, init_value: np.ndarray) -> None:
         c = self.center.resolve(init_value)
         self._levels = c + self.offsets
 
-    def _evaluate(self, t):
+    def _evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = self._levels
         t = max(t, 0.0)
         tau = t % self.period
@@ -228,8 +241,9 @@ class Ramp(_Generator):
 
     PROFILES = ('linear', 'min_jerk')
 
-    def __init__(self, dim, *, duration, start=None, end=None, delta=0.0, end_same=None,
-                 delay=0.0, profile='linear'):
+    def __init__(self, dim: int, *, duration: float, start: Anchor | None = None,
+                 end: Anchor | None = None, delta: Any = 0.0, end_same: Any = None,
+                 delay: float = 0.0, profile: str = 'linear') -> None:
         super().__init__(dim)
         if profile not in self.PROFILES:
             raise IfcSpgError(f"ramp profile '{profile}' unknown; use one of "
@@ -243,7 +257,7 @@ class Ramp(_Generator):
             else np.asarray(end_same, bool)
         self.delta = np.broadcast_to(np.asarray(delta, float), (self.dim,)).copy()
 
-    def _resolve(self, init_value):
+    def _resolve(self, init_value: np.ndarray) -> None:
         a = self.start.resolve(init_value)
         if self.end is None:
             b = a + self.delta
@@ -251,7 +265,7 @@ class Ramp(_Generator):
             b = np.where(self.end_same, a, self.end.resolve(init_value))
         self._a, self._d = a, b - a
 
-    def _evaluate(self, t):
+    def _evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         s = (t - self.delay) / self.duration
         if self.profile == 'linear':
             if s <= 0.0 or s >= 1.0:

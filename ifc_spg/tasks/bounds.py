@@ -6,6 +6,10 @@ task's subspace coordinates and its rate (the default feed-forward, SPEC 4.25-4.
 (circle, sine, ramp, ...) subclass :class:`Bound`.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
@@ -20,9 +24,9 @@ class Bound:
     the task value at activation (``init``) and returns the bound to use.
     """
 
-    dim = None
+    dim: int | None = None  # the number of components m; None: any (resolved on activation)
 
-    def activate(self, init_value):
+    def activate(self, init_value: np.ndarray) -> Bound:
         """Return the bound to use once the task is active.
 
         Args:
@@ -30,15 +34,15 @@ class Bound:
         """
         return self
 
-    def evaluate(self, t):
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(value (m,), rate (m,))`` at task time ``t`` in [s]."""
-        raise NotImplementedError
+        raise NotImplementedError(f'{type(self).__name__} does not implement evaluate(t)')
 
 
 class Constant(Bound):
     """A constant bound (rate zero); ``np.inf`` entries mean unbounded."""
 
-    def __init__(self, value):
+    def __init__(self, value: Any) -> None:
         v = np.array(value, dtype=float).reshape(-1)
         if np.any(np.isnan(v)):
             raise IfcSpgError(f'bound values must not be NaN, got {v.tolist()}')
@@ -48,10 +52,11 @@ class Constant(Bound):
         self._rate = np.zeros(v.size)
         self._rate.setflags(write=False)
 
-    def evaluate(self, t):
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return the value and a zero rate (read-only arrays) at any ``t``."""
         return self.value, self._rate
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f'Constant({self.value.tolist()})'
 
 
@@ -61,30 +66,33 @@ class Init(Bound):
     Components not in ``mask`` take ``other`` (a :class:`Constant` of the full dimension).
     """
 
-    def __init__(self, mask=None, other=None):
+    def __init__(self, mask: Any = None, other: Bound | None = None) -> None:
         self.mask = None if mask is None else np.asarray(mask, dtype=bool)
         self.other = other
 
-    def activate(self, init_value):
+    def activate(self, init_value: np.ndarray) -> Constant:
+        """Return the :class:`Constant` of ``init_value`` (under ``mask``; ``other`` elsewhere)."""
         init_value = np.asarray(init_value, dtype=float)
         if self.mask is None:
             return Constant(init_value)
+        if self.other is None:
+            raise IfcSpgError('Init(mask=...) needs the bound of the other components')
         value = np.array(self.other.evaluate(0.0)[0], dtype=float)
         value[self.mask] = init_value[self.mask]
         return Constant(value)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return 'Init()' if self.mask is None else f'Init(mask={self.mask.tolist()})'
 
 
 INIT = Init()
 
 
-def as_bound(x, dim, what):
-    """Convert a user value (None, number, sequence, 'init' or a Bound) into a Bound.
+def as_bound(x: Any, dim: int, what: str) -> Bound:
+    """Convert a user value (number, sequence, 'init' or a Bound) into a Bound.
 
     Args:
-        x: The value. ``None`` gives ``fill`` (handled by the caller).
+        x: The value (``None`` is handled by the caller).
         dim: Expected dimension m.
         what: Name used in error messages (e.g. ``'lower'``).
     """

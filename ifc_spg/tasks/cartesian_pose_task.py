@@ -154,7 +154,7 @@ class CartesianPoseTask(Task):
         return x, Jx
 
     def compute_value(self, kin: Kinematics) -> np.ndarray:
-        """alpha = S^T [p_v - p_ref; log3(R_v R_ref^T)]."""
+        """The task value S^T [p_v - p_ref; log3(R_v R_ref^T)]."""
         return self.compute(kin)[0]
 
     def compute_jacobian(self, kin: Kinematics) -> np.ndarray:

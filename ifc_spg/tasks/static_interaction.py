@@ -13,12 +13,20 @@ Cartesian admittance (h = K_x dx + ...), our generalisation (SPEC 1)::
     h_s = K_x [p_v - p; log3(R_v R^T)],   tau_s = J^T h_s.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv as _dposv
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.model import JOINT_IMPEDANCE
+
+if TYPE_CHECKING:
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = ['DAMPING', 'static_torque', 'static_wrench', 'check_admittance_chain']
 
@@ -29,17 +37,17 @@ _DAMPING_EYE = DAMPING ** 2 * np.eye(6)
 _DAMPING_EYE.setflags(write=False)
 
 
-def compliant_stiffness(robot):
+def compliant_stiffness(robot: RobotModel) -> np.ndarray:
     """Per-joint stiffness with zeros at stiff (position-controlled) joints, in [Nm/rad]."""
     return robot.compliant_stiffness
 
 
-def compliant_damping(robot):
+def compliant_damping(robot: RobotModel) -> np.ndarray:
     """Per-joint damping with zeros at stiff (position-controlled) joints, in [Nms/rad]."""
     return robot.compliant_damping
 
 
-def check_admittance_chain(robot, frame):
+def check_admittance_chain(robot: RobotModel, frame: str) -> None:
     """Raise unless ``frame`` has Cartesian admittance parameters."""
     if frame not in robot.admittance:
         raise IfcSpgError(f"frame '{frame}' of admittance robot '{robot.name}' has no "
@@ -47,7 +55,8 @@ def check_admittance_chain(robot, frame):
                           f"{', '.join(sorted(robot.admittance))}")
 
 
-def _admittance_wrench(robot, kin, frame):
+def _admittance_wrench(robot: RobotModel, kin: Kinematics,
+                       frame: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     fid = robot.frame_id(frame)
     p_v, R_v, J_v = kin.frame(fid, virtual=True)
     p, R, J = kin.frame(fid, virtual=False)
@@ -61,7 +70,8 @@ def _admittance_wrench(robot, kin, frame):
     return Kx * x, Kx[:, None] * A, Kx * g, J
 
 
-def static_wrench(robot, kin, frame, include_damping=False):
+def static_wrench(robot: RobotModel, kin: Kinematics, frame: str, include_damping: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return ``(h_s (6,), A (6, n), gamma (6,), R (3, 3))`` of chain ``frame`` in base frame.
 
     R is the measured orientation of the frame (used for end-effector subspaces). With
@@ -88,7 +98,8 @@ def static_wrench(robot, kin, frame, include_damping=False):
     return P @ tau, PK, PK @ kin.qdot, R
 
 
-def static_torque(robot, kin, include_damping=False):
+def static_torque(robot: RobotModel, kin: Kinematics, include_damping: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return ``(tau_s (n,), A (n, n), gamma (n,))``; see :func:`static_wrench` for damping."""
     if robot.ifc == JOINT_IMPEDANCE:
         K = robot.compliant_stiffness

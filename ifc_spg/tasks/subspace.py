@@ -5,6 +5,11 @@ given in the base frame, the end-effector frame (S_base = diag(R, R) S_ee, Table
 with only the rotational part in the end-effector frame (diag(I, R) S_ee, 3.25).
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError, did_you_mean
@@ -17,12 +22,12 @@ WRENCH_AXES = ('fx', 'fy', 'fz', 'tx', 'ty', 'tz')
 SUBSPACE_FRAMES = ('base', 'ee', 'ee_orientation')
 
 
-def axes_matrix(axes, wrench=False):
+def axes_matrix(axes: Sequence[str], wrench: bool = False) -> np.ndarray:
     """Return the 6 x m selection matrix of named axes (e.g. ``['y', 'z', 'rx']``)."""
     names = WRENCH_AXES if wrench else AXES
     alias = dict(zip(AXES, WRENCH_AXES)) if wrench else dict(zip(WRENCH_AXES, AXES))
     S = np.zeros((6, len(axes)))
-    seen = set()
+    seen: set[str] = set()
     for k, a in enumerate(axes):
         a = alias.get(a, a)
         if a not in names:
@@ -35,7 +40,7 @@ def axes_matrix(axes, wrench=False):
     return S
 
 
-def check_orthonormal(S, tol=1e-6):
+def check_orthonormal(S: Any, tol: float = 1e-6) -> np.ndarray:
     """Raise if the columns of S are not orthonormal (within ``tol``)."""
     S = np.asarray(S, dtype=float)
     if S.ndim != 2 or S.shape[1] == 0:
@@ -47,7 +52,7 @@ def check_orthonormal(S, tol=1e-6):
     return S
 
 
-def subspace_in_base(S, frame, R):
+def subspace_in_base(S: np.ndarray, frame: str, R: np.ndarray) -> np.ndarray:
     """Return S expressed in the base frame.
 
     Args:
@@ -63,7 +68,8 @@ def subspace_in_base(S, frame, R):
     return out
 
 
-def cartesian_subspace(axes, subspace, frame, wrench=False):
+def cartesian_subspace(axes: Sequence[str] | None, subspace: Any, frame: str,
+                       wrench: bool = False) -> np.ndarray:
     """Validate a Cartesian task's subspace; return S (6 x m).
 
     Args:

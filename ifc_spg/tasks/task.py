@@ -146,6 +146,16 @@ class Task(abc.ABC):
 
     # -- activation and levels ------------------------------------------------------------
     @property
+    def lower_bound(self) -> Bound:
+        """The lower bound as given (``init`` entries unresolved until activation)."""
+        return self._lower
+
+    @property
+    def upper_bound(self) -> Bound:
+        """The upper bound as given (the target itself for an equality task)."""
+        return self._upper
+
+    @property
     def active(self) -> bool:
         """True once :meth:`activate` captured the ``init`` values."""
         return self._active_lower is not None
