@@ -32,6 +32,9 @@ import time
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.offline.bag import BagReader, stamp_ns
+from ifc_spg.offline.replay import read_robot_params, read_spg_config, replay_robot
+from ifc_spg.offline.runner import SCENARIO_KEY
 
 __all__ = ['RenderResult', 'ffmpeg_exe', 'main', 'render']
 
@@ -73,10 +76,6 @@ class _Series:
 
 
 def _read_bag(path):
-    from ifc_spg.offline.bag import BagReader, stamp_ns
-    from ifc_spg.offline.replay import read_robot_params, read_spg_config
-    from ifc_spg.offline.runner import SCENARIO_KEY
-
     states, commands, wrenches, env, configs = [], [], [], [], []
     with BagReader(path) as bag:
         topics = {t.lstrip('/'): t for t in bag.topics}
@@ -127,66 +126,183 @@ def _robot_bodies(model, qpos_adr):
 
 
 def ffmpeg_exe():
-    """The ffmpeg executable MP4 is written with (imageio-ffmpeg's, else the PATH's), or
-    None.
-    """
+    """The ffmpeg executable MP4 is written with (imageio-ffmpeg's, else the PATH's), or None."""
     try:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # optional: its wheel ships an ffmpeg
 
         return imageio_ffmpeg.get_ffmpeg_exe()
     except (ImportError, RuntimeError):
         return shutil.which('ffmpeg')
 
 
+def _pillow_writer(path, fps):
+    """GIF or WebP frames held by Pillow until close() writes the file."""
+    from PIL import Image  # only for .gif/.webp
+
+    gif = path.suffix.lower() == '.gif'
+    frames = []
+
+    def write(img):
+        frame = Image.fromarray(img)
+        if gif:  # 1 byte per pixel from here on (WebP keeps RGB frames)
+            frame = frame.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+        frames.append(frame)
+
+    def close():
+        if not frames:
+            raise ParameterError('no frames to write')
+        opts = {'save_all': True, 'append_images': frames[1:],
+                'duration': round(1000 / fps), 'loop': 0}
+        if gif:
+            opts['optimize'] = False
+        else:
+            opts.update(quality=80, method=4)
+        frames[0].save(path, **opts)
+        return path.stat().st_size
+    return write, close
+
+
+def _ffmpeg_writer(path, fps, size):
+    """H.264 frames streamed to an ffmpeg child process."""
+    exe = ffmpeg_exe()
+    if exe is None:
+        raise ParameterError(f"'{path}': .mp4 needs ffmpeg (pip install imageio-ffmpeg, "
+                             'whose wheel ships it, or apt install ffmpeg); .gif and '
+                             '.webp need nothing more')
+    w, h = size
+    proc = subprocess.Popen(
+        [exe, '-y', '-loglevel', 'error', '-f', 'rawvideo', '-pix_fmt', 'rgb24', '-s',
+         f'{w}x{h}', '-r', f'{fps}', '-i', '-', '-an', '-vcodec', 'libx264', '-pix_fmt',
+         'yuv420p', '-crf', '23', str(path)], stdin=subprocess.PIPE)
+
+    def write(img):
+        proc.stdin.write(np.ascontiguousarray(img).tobytes())
+
+    def close():
+        proc.stdin.close()
+        if proc.wait() != 0:
+            raise IfcSpgError(f"ffmpeg failed writing '{path}' (exit {proc.returncode})")
+        return path.stat().st_size
+    return write, close
+
+
 def _writer(path, fps, size):
     """A frame sink for ``path`` by suffix: (write(frame), close() -> bytes written)."""
     suffix = path.suffix.lower()
     if suffix in ('.gif', '.webp'):
-        from PIL import Image
-
-        frames = []
-
-        def write(img):
-            frame = Image.fromarray(img)
-            if suffix == '.gif':  # 1 byte per pixel from here on (WebP keeps RGB frames)
-                frame = frame.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
-            frames.append(frame)
-
-        def close():
-            if not frames:
-                raise ParameterError('no frames to write')
-            opts = {'save_all': True, 'append_images': frames[1:],
-                    'duration': round(1000 / fps), 'loop': 0}
-            if suffix == '.gif':
-                opts['optimize'] = False
-            else:
-                opts.update(quality=80, method=4)
-            frames[0].save(path, **opts)
-            return path.stat().st_size
-        return write, close
+        return _pillow_writer(path, fps)
     if suffix == '.mp4':
-        exe = ffmpeg_exe()
-        if exe is None:
-            raise ParameterError(f"'{path}': .mp4 needs ffmpeg (pip install imageio-ffmpeg, "
-                                 'whose wheel ships it, or apt install ffmpeg); .gif and '
-                                 '.webp need nothing more')
-        w, h = size
-        proc = subprocess.Popen(
-            [exe, '-y', '-loglevel', 'error', '-f', 'rawvideo', '-pix_fmt', 'rgb24', '-s',
-             f'{w}x{h}', '-r', f'{fps}', '-i', '-', '-an', '-vcodec', 'libx264', '-pix_fmt',
-             'yuv420p', '-crf', '23', str(path)], stdin=subprocess.PIPE)
-
-        def write(img):
-            proc.stdin.write(np.ascontiguousarray(img).tobytes())
-
-        def close():
-            proc.stdin.close()
-            if proc.wait() != 0:
-                raise IfcSpgError(f"ffmpeg failed writing '{path}' (exit {proc.returncode})")
-            return path.stat().st_size
-        return write, close
+        return _ffmpeg_writer(path, fps, size)
     raise ParameterError(f"'{path}': unknown video format '{suffix}'; choose .mp4, .gif or "
                          '.webp')
+
+
+class _Scene:
+    """The bag's robot in its MuJoCo scene, an offscreen renderer and a camera on the tool.
+
+    Args:
+        mujoco: The ``mujoco`` module (imported once ``MUJOCO_GL`` is set).
+        sim: The :class:`sim_bridge.simulation.Simulation` of the scene.
+        size: (width, height) in pixels.
+    """
+
+    def __init__(self, mujoco, sim, size):
+        self.mj, self.sim = mujoco, sim
+        m = self.model = sim.model
+        self.names = list(sim.joint_names)
+        self.qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in self.names])
+        self.env_adr = {j: m.jnt_qposadr[m.joint(j).id] for j in sim.env_joint_names}
+        self.data, self.ghost_data = mujoco.MjData(m), mujoco.MjData(m)
+        self.ghost_data.qpos[:] = self.data.qpos[:] = sim.data.qpos
+        self.moved = _robot_bodies(m, self.qadr)
+        self.tool_site = sim.site_id(sim.contact_chain)
+        w, h = size
+        m.vis.global_.offwidth = max(m.vis.global_.offwidth, w)
+        m.vis.global_.offheight = max(m.vis.global_.offheight, h)
+        try:
+            self.renderer = mujoco.Renderer(m, h, w)
+        except Exception as exc:  # noqa: BLE001 -- MuJoCo raises plain errors for GL failures
+            raise _gl_error(exc) from None
+        self.cam = mujoco.MjvCamera()
+        mujoco.mj_forward(m, self.data)
+        p_tool = self.data.site_xpos[self.tool_site].copy()
+        base = self.data.xpos[m.body_rootid[m.jnt_bodyid[m.joint(self.names[0]).id]]].copy()
+        self.cam.lookat[:] = 0.5 * (p_tool + base)
+        self.cam.distance = max(1.2, 2.5 * float(np.linalg.norm(p_tool - base)))
+        self.cam.azimuth, self.cam.elevation = 140.0, -20.0
+        self.opt = mujoco.MjvOption()
+        self.pert = mujoco.MjvPerturb()
+
+    def frame(self, q, env_q, q_v, force, shadows):
+        """One image: joints ``q`` and ``env_q`` (name -> value), the ghost, the force arrow.
+
+        Args:
+            q: Measured joint positions by name.
+            env_q: Environment joint positions by name (None: none recorded).
+            q_v: Virtual joint positions by name (None: no ghost).
+            force: Contact force (3,) [N] (None: no arrow).
+            shadows: Keep shadows and reflections.
+        """
+        mj, data = self.mj, self.data
+        data.qpos[self.qadr] = [q.get(j, 0.0) for j in self.names]
+        for j, value in (env_q or {}).items():
+            if j in self.env_adr:
+                data.qpos[self.env_adr[j]] = value
+        mj.mj_kinematics(self.model, data)
+        self.renderer.update_scene(data, self.cam)
+        scn = self.renderer.scene
+        if not shadows:  # software GL: shadows and reflections are half the frame time
+            scn.flags[mj.mjtRndFlag.mjRND_SHADOW] = 0
+            scn.flags[mj.mjtRndFlag.mjRND_REFLECTION] = 0
+        if q_v is not None:
+            self._add_ghost(scn, q, q_v)
+        if force is not None and scn.ngeom < scn.maxgeom and np.linalg.norm(force) > 0.2:
+            self._add_arrow(scn, force)
+        return self.renderer.render()
+
+    def _add_ghost(self, scn, q, q_v):
+        """The virtual robot as translucent geoms (the rest of the scene hidden)."""
+        mj, m, gd = self.mj, self.model, self.ghost_data
+        gd.qpos[:] = self.data.qpos
+        gd.qpos[self.qadr] = [q_v.get(j, q.get(j, 0.0)) for j in self.names]
+        mj.mj_kinematics(m, gd)
+        first = scn.ngeom
+        mj.mjv_addGeoms(m, gd, self.opt, self.pert, mj.mjtCatBit.mjCAT_DYNAMIC, scn)
+        for i in range(first, scn.ngeom):
+            g = scn.geoms[i]
+            robot_geom = g.objtype == mj.mjtObj.mjOBJ_GEOM and m.geom_bodyid[g.objid] in self.moved
+            g.rgba[:] = _GHOST_RGBA if robot_geom else (0.0, 0.0, 0.0, 0.0)
+            if robot_geom and g.type != mj.mjtGeom.mjGEOM_MESH:
+                g.size[:] = np.asarray(g.size) * 1.03  # no z-fighting where q_v ~ q
+
+    def _add_arrow(self, scn, force):
+        """The contact force as an arrow beside the tool (5 cm towards the camera)."""
+        mj = self.mj
+        p = self.data.site_xpos[self.tool_site].copy()
+        side = np.asarray(scn.camera[0].pos, dtype=float) - p
+        side[2] = 0.0
+        if np.linalg.norm(side) > 1e-6:
+            p += 0.05 * side / np.linalg.norm(side)
+        geom = scn.geoms[scn.ngeom]
+        mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3),
+                        np.eye(3).reshape(-1), _ARROW_RGBA)
+        # the arrow points along the force the environment exerts on the tool
+        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_ARROW, 0.008, p, p + FORCE_SCALE * force)
+        scn.ngeom += 1
+
+    def close(self):
+        """Free the renderer and the simulation."""
+        self.renderer.close()
+        self.sim.close()
+
+
+def _frame_span(states, start, duration, fps):
+    """``(stamp of the first frame [ns], number of frames)`` of the recorded states."""
+    t0 = int(states.stamps[0]) + int(round(start * 1e9))
+    t_end = int(states.stamps[-1])
+    if duration is not None:
+        t_end = min(t_end, t0 + int(round(duration * 1e9)))
+    return t0, max(1, int((t_end - t0) * 1e-9 * fps) + 1)
 
 
 def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, scene=None,
@@ -210,7 +326,7 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         :class:`RenderResult`.
     """
     os.environ.setdefault('MUJOCO_GL', 'egl')
-    import mujoco
+    import mujoco  # after MUJOCO_GL: it picks the GL backend on import
 
     from sim_bridge.simulation import SimConfig, Simulation
 
@@ -222,97 +338,27 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
     if not states:
         raise ParameterError(f"bag '{bag}' has no joint states to render")
     scenario = scenario or {}
-    from ifc_spg.offline.replay import replay_robot
-
     robot, _, _ = replay_robot(config, params, where=f"bag '{bag}'")
     sim = Simulation(SimConfig(
         robot=robot, interface=scenario.get('interface'),
         scene=scene or scenario.get('scene') or 'free',
         scene_options=scenario.get('scene_options') or {}, q0=scenario.get('q0')))
-    m = sim.model
-    names = list(sim.joint_names)
-    qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in names])
-    env_adr = {j: m.jnt_qposadr[m.joint(j).id] for j in sim.env_joint_names}
-    data, ghost_data = mujoco.MjData(m), mujoco.MjData(m)
-    ghost_data.qpos[:] = data.qpos[:] = sim.data.qpos
-    moved = _robot_bodies(m, qadr)
-    tool_site = sim.site_id(sim.contact_chain)
     w, h = int(size[0]), int(size[1])
-    m.vis.global_.offwidth = max(m.vis.global_.offwidth, w)
-    m.vis.global_.offheight = max(m.vis.global_.offheight, h)
-    try:
-        renderer = mujoco.Renderer(m, h, w)
-    except Exception as exc:  # noqa: BLE001 -- MuJoCo raises plain errors for GL failures
-        raise _gl_error(exc) from None
-    cam = mujoco.MjvCamera()
-    mujoco.mj_forward(m, data)
-    p_tool = data.site_xpos[tool_site].copy()
-    base = data.xpos[m.body_rootid[m.jnt_bodyid[m.joint(names[0]).id]]].copy()
-    cam.lookat[:] = 0.5 * (p_tool + base)
-    cam.distance = max(1.2, 2.5 * float(np.linalg.norm(p_tool - base)))
-    cam.azimuth, cam.elevation = 140.0, -20.0
-    opt = mujoco.MjvOption()
-    pert = mujoco.MjvPerturb()
-
-    t0 = int(states.stamps[0]) + int(round(start * 1e9))
-    t_end = int(states.stamps[-1])
-    if duration is not None:
-        t_end = min(t_end, t0 + int(round(duration * 1e9)))
-    n_frames = max(1, int((t_end - t0) * 1e-9 * fps) + 1)
+    view = _Scene(mujoco, sim, (w, h))
+    t0, n_frames = _frame_span(states, start, duration, fps)
     write, close = _writer(output, fps, (w, h))
     wall = time.monotonic()
     every = max(1, n_frames // 10)
     for k in range(n_frames):
         t = t0 + int(round(k * 1e9 / fps))
-        q = states.at(t)
-        data.qpos[qadr] = [q.get(j, 0.0) for j in names]
-        if env:
-            for j, value in env.at(t).items():
-                if j in env_adr:
-                    data.qpos[env_adr[j]] = value
-        mujoco.mj_kinematics(m, data)
-        renderer.update_scene(data, cam)
-        scn = renderer.scene
-        if not shadows:  # software GL: shadows and reflections are half the frame time
-            scn.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-            scn.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-        if ghost and commands:
-            q_v = commands.at(t)
-            ghost_data.qpos[:] = data.qpos
-            ghost_data.qpos[qadr] = [q_v.get(j, q.get(j, 0.0)) for j in names]
-            mujoco.mj_kinematics(m, ghost_data)
-            first = scn.ngeom
-            mujoco.mjv_addGeoms(m, ghost_data, opt, pert, mujoco.mjtCatBit.mjCAT_DYNAMIC, scn)
-            for i in range(first, scn.ngeom):
-                g = scn.geoms[i]
-                robot_geom = g.objtype == mujoco.mjtObj.mjOBJ_GEOM and \
-                    m.geom_bodyid[g.objid] in moved
-                g.rgba[:] = _GHOST_RGBA if robot_geom else (0.0, 0.0, 0.0, 0.0)
-                if robot_geom and g.type != mujoco.mjtGeom.mjGEOM_MESH:
-                    g.size[:] = np.asarray(g.size) * 1.03  # no z-fighting where q_v ~ q
-        if wrenches and scn.ngeom < scn.maxgeom:
-            force = wrenches.at(t)
-            if np.linalg.norm(force) > 0.2:
-                # beside the tool (5 cm towards the camera), not hidden inside it
-                p = data.site_xpos[tool_site].copy()
-                side = np.asarray(scn.camera[0].pos, dtype=float) - p
-                side[2] = 0.0
-                if np.linalg.norm(side) > 1e-6:
-                    p += 0.05 * side / np.linalg.norm(side)
-                geom = scn.geoms[scn.ngeom]
-                mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3),
-                                    np.zeros(3), np.eye(3).reshape(-1), _ARROW_RGBA)
-                # the arrow points along the force the environment exerts on the tool
-                mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, 0.008, p,
-                                     p + FORCE_SCALE * force)
-                scn.ngeom += 1
-        write(renderer.render())
+        write(view.frame(states.at(t), env.at(t) if env else None,
+                         commands.at(t) if ghost and commands else None,
+                         wrenches.at(t) if wrenches else None, shadows))
         if not quiet and ((k + 1) % every == 0 or k + 1 == n_frames):
             el = time.monotonic() - wall
             print(f'render: {k + 1}/{n_frames} frames ({100 * (k + 1) // n_frames}%), '
                   f'{(k + 1) / el:.1f} frames/s', file=stream, flush=True)
-    renderer.close()
-    sim.close()
+    view.close()
     size_b = close()
     return RenderResult(path=str(output), frames=n_frames, fps=fps, size=(w, h),
                         seconds=time.monotonic() - wall, bytes=size_b)
