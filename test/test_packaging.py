@@ -20,7 +20,7 @@ def test_isolated_wheel_build_carries_both_c_extensions(tmp_path):
     assert out.returncode == 0, out.stderr[-3000:]
     (wheel,) = Path(tmp_path).glob('ifc_spg-*.whl')
     names = zipfile.ZipFile(wheel).namelist()
-    for module in ('ifc_spg/_native', 'ifc_spg/dynamics/_native_dynamics'):
+    for module in ('ifc_spg/kernels/_native', 'ifc_spg/dynamics/_native_dynamics'):
         assert any(n.startswith(module) and n.endswith('.so') for n in names), \
             (module, [n for n in names if n.endswith('.so')])
     assert 'ifc_spg/dynamics/kdl_bench.cpp' in names
