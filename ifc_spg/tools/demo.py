@@ -13,11 +13,16 @@ short summary.
 """
 
 import argparse
+import os
 from pathlib import Path
 import shutil
+import subprocess
 import sys
 
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.offline.runner import find_config_dir, run_scenario
+from ifc_spg.tools.plot import plot_bag
+from ifc_spg.tools.render import ffmpeg_exe
 
 __all__ = ['main', 'run_demo', 'summary']
 
@@ -30,19 +35,14 @@ def _render_video(bag, out, quiet):
     A child process: MuJoCo picks its GL backend (``MUJOCO_GL=egl``) when it is imported,
     and this process imported it for the simulation already.
     """
-    import os
-    import subprocess
-
-    from ifc_spg.tools.render import ffmpeg_exe
-
     # without ffmpeg a smaller GIF: Pillow holds its frames in memory until it writes
     video, size = (out / 'run.mp4', []) if ffmpeg_exe() else \
         (out / 'run.gif', ['--size', '480x360', '--fps', '12.5'])
     for old in (out / 'run.mp4', out / 'run.gif'):
         old.unlink(missing_ok=True)
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.render', str(bag), '-o', str(video),
-                           '-q', *size], capture_output=True, text=True, env=env)
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.render', str(bag), '-o',
+                           str(video), '-q', *size], capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         reason = (proc.stderr.strip().splitlines() or ['failed'])[-1]
         print(f'ifc-spg demo: no video ({reason})', file=sys.stderr)
@@ -54,8 +54,6 @@ def _render_video(bag, out, quiet):
 
 def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False, video=True):
     """Run the demo scenario; returns ``(RunResult, list of PNG paths)``."""
-    from ifc_spg.offline.runner import find_config_dir, run_scenario
-
     out = Path(out_dir)
     if (out / 'bag').exists():
         if not (out / 'metrics.json').exists() and not (out / 'bag' / 'metadata.yaml').exists():
@@ -68,8 +66,6 @@ def run_demo(out_dir='out/demo', duration=None, plots=True, quiet=False, video=T
     clip = _render_video(result.bag, out, quiet) if video else None
     pngs = []
     if plots:
-        from ifc_spg.tools.plot import plot_bag
-
         pngs = plot_bag(result.bag, out / 'plots', title='ifc_spg demo: LBR iiwa 14 surface '
                         'tracking (simulated)', video=clip)
     return result, pngs

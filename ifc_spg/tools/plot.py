@@ -28,6 +28,7 @@ import sys
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.offline.bag import BagReader, stamp_ns
 
 __all__ = ['BagSeries', 'load_series', 'main', 'plot_bag']
 
@@ -48,52 +49,61 @@ class BagSeries:
         self.t_stacks, self.stack_names = [], []
         self.t0 = None
 
+    def add(self, name, msg):
+        """Append one message of topic ``name`` (relative); other topics are ignored."""
+        if name == 'joint_states':
+            self.joint_names = list(msg.name)
+            self.t_js.append(stamp_ns(msg.header.stamp))
+            self.q.append(list(msg.position))
+            self.qd.append(list(msg.velocity))
+            self.effort.append(list(msg.effort))
+        elif name == 'command/joint_position':
+            self.t_cmd.append(stamp_ns(msg.header.stamp))
+            self.q_v.append(list(msg.position))
+        elif name == 'sim/contact_wrench':
+            self.t_cw.append(stamp_ns(msg.header.stamp))
+            self.cw.append(_wrench(msg))
+        elif name == 'ft_sensor/wrench':
+            t, w = self.ft.setdefault(msg.header.frame_id, ([], []))
+            t.append(stamp_ns(msg.header.stamp))
+            w.append(_wrench(msg))
+        elif name == 'spg/status':
+            try:
+                doc = json.loads(msg.data)
+            except json.JSONDecodeError:
+                return
+            self._add_status(doc)
+
+    def _add_status(self, doc):
+        if doc.get('stamp') is None:
+            return
+        self.t_status.append(round(float(doc['stamp']) * 1e9))
+        self.status.append(doc)
+        st = doc.get('stack') or {}
+        if st.get('name') and (not self.stack_names or self.stack_names[-1] != st['name']):
+            since = st.get('since', doc['stamp'])
+            self.t_stacks.append(round(float(since) * 1e9))
+            self.stack_names.append(st['name'])
+
+    def finish(self):
+        """Turn the lists into arrays, times in [s] from the first stamp."""
+        stamps = [x[0] for x in (self.t_js, self.t_cmd, self.t_cw, self.t_status) if x]
+        self.t0 = min(stamps) if stamps else 0
+        for attr in ('t_js', 't_cmd', 't_cw', 't_status', 't_stacks'):
+            setattr(self, attr, (np.array(getattr(self, attr), dtype=np.int64) - self.t0) * 1e-9)
+        for attr in ('q', 'qd', 'effort', 'q_v', 'cw'):
+            setattr(self, attr, np.array(getattr(self, attr), dtype=float))
+        self.ft = {k: ((np.array(t, dtype=np.int64) - self.t0) * 1e-9, np.array(w))
+                   for k, (t, w) in self.ft.items()}
+
 
 def load_series(path):
     """Read a bag into a :class:`BagSeries`."""
-    from ifc_spg.offline.bag import BagReader, stamp_ns
-
     s = BagSeries()
     with BagReader(path) as bag:
         for topic, _t_log, msg in bag.messages():
-            name = topic.lstrip('/')
-            if name == 'joint_states':
-                s.joint_names = list(msg.name)
-                s.t_js.append(stamp_ns(msg.header.stamp))
-                s.q.append(list(msg.position))
-                s.qd.append(list(msg.velocity))
-                s.effort.append(list(msg.effort))
-            elif name == 'command/joint_position':
-                s.t_cmd.append(stamp_ns(msg.header.stamp))
-                s.q_v.append(list(msg.position))
-            elif name == 'sim/contact_wrench':
-                s.t_cw.append(stamp_ns(msg.header.stamp))
-                s.cw.append(_wrench(msg))
-            elif name == 'ft_sensor/wrench':
-                t, w = s.ft.setdefault(msg.header.frame_id, ([], []))
-                t.append(stamp_ns(msg.header.stamp))
-                w.append(_wrench(msg))
-            elif name == 'spg/status':
-                try:
-                    doc = json.loads(msg.data)
-                except json.JSONDecodeError:
-                    continue
-                if doc.get('stamp') is not None:
-                    s.t_status.append(round(float(doc['stamp']) * 1e9))
-                    s.status.append(doc)
-                    st = doc.get('stack') or {}
-                    if st.get('name') and (not s.stack_names or s.stack_names[-1] != st['name']):
-                        since = st.get('since', doc['stamp'])
-                        s.t_stacks.append(round(float(since) * 1e9))
-                        s.stack_names.append(st['name'])
-    stamps = [x[0] for x in (s.t_js, s.t_cmd, s.t_cw, s.t_status) if x]
-    s.t0 = min(stamps) if stamps else 0
-    for attr in ('t_js', 't_cmd', 't_cw', 't_status', 't_stacks'):
-        setattr(s, attr, (np.array(getattr(s, attr), dtype=np.int64) - s.t0) * 1e-9)
-    for attr in ('q', 'qd', 'effort', 'q_v', 'cw'):
-        setattr(s, attr, np.array(getattr(s, attr), dtype=float))
-    s.ft = {k: ((np.array(t, dtype=np.int64) - s.t0) * 1e-9, np.array(w)) for k, (t, w) in
-            s.ft.items()}
+            s.add(topic.lstrip('/'), msg)
+    s.finish()
     return s
 
 
@@ -224,9 +234,16 @@ def _per_joint(plt, s, t_a, a, t_b, b, labels, ylabel, title, path, scale=1.0):
 def plot_bag(bag, out_dir, title=None, video=None):
     """Write the figures and ``index.html`` into ``out_dir``; returns the PNG paths.
 
-    ``video``: a video file of the run (``ifc-spg render``) shown above the figures.
+    Args:
+        bag: Bag directory.
+        out_dir: Directory for the PNGs and ``index.html`` (created).
+        title: Page title (default: names the bag).
+        video: A video file of the run (``ifc-spg render``) shown above the figures.
+
+    Raises:
+        IfcSpgError: The bag has no joint states.
     """
-    import matplotlib
+    import matplotlib  # heavy, and only for figures
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
@@ -234,38 +251,15 @@ def plot_bag(bag, out_dir, title=None, video=None):
     s = load_series(bag)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    written = []
     if not len(s.t_js):
         raise IfcSpgError(f"bag '{bag}' has no joint_states messages to plot")
-    for name, d in _task_series(s).items():
-        if d['value'].size:
-            safe = ''.join(c if c.isalnum() or c in '-_' else '_' for c in name)
-            path = out / f'task_{safe}.png'
-            _plot_task(plt, s, name, d, path)
-            written.append((path, f"task '{name}': value vs bounds"))
+    written = _task_figures(plt, s, out)
     path = out / 'joints.png'
     _per_joint(plt, s, s.t_js, s.q, s.t_cmd, s.q_v if s.q_v.size else None,
                ('measured q', 'commanded q_v'), 'deg', 'joint positions', path, 180 / np.pi)
     written.append((path, 'joint positions q vs q_v'))
     if len(s.t_cw) or s.ft:
-        fig, ax = plt.subplots(figsize=(6.5, 3.2))
-        if len(s.t_cw):
-            f = -s.cw[:, :3]
-            for k, axis in enumerate('xyz'):
-                ax.plot(s.t_cw, f[:, k], color=_COLORS[k], lw=1.0, label=f'f{axis}')
-            ax.plot(s.t_cw, np.linalg.norm(f, axis=1), color='k', lw=1.2, label='|f|')
-        for chain, (t, w) in s.ft.items():
-            ax.plot(t, np.linalg.norm(w[:, :3], axis=1), lw=1.0, ls='--', label=f'|f| F/T {chain}')
-        _switches(ax, s)
-        ax.set_xlabel('time [s]')
-        ax.set_ylabel('force on environment [N]')
-        ax.set_title('contact force (robot on environment)')
-        ax.legend(loc='best', ncol=5)
-        fig.tight_layout()
-        path = out / 'contact_force.png'
-        fig.savefig(path)
-        plt.close(fig)
-        written.append((path, 'contact force'))
+        written.append(_contact_figure(plt, s, out / 'contact_force.png'))
     if s.effort.size:
         path = out / 'torques.png'
         _per_joint(plt, s, s.t_js, s.effort, None, None, ('measured torque', None), 'Nm',
@@ -274,50 +268,86 @@ def plot_bag(bag, out_dir, title=None, video=None):
     tanks = [(t, d['tank_energy']) for t, d in zip(s.t_status, s.status)
              if d.get('tank_energy')]
     if tanks:
-        t = np.array([x[0] for x in tanks])
-        e = np.array([x[1] for x in tanks], dtype=float)
-        fig, ax = plt.subplots(figsize=(6.5, 3.2))
-        for j in range(e.shape[1]):
-            name = s.joint_names[j] if j < len(s.joint_names) else str(j)
-            ax.plot(t, e[:, j], color=_COLORS[j % len(_COLORS)], lw=1.0, label=name)
-        _switches(ax, s)
-        ax.set_xlabel('time [s]')
-        ax.set_ylabel('tank energy [J]')
-        ax.set_title('PSPM energy tanks')
-        ax.set_ylim(bottom=0)
-        ax.legend(loc='best', ncol=4)
-        fig.tight_layout()
-        path = out / 'tanks.png'
-        fig.savefig(path)
-        plt.close(fig)
-        written.append((path, 'PSPM tank energies'))
+        written.append(_tanks_figure(plt, s, tanks, out / 'tanks.png'))
     timing = [(t, d.get('tick_time'), d.get('solve_time')) for t, d in
               zip(s.t_status, s.status) if d.get('tick_time') is not None]
     if timing:
-        t = np.array([x[0] for x in timing])
-        tick = np.array([x[1] for x in timing], dtype=float) * 1e3
-        solve = np.array([x[2] or 0.0 for x in timing], dtype=float) * 1e3
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(8, 3.0), gridspec_kw={'width_ratios': [2, 1]})
-        a1.plot(t, tick, color=_COLORS[0], lw=0.8, label='tick')
-        a1.plot(t, solve, color=_COLORS[2], lw=0.8, label='solve')
-        _switches(a1, s)
-        a1.set_xlabel('time [s]')
-        a1.set_ylabel('[ms]')
-        a1.legend(loc='best')
-        p50, p99 = np.percentile(tick, [50, 99])
-        a2.hist(tick, bins=40, color=_COLORS[0], alpha=0.8)
-        a2.axvline(p50, color='k', ls='--', lw=0.8)
-        a2.axvline(p99, color=_COLORS[1], ls='--', lw=0.8)
-        a2.set_xlabel(f'tick [ms]  (p50 {p50:.2f}, p99 {p99:.2f})')
-        a2.set_ylabel('count')
-        fig.suptitle('SPG timing')
-        fig.tight_layout()
-        path = out / 'timing.png'
-        fig.savefig(path)
-        plt.close(fig)
-        written.append((path, 'SPG tick and solve time'))
+        written.append(_timing_figure(plt, s, timing, out / 'timing.png'))
     _index(out, written, Path(bag), title, video)
     return [p for p, _ in written]
+
+
+def _task_figures(plt, s, out):
+    """``task_<name>.png`` per task with values; ``[(path, caption)]``."""
+    written = []
+    for name, d in _task_series(s).items():
+        if d['value'].size:
+            safe = ''.join(c if c.isalnum() or c in '-_' else '_' for c in name)
+            path = out / f'task_{safe}.png'
+            _plot_task(plt, s, name, d, path)
+            written.append((path, f"task '{name}': value vs bounds"))
+    return written
+
+
+def _save(plt, fig, path, caption):
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path, caption
+
+
+def _contact_figure(plt, s, path):
+    fig, ax = plt.subplots(figsize=(6.5, 3.2))
+    if len(s.t_cw):
+        f = -s.cw[:, :3]
+        for k, axis in enumerate('xyz'):
+            ax.plot(s.t_cw, f[:, k], color=_COLORS[k], lw=1.0, label=f'f{axis}')
+        ax.plot(s.t_cw, np.linalg.norm(f, axis=1), color='k', lw=1.2, label='|f|')
+    for chain, (t, w) in s.ft.items():
+        ax.plot(t, np.linalg.norm(w[:, :3], axis=1), lw=1.0, ls='--', label=f'|f| F/T {chain}')
+    _switches(ax, s)
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('force on environment [N]')
+    ax.set_title('contact force (robot on environment)')
+    ax.legend(loc='best', ncol=5)
+    return _save(plt, fig, path, 'contact force')
+
+
+def _tanks_figure(plt, s, tanks, path):
+    t = np.array([x[0] for x in tanks])
+    e = np.array([x[1] for x in tanks], dtype=float)
+    fig, ax = plt.subplots(figsize=(6.5, 3.2))
+    for j in range(e.shape[1]):
+        name = s.joint_names[j] if j < len(s.joint_names) else str(j)
+        ax.plot(t, e[:, j], color=_COLORS[j % len(_COLORS)], lw=1.0, label=name)
+    _switches(ax, s)
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('tank energy [J]')
+    ax.set_title('PSPM energy tanks')
+    ax.set_ylim(bottom=0)
+    ax.legend(loc='best', ncol=4)
+    return _save(plt, fig, path, 'PSPM tank energies')
+
+
+def _timing_figure(plt, s, timing, path):
+    t = np.array([x[0] for x in timing])
+    tick = np.array([x[1] for x in timing], dtype=float) * 1e3
+    solve = np.array([x[2] or 0.0 for x in timing], dtype=float) * 1e3
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(8, 3.0), gridspec_kw={'width_ratios': [2, 1]})
+    a1.plot(t, tick, color=_COLORS[0], lw=0.8, label='tick')
+    a1.plot(t, solve, color=_COLORS[2], lw=0.8, label='solve')
+    _switches(a1, s)
+    a1.set_xlabel('time [s]')
+    a1.set_ylabel('[ms]')
+    a1.legend(loc='best')
+    p50, p99 = np.percentile(tick, [50, 99])
+    a2.hist(tick, bins=40, color=_COLORS[0], alpha=0.8)
+    a2.axvline(p50, color='k', ls='--', lw=0.8)
+    a2.axvline(p99, color=_COLORS[1], ls='--', lw=0.8)
+    a2.set_xlabel(f'tick [ms]  (p50 {p50:.2f}, p99 {p99:.2f})')
+    a2.set_ylabel('count')
+    fig.suptitle('SPG timing')
+    return _save(plt, fig, path, 'SPG tick and solve time')
 
 
 def _video_html(out, video):
