@@ -1,6 +1,7 @@
 """Soak benchmark: a long lockstep run that must stay safe, lean and steady.
 
-    python -m ifc_spg.tools.soak [--hours 1] [--minutes M] [--quick] [--robot lbr_iiwa14] [--json F]
+    python -m ifc_spg.tools.soak [--hours 1] [--minutes M] [--quick] [--robot lbr_iiwa14]
+                                 [--json F]
 
 The MuJoCo simulation (:class:`sim_bridge.simulation.Simulation`, free scene, 1 kHz
 physics) and the SPG node's logic (:class:`~ifc_spg.node.core.SpgRunner`) run in lockstep
@@ -30,6 +31,8 @@ import traceback
 import numpy as np
 
 from ifc_spg.limits import joint_velocity_bounds
+from ifc_spg.node.config import SpgConfig
+from ifc_spg.node.core import SpgRunner
 
 __all__ = ['CommandChecker', 'STACKS', 'rss_mb', 'run_soak', 'main']
 
@@ -66,9 +69,13 @@ class CommandChecker:
         self.examples = []
 
     def _fail(self, cmd, text):
+        self.fail(cmd.tick, text)
+
+    def fail(self, tick, text):
+        """Count a violation at ``tick`` (described in :attr:`examples`, the first ten)."""
         self.violations += 1
         if len(self.examples) < 10:
-            self.examples.append(f'tick {cmd.tick}: {text}')
+            self.examples.append(f'tick {tick}: {text}')
 
     def check(self, cmd, q=None, tank_energy=None):
         """Check one command; return the list of violations (empty: fine).
@@ -81,7 +88,7 @@ class CommandChecker:
             tank_energy: PSPM tank energies after the tick [J] (None without PSPM).
         """
         before = self.violations
-        r, dt = self.robot, self.dt
+        r = self.robot
         pos = np.asarray(cmd.position, dtype=float)
         vel = np.asarray(cmd.velocity, dtype=float)
         if self.prev is not None and cmd.tick == self.prev[0]:
@@ -94,6 +101,16 @@ class CommandChecker:
             self._fail(cmd, 'non-finite command')
             self.prev = None
             return ['non-finite command']
+        self._check_box(cmd, pos, vel)
+        prev_pos, prev_vel = self._previous(cmd, q)
+        if prev_pos is not None:
+            self._check_step(cmd, pos, vel, prev_pos, prev_vel, tank_energy)
+        self.prev = (cmd.tick, pos.copy(), vel.copy())
+        return self.examples[before:] if self.violations > before else []
+
+    def _check_box(self, cmd, pos, vel):
+        """q_min <= q_v <= q_max and |qdot_v| <= v_max."""
+        r = self.robot
         if np.any(pos < r.q_min) or np.any(pos > r.q_max):
             j = int(np.argmax(np.maximum(r.q_min - pos, pos - r.q_max)))
             self._fail(cmd, f'q_v[{j}] = {pos[j]:.6f} outside [{r.q_min[j]:.6f}, '
@@ -102,40 +119,43 @@ class CommandChecker:
         if np.any(over > 0):
             j = int(np.argmax(over))
             self._fail(cmd, f'|qdot_v[{j}]| = {abs(vel[j]):.6f} > v_max {r.v_max[j]:.6f}')
-        if cmd.resumed or self.prev is None:
-            if q is None:
-                prev_pos, prev_vel = None, None
+
+    def _previous(self, cmd, q):
+        """The previous command's (q_v, qdot_v); after a (re)start clip(q) at rest."""
+        r = self.robot
+        if not (cmd.resumed or self.prev is None):
+            return self.prev[1], self.prev[2]
+        if q is None:
+            return None, None
+        return np.clip(np.asarray(q, dtype=float), r.q_min, r.q_max), np.zeros(r.n)
+
+    def _check_step(self, cmd, pos, vel, prev_pos, prev_vel, tank_energy):
+        """q_v - q_v_prev = dT qdot_v; |qdot_v - qdot_v_prev| <= a_max dT but where forced."""
+        r, dt = self.robot, self.dt
+        step = pos - prev_pos
+        if np.any(np.abs(step - dt * vel) > POS_TOL):
+            j = int(np.argmax(np.abs(step - dt * vel)))
+            self._fail(cmd, f'q_v[{j}] moved {step[j]:.3e} rad, not dT qdot_v = '
+                       f'{dt * vel[j]:.3e}')
+        dv = vel - prev_vel
+        bad = np.flatnonzero(np.abs(dv) > r.a_max * dt + ACC_TOL)
+        if not bad.size:
+            return
+        box = joint_velocity_bounds(prev_pos, r.q_min, r.q_max, r.v_max, r.a_max, dt)
+        for j in bad:
+            acc = r.a_max[j] * dt
+            forced_down = prev_vel[j] - acc > box.upper[j] and \
+                abs(vel[j] - box.upper[j]) <= ACC_TOL
+            forced_up = prev_vel[j] + acc < box.lower[j] and \
+                abs(vel[j] - box.lower[j]) <= ACC_TOL
+            if forced_down or forced_up:
+                self.accel_overrides['position'] += 1
+            elif tank_energy is not None and tank_energy[j] <= TANK_EMPTY:
+                self.accel_overrides['pspm'] += 1
             else:
-                prev_pos = np.clip(np.asarray(q, dtype=float), r.q_min, r.q_max)
-                prev_vel = np.zeros(r.n)
-        else:
-            _, prev_pos, prev_vel = self.prev
-        if prev_pos is not None:
-            step = pos - prev_pos
-            if np.any(np.abs(step - dt * vel) > POS_TOL):
-                j = int(np.argmax(np.abs(step - dt * vel)))
-                self._fail(cmd, f'q_v[{j}] moved {step[j]:.3e} rad, not dT qdot_v = '
-                           f'{dt * vel[j]:.3e}')
-            dv = vel - prev_vel
-            bad = np.flatnonzero(np.abs(dv) > r.a_max * dt + ACC_TOL)
-            if bad.size:
-                box = joint_velocity_bounds(prev_pos, r.q_min, r.q_max, r.v_max, r.a_max, dt)
-                for j in bad:
-                    acc = r.a_max[j] * dt
-                    forced_down = prev_vel[j] - acc > box.upper[j] and \
-                        abs(vel[j] - box.upper[j]) <= ACC_TOL
-                    forced_up = prev_vel[j] + acc < box.lower[j] and \
-                        abs(vel[j] - box.lower[j]) <= ACC_TOL
-                    if forced_down or forced_up:
-                        self.accel_overrides['position'] += 1
-                    elif tank_energy is not None and tank_energy[j] <= TANK_EMPTY:
-                        self.accel_overrides['pspm'] += 1
-                    else:
-                        self._fail(cmd, f'|qdot_v[{j}] - prev| = {abs(dv[j]):.6f} > a_max dT '
-                                   f'{acc:.6f} (qdot_v {vel[j]:.6f}, prev {prev_vel[j]:.6f}, '
-                                   f'tank {None if tank_energy is None else tank_energy[j]})')
-        self.prev = (cmd.tick, pos.copy(), vel.copy())
-        return self.examples[before:] if self.violations > before else []
+                self._fail(cmd, f'|qdot_v[{j}] - prev| = {abs(dv[j]):.6f} > a_max dT '
+                           f'{acc:.6f} (qdot_v {vel[j]:.6f}, prev {prev_vel[j]:.6f}, '
+                           f'tank {None if tank_energy is None else tank_energy[j]})')
 
     def restart(self):
         """Forget the previous command (the next one starts a new session)."""
@@ -222,7 +242,8 @@ def rss_mb():
             pages = int(f.read().split()[1])
         return pages * os.sysconf('SC_PAGE_SIZE') / 1e6
     except (OSError, ValueError):  # pragma: no cover - non-Linux
-        import resource
+        import resource  # Unix only, and only without /proc
+
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
 
 
@@ -236,89 +257,113 @@ def run_soak(seconds, robot='lbr_iiwa14', period=10.0, progress=None, stacks=STA
         progress: Print a progress line to this stream every 10 % (None: quiet).
         stacks: Task-stack texts, sent in turn.
     """
-    from ifc_spg.node.config import SpgConfig
-    from ifc_spg.node.core import SpgRunner
-    from sim_bridge.simulation import SimConfig, Simulation
+    soak = _Soak(robot, seconds, period, stacks)
+    try:
+        for k in range(soak.n_ticks):
+            soak.tick(k)
+            soak.sample(k, progress)
+        return soak.report(time.perf_counter() - soak.wall0)
+    finally:
+        soak.sim.close()
 
-    sim = Simulation(SimConfig(robot=robot, scene='free'))
-    config = SpgConfig(robot=robot, watchdog_timeout=0.0)
-    runner = SpgRunner(config, robot=sim.robot)
-    checker = CommandChecker(sim.robot, config.dt)
-    names = list(sim.joint_names)
-    steps = round(config.dt / sim.dt)
-    n_ticks = int(round(seconds / config.dt))
-    per_stack = max(1, int(round(period / config.dt)))
-    per_push = int(round(7.0 / config.dt))
-    # written up front: the pages are resident before the memory baseline is taken
-    tick_times = np.full(n_ticks, np.nan)
-    rss_trend = []
-    exceptions, examples, stack_events = 0, [], {'accepted': 0, 'rejected': 0}
-    statuses = {}
-    rss_early = None
-    rss_start = rss_mb()
-    wall0 = time.perf_counter()
-    chain = sim.contact_chain
-    rng = np.random.default_rng(0)
-    for k in range(n_ticks):
+
+class _Soak:
+    """The simulation, the SPG, the checker and what the report counts."""
+
+    def __init__(self, robot, seconds, period, stacks):
+        from sim_bridge.simulation import SimConfig, Simulation  # MuJoCo: only when soaking
+
+        self.robot, self.stacks = robot, stacks
+        self.sim = Simulation(SimConfig(robot=robot, scene='free'))
+        self.config = SpgConfig(robot=robot, watchdog_timeout=0.0)
+        self.runner = SpgRunner(self.config, robot=self.sim.robot)
+        self.checker = CommandChecker(self.sim.robot, self.config.dt)
+        self.names = list(self.sim.joint_names)
+        self.steps = round(self.config.dt / self.sim.dt)
+        self.n_ticks = int(round(seconds / self.config.dt))
+        self.per_stack = max(1, int(round(period / self.config.dt)))
+        self.per_push = int(round(7.0 / self.config.dt))
+        # written up front: the pages are resident before the memory baseline is taken
+        self.tick_times = np.full(self.n_ticks, np.nan)
+        self.rss_trend = []
+        self.exceptions, self.examples = 0, []
+        self.stack_events = {'accepted': 0, 'rejected': 0}
+        self.statuses = {}
+        self.rss_early = None
+        self.rss_start = rss_mb()
+        self.wall0 = time.perf_counter()
+        self.rng = np.random.default_rng(0)
+
+    def tick(self, k):
+        """Tick ``k``: the stack and push due, the SPG's answer checked, the physics step."""
+        sim, runner = self.sim, self.runner
         try:
-            if k % per_stack == 0:
-                event = runner.handle_task_stack(stacks[(k // per_stack) % len(stacks)])
-                stack_events['accepted' if event.accepted else 'rejected'] += 1
-            if per_push and k % per_push == per_push // 2:
-                sim.apply_wrench(chain, rng.normal(0.0, 15.0, 6) * [1, 1, 1, 0.1, 0.1, 0.1],
-                                 0.2)
+            if k % self.per_stack == 0:
+                event = runner.handle_task_stack(
+                    self.stacks[(k // self.per_stack) % len(self.stacks)])
+                self.stack_events['accepted' if event.accepted else 'rejected'] += 1
+            if self.per_push and k % self.per_push == self.per_push // 2:
+                sim.apply_wrench(sim.contact_chain, self.rng.normal(0.0, 15.0, 6) *
+                                 [1, 1, 1, 0.1, 0.1, 0.1], 0.2)
             s = sim.read_state()
             t0 = time.perf_counter()
-            cmd = runner.handle_joint_state(names, s.q, s.qd, round(s.t * 1e9))
-            tick_times[k] = time.perf_counter() - t0
+            cmd = runner.handle_joint_state(self.names, s.q, s.qd, round(s.t * 1e9))
+            self.tick_times[k] = time.perf_counter() - t0
             info = runner.spg.info
-            statuses[info.status] = statuses.get(info.status, 0) + 1
+            self.statuses[info.status] = self.statuses.get(info.status, 0) + 1
             if cmd is None:
-                checker._fail(type('C', (), {'tick': k})(), 'no command for a valid state')
+                self.checker.fail(k, 'no command for a valid state')
             else:
-                checker.check(cmd, s.q, info.tank_energy)
+                self.checker.check(cmd, s.q, info.tank_energy)
                 sim.write_command(cmd.position, cmd.velocity)
-            sim.step(steps)
+            sim.step(self.steps)
         except Exception:  # count and go on: the soak reports, it does not stop
-            exceptions += 1
-            if len(examples) < 5:
-                examples.append(traceback.format_exc())
-            sim.step(steps)
-        if k == n_ticks // 10:
-            rss_early = rss_mb()
-        if n_ticks >= 10 and (k + 1) % (n_ticks // 10) == 0:
-            rss_trend.append(round(rss_mb(), 1))
-        if progress is not None and n_ticks >= 10 and (k + 1) % (n_ticks // 10) == 0:
-            print(f'soak: {100 * (k + 1) // n_ticks:3d} % ({(k + 1) * config.dt:.0f} s sim, '
-                  f'{time.perf_counter() - wall0:.0f} s wall), violations '
-                  f'{checker.violations}, exceptions {exceptions}, RSS {rss_trend[-1]:.1f} MB',
-                  file=progress, flush=True)
-    wall = time.perf_counter() - wall0
-    rss_end = rss_mb()
-    tenth = max(1, n_ticks // 10)
+            self.exceptions += 1
+            if len(self.examples) < 5:
+                self.examples.append(traceback.format_exc())
+            sim.step(self.steps)
 
-    def pct(x, p):
-        return float(np.percentile(x, p) * 1e3) if len(x) else math.nan
+    def sample(self, k, progress):
+        """Memory at 10 % and every 10 % of the run (with a progress line)."""
+        n = self.n_ticks
+        if k == n // 10:
+            self.rss_early = rss_mb()
+        if n < 10 or (k + 1) % (n // 10) != 0:
+            return
+        self.rss_trend.append(round(rss_mb(), 1))
+        if progress is not None:
+            print(f'soak: {100 * (k + 1) // n:3d} % ({(k + 1) * self.config.dt:.0f} s sim, '
+                  f'{time.perf_counter() - self.wall0:.0f} s wall), violations '
+                  f'{self.checker.violations}, exceptions {self.exceptions}, RSS '
+                  f'{self.rss_trend[-1]:.1f} MB', file=progress, flush=True)
 
-    first, last = tick_times[:tenth], tick_times[-tenth:]
-    report = {
-        'robot': robot, 'ticks': n_ticks, 'sim_seconds': n_ticks * config.dt,
-        'wall_seconds': round(wall, 1), 'stack_changes': stack_events,
-        'exceptions': exceptions, 'exception_examples': examples,
-        'limit_violations': checker.violations, 'violation_examples': checker.examples,
-        'accel_overrides': checker.accel_overrides, 'spg_status_counts': statuses,
-        'rejected': dict(runner.rejected),
-        'rss_mb': {'start': round(rss_start, 1),
-                   'at_10_percent': None if rss_early is None else round(rss_early, 1),
-                   'end': round(rss_end, 1), 'every_10_percent': rss_trend},
-        'rss_growth_mb': round(rss_end - (rss_early if rss_early is not None else rss_start),
-                               2),
-        'tick_ms': {'first_10_percent': {'p50': pct(first, 50), 'p99': pct(first, 99)},
-                    'last_10_percent': {'p50': pct(last, 50), 'p99': pct(last, 99)}},
-        'missed_commands': sim.read_state().missed_commands,
-    }
-    sim.close()
-    return report
+    def report(self, wall):
+        """The report dict (see the module docstring)."""
+        rss_end = rss_mb()
+        tenth = max(1, self.n_ticks // 10)
+        first, last = self.tick_times[:tenth], self.tick_times[-tenth:]
+        checker, early = self.checker, self.rss_early
+        return {
+            'robot': self.robot, 'ticks': self.n_ticks,
+            'sim_seconds': self.n_ticks * self.config.dt,
+            'wall_seconds': round(wall, 1), 'stack_changes': self.stack_events,
+            'exceptions': self.exceptions, 'exception_examples': self.examples,
+            'limit_violations': checker.violations, 'violation_examples': checker.examples,
+            'accel_overrides': checker.accel_overrides, 'spg_status_counts': self.statuses,
+            'rejected': dict(self.runner.rejected),
+            'rss_mb': {'start': round(self.rss_start, 1),
+                       'at_10_percent': None if early is None else round(early, 1),
+                       'end': round(rss_end, 1), 'every_10_percent': self.rss_trend},
+            'rss_growth_mb': round(rss_end - (early if early is not None else self.rss_start),
+                                   2),
+            'tick_ms': {'first_10_percent': {'p50': _pct(first, 50), 'p99': _pct(first, 99)},
+                        'last_10_percent': {'p50': _pct(last, 50), 'p99': _pct(last, 99)}},
+            'missed_commands': self.sim.read_state().missed_commands,
+        }
+
+
+def _pct(x, p):
+    return float(np.percentile(x, p) * 1e3) if len(x) else math.nan
 
 
 def main(argv=None):
