@@ -32,11 +32,12 @@ stack asks for energy the budget does not give) and says how much power it asked
 """
 
 from dataclasses import dataclass
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg import kernels as native
+from ifc_spg import kernels as _kernels
 from ifc_spg.errors import ParameterError
 from ifc_spg.limits.joint_limits import VelocityBox
 
@@ -83,9 +84,11 @@ class EnergyTanks:
         modulated: Mask of joints whose set-points are modulated (compliant joints).
         dt: SPG period in [s].
         config: :class:`PspmConfig`.
+        kernels: The kernels module (default :data:`ifc_spg.kernels.active`).
     """
 
-    def __init__(self, stiffness, damping, modulated, dt, config=PspmConfig()):
+    def __init__(self, stiffness, damping, modulated, dt, config=PspmConfig(), *,
+                 kernels: ModuleType | None = None):
         self.K = np.asarray(stiffness, dtype=float)
         self.D = np.asarray(damping, dtype=float)
         self.mask = np.asarray(modulated, dtype=bool)
@@ -100,11 +103,9 @@ class EnergyTanks:
         self._avail = np.zeros(n)
         self._shuffle_now = np.zeros(n)
         self._refill_now = np.zeros(n)
-        self._q_prev = None
+        self._q_prev: np.ndarray | None = None
         self.deficit = 0.0
         # constants of the 2 ms path
-        self._all = bool(self.mask.all())
-        self._fixed = np.flatnonzero(~self.mask)  # joints without modulation (stiff)
         self._shuffling = config.shuffle > 0.0 and config.shuffle_budget > 0.0
         self._extra = self._shuffling  # shuffle or refill added to E_avail this tick
         # the refill keeps the tanks at E_r,init at most: the room above is for the energy
@@ -113,12 +114,11 @@ class EnergyTanks:
             config.max_energy
         self._D_over_dt = self.D / self.dt
         self._inv_dt = 1.0 / self.dt
-        self._minus_inv_dt = -self._inv_dt
         self._half_K = 0.5 * self.K
         with np.errstate(divide='ignore'):
             self._two_over_K = np.where(self.K > 0, 2.0 / self.K, 0.0)
         self._modulated = self.mask.astype(float)
-        self._native = native.module  # C kernels (ifc_spg.kernels), or None: numpy below
+        self._kernels = _kernels.resolve(kernels)
 
     def reset(self, q):
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
@@ -128,7 +128,9 @@ class EnergyTanks:
         self._q_prev = np.array(q, dtype=float)
 
     def restore(self, q, energy, shuffled=None):
-        """Continue from energies ``energy`` [J] and shuffled totals ``shuffled`` [J] with
+        """Continue from given tank energies (a replay that starts mid-run).
+
+        Continue from energies ``energy`` [J] and shuffled totals ``shuffled`` [J] with
         ``q`` [rad] as the last measurement (a replay that starts mid-run).
         """
         self.energy = np.array(energy, dtype=float)
@@ -170,9 +172,12 @@ class EnergyTanks:
         return (self.energy <= tol) & self.mask
 
     def requested_power(self, q, q_v, qdot_v):
-        """Power [W] per joint the step ``qdot_v`` [rad/s] from ``q_v`` would take from the
+        """Power [W] per joint a step would take from the tanks.
+
+        Power [W] per joint the step ``qdot_v`` [rad/s] from ``q_v`` would take from the
         tank this tick beyond what the IFC damper returned (E_Dmin): the spring energy it
-        adds, 1/2 K ((dq + dT qdot_v)^2 - dq^2), minus E_Dmin, over dT (0 for stiff joints).
+        adds, 1/2 K ((dq + dT qdot_v)^2 - dq^2), minus E_Dmin, over dT (0 for stiff
+        joints).
         """
         dq = q_v - q
         dE = self._half_K * ((dq + self.dt * qdot_v) ** 2 - dq * dq) - self.dissipated_min
@@ -192,42 +197,23 @@ class EnergyTanks:
             q: Measured joint positions in [rad] at this tick.
             q_v: Virtual joint positions in [rad] before this tick's step.
         """
-        if self._q_prev is None:
-            self._q_prev = np.array(q, dtype=float)
-        if self._native is not None:
-            shuffle = None
-            if self._extra:  # the refill tops up what E_Dmin leaves (numpy's E_Dmin below)
-                shuffle = self._added(self._D_over_dt * (q - self._q_prev) ** 2
-                                      if self.power > 0.0 else None)
-            lower, upper, self.dissipated_min, self._avail = self._native.pspm_bounds(
-                q, q_v, self._q_prev, self.energy, shuffle, self._D_over_dt,
-                self._two_over_K, self._inv_dt, self._modulated)
-            return VelocityBox(lower, upper)
-        step = q - self._q_prev
-        step *= step
-        step *= self._D_over_dt
-        self.dissipated_min = step
-        self._q_prev[:] = q
-        if self._extra:
-            self._avail = self.energy + step + self._added(step)
-        else:
-            self._avail = self.energy + step
-        dq = q_v - q
-        r = self._avail * self._two_over_K
-        r += dq * dq
-        np.sqrt(r, out=r)
-        upper = r - dq
-        upper *= self._inv_dt
-        r += dq
-        r *= self._minus_inv_dt
-        lower = r
-        if not self._all:
-            lower[self._fixed] = -np.inf
-            upper[self._fixed] = np.inf
+        q_prev = self._q_prev
+        if q_prev is None:
+            q_prev = self._q_prev = np.array(q, dtype=float)
+        shuffle = None
+        if self._extra:  # the refill tops up what this tick's E_Dmin leaves
+            shuffle = self._added(self._D_over_dt * (q - q_prev) ** 2
+                                  if self.power > 0.0 else None)
+        lower, upper, self.dissipated_min, self._avail = self._kernels.pspm_bounds(
+            q, q_v, q_prev, self.energy, shuffle, self._D_over_dt, self._two_over_K,
+            self._inv_dt, self._modulated)
+        q_prev[:] = q  # the next tick's q_prev (the kernel only reads it)
         return VelocityBox(lower, upper)
 
     def _added(self, dissipated):
-        """This tick's shuffled plus refilled energy per joint in [J] (``dissipated``: this
+        """This tick's shuffled plus refilled energy per joint in [J].
+
+        This tick's shuffled plus refilled energy per joint in [J] (``dissipated``: this
         tick's E_Dmin, which counts as already in the tank when the refill is shared).
         """
         if self._shuffling:
@@ -243,7 +229,9 @@ class EnergyTanks:
         return added
 
     def _water_fill(self, amount, e):
-        """Share ``amount`` [J] among the modulated tanks with energies ``e`` [J], emptiest
+        """Share a refill among the modulated tanks, emptiest first.
+
+        Share ``amount`` [J] among the modulated tanks with energies ``e`` [J], emptiest
         first: the tanks below a common level are raised to it (never above the fill level
         E_r,init, or E_max if that is 0); returns the refill per joint.
         """
@@ -268,24 +256,9 @@ class EnergyTanks:
             q_v: Virtual joint positions before the step in [rad].
             qdot_v: Applied virtual joint velocity in [rad/s].
         """
-        if self._native is not None:
-            e, dEk, e_min = self._native.pspm_update(
-                q, q_v, qdot_v, self._avail, self._half_K, self.dt, self.config.max_energy,
-                self._modulated, self.energy)
-        else:
-            dq = q_v - q
-            new = qdot_v * self.dt
-            new += dq
-            new *= new
-            dq *= dq
-            new -= dq
-            dEk = new
-            dEk *= self._half_K
-            e = self._avail - dEk
-            np.minimum(e, self.config.max_energy, out=e)
-            if not self._all:
-                e[self._fixed] = self.energy[self._fixed]
-            e_min = e.min()
+        e, dEk, e_min = self._kernels.pspm_update(
+            q, q_v, qdot_v, self._avail, self._half_K, self.dt, self.config.max_energy,
+            self._modulated, self.energy)
         if not e_min >= 0.0:  # NaN (inf - inf on absurd measurements) or round-off below 0
             e[np.isnan(e)] = 0.0  # an overflow empties the tank
             # only round-off can make e negative (the step was bounded by E_avail); record it
@@ -325,7 +298,9 @@ class StallReport(NamedTuple):
     since: float
 
     def suggestion(self):
-        """The setting that would give the stack the power it asks for: twice the larger of
+        """The setting that would give the stack the power it asks for.
+
+        The setting that would give the stack the power it asks for: twice the larger of
         the request, the robot's running consumption and the budget in effect (these are
         lower bounds; a stall reported again under the new budget asks for twice that).
         """

@@ -17,21 +17,24 @@ zero (braking within a_max, then holding q_v) and the status says so in ``info``
 measurements) stops that joint.
 """
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 import math
 import time
-from typing import NamedTuple
+from types import ModuleType
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from ifc_spg import kernels as native
-from ifc_spg.cascade.daqp import level_violation, make_solver
-from ifc_spg.cascade.nullspace import NullspaceCascade
-from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg import kernels as _kernels
+from ifc_spg.cascade import SOLVERS, Cascade, level_violation, make_solver
+from ifc_spg.errors import ParameterError
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
 from ifc_spg.model import JOINT_IMPEDANCE
-from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, stall_message
+from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, StallReport, stall_message
+from ifc_spg.tasks.task import Level, Task
 
 __all__ = ['Activation', 'SetPointGenerator', 'SpgInfo', 'SpgState']
 
@@ -46,15 +49,17 @@ class SpgState(NamedTuple):
         shuffled: Energy shuffled into each tank so far [J] (None without PSPM).
     """
 
-    q_v: np.ndarray
+    q_v: np.ndarray | None
     qdot_v: np.ndarray
-    tank_energy: np.ndarray
-    shuffled: np.ndarray
+    tank_energy: np.ndarray | None
+    shuffled: np.ndarray | None
 
 
 class Activation(NamedTuple):
-    """The tick at which a stack's tasks captured their ``init`` values: measured q [rad],
-    qdot [rad/s], the virtual q_v [rad] before the tick and the stamp t [s].
+    """The tick at which a stack's tasks captured their ``init`` values.
+
+    The tick at which a stack's tasks captured their ``init`` values: measured q [rad], qdot
+    [rad/s], the virtual q_v [rad] before the tick and the stamp t [s].
     """
 
     q: np.ndarray
@@ -63,8 +68,9 @@ class Activation(NamedTuple):
     t: float
 
 
+@dataclass(frozen=True, slots=True)
 class SpgInfo:
-    """What the last tick did (read-only snapshot, rebuilt every tick).
+    """What the last tick did (a frozen snapshot, built once per tick).
 
     Attributes:
         status: 'ok', 'fallback', 'hold', 'bad_input' or 'idle' (no stack).
@@ -85,18 +91,36 @@ class SpgInfo:
         pspm: Dict (computed on demand) of power_budget, max_power [W], refilled [J] per
             joint, and stall {joints, requested_power [W] per joint, total_power, since,
             fix, message} or None; None without PSPM.
+        qdot_v: The tick's virtual joint velocity [rad/s].
+        failed_level: Index of the level that could not be solved, or -1.
+        levels: The tick's levels (:class:`~ifc_spg.tasks.Level`, the torque limit first).
+        box: The tick's :class:`~ifc_spg.limits.VelocityBox` on qdot_v.
+        tanks: The :class:`~ifc_spg.pspm.EnergyTanks` (None without PSPM).
+        joint_names: The robot's joint names (model order).
     """
 
-    __slots__ = ('status', 'solver', 'slacks', 'tank_energy', 'spring_energy_step',
-                 'solve_time', 'tick_time', 'task_time', 'qdot_v', 'message', 'failed_level',
-                 'levels', 'box', 'stall', 'stall_new', 'power_budget', 'tanks', 'joint_names')
+    status: str | None = None
+    solver: str | None = None
+    slacks: list | None = None
+    tank_energy: np.ndarray | None = None
+    spring_energy_step: np.ndarray | None = None
+    solve_time: float | None = None
+    tick_time: float | None = None
+    task_time: float | None = None
+    qdot_v: np.ndarray | None = None
+    message: str | None = None
+    failed_level: int | None = None
+    levels: list | None = None
+    box: VelocityBox | None = None
+    stall: StallReport | None = None
+    stall_new: bool | None = None
+    power_budget: float | None = None
+    tanks: EnergyTanks | None = None
+    joint_names: tuple | None = None
+
     _FIELDS = ('status', 'solver', 'level_names', 'slacks', 'residuals', 'at_limit',
                'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
                'qdot_v', 'message', 'failed_level', 'pspm')
-
-    def __init__(self, **kw):
-        for k in self.__slots__:
-            setattr(self, k, kw.get(k))
 
     @property
     def level_names(self):
@@ -125,7 +149,10 @@ class SpgInfo:
     @property
     def residuals(self):
         """Violation of each level's velocity bounds by the final qdot_v (computed on demand)."""
-        return [level_violation(lv, self.qdot_v) for lv in (self.levels or [])]
+        qdot_v = self.qdot_v
+        if qdot_v is None:
+            return []
+        return [level_violation(lv, qdot_v) for lv in (self.levels or [])]
 
     @property
     def at_limit(self):
@@ -157,77 +184,112 @@ class SetPointGenerator:
             first; None starts idle (holding q_v).
         dt: SPG period dT in [s].
         pspm: True (default parameters), False, or a :class:`~ifc_spg.pspm.PspmConfig`.
-        solver: 'daqp' (default), 'proxsuite' or 'nullspace' (baseline, equalities only).
+        solver: 'daqp' (default), 'proxsuite' or 'nullspace' (baseline, equality tasks
+            only, no torque limits), or a :class:`~ifc_spg.cascade.Cascade` object.
         rho: Regularization of qdot_v in each level (4.45).
-        torque_limits: Add the implicit top-level task |K (q_v - q)| <= tau_max (4.3).
+        torque_limits: Add the implicit top-level task |K (q_v - q)| <= tau_max (4.3) on a
+            joint-impedance robot (the nullspace baseline cannot take it: pass False).
+        kernels: The kernels module of the tick (default :data:`ifc_spg.kernels.active`;
+            :mod:`ifc_spg.kernels.reference` for the numpy reference).
+
+    Raises:
+        ParameterError: A bad ``dt`` or ``pspm``, or torque limits asked of a solver that
+            cannot take them.
     """
 
-    def __init__(self, robot, stack=None, *, dt=0.002, pspm=True, solver='daqp', rho=0.01,
-                 torque_limits=True):
+    def __init__(self, robot: Any, stack: Any = None, *, dt: float = 0.002,
+                 pspm: bool | PspmConfig = True, solver: str | Cascade = 'daqp',
+                 rho: float = 0.01, torque_limits: bool = True,
+                 kernels: ModuleType | None = None):
         if not (np.isfinite(dt) and 0 < dt <= 1.0):
             raise ParameterError(f'dt must be a period in (0, 1] s, got {dt!r}')
         self.robot = robot
         self.dt = float(dt)
         n = robot.n
         self.n = n
-        if solver == 'nullspace':
-            self._solver = NullspaceCascade(n)
-        else:
-            self._solver = make_solver(solver, n, rho)
-        if pspm is True:
-            pspm = PspmConfig()
-        self.tanks = None
-        if pspm:
-            if not isinstance(pspm, PspmConfig):
-                raise ParameterError(f'pspm must be True, False or a PspmConfig, got {pspm!r}')
-            modulated = ~robot.stiff_mask if robot.ifc == JOINT_IMPEDANCE \
-                else np.zeros(n, dtype=bool)
-            self.tanks = EnergyTanks(robot.stiffness, robot.damping, modulated, dt, pspm)
+        self._kernels = kernels = _kernels.resolve(kernels)
+        name = solver if isinstance(solver, str) else solver.name
+        self._solver_args = (name, n, rho)
+        self._solver: Cascade = self._new_solver() if isinstance(solver, str) else solver
+        self.tanks = self._make_tanks(pspm)
         self._stall = None if self.tanks is None else StallMonitor(self.tanks)
-        self._probe_solver = None  # a second cascade for stall probes (created when needed)
-        self._solver_args = (solver, n, rho)
+        self._probe_solver: Cascade | None = None  # a second cascade for stall probes
         self._torque_limit = None
-        if torque_limits and robot.ifc == JOINT_IMPEDANCE and solver != 'nullspace':
+        if torque_limits and robot.ifc == JOINT_IMPEDANCE:
+            if not self._solver.supports_torque_limits:
+                raise ParameterError(
+                    f"solver '{name}' cannot take the joint-torque-limit level (it does not "
+                    'keep qdot_v inside a box); pass torque_limits=False (spg_node parameter '
+                    "torque_limits:=false) or use solver 'daqp'")
             self._torque_limit = TorqueLimitLevel(
                 np.where(robot.stiff_mask, 0.0, robot.stiffness), robot.tau_max, dt, rho,
-                self._solver.lock_tolerance)
+                self._solver.lock_tolerance, kernels=kernels)
         self.kin = Kinematics(robot)
-        self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max, dt)
+        self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max,
+                                           dt, kernels=kernels)
         self._accel = np.ascontiguousarray(robot.a_max * self.dt, dtype=float)
         self._q_min = np.ascontiguousarray(robot.q_min, dtype=float)
         self._q_max = np.ascontiguousarray(robot.q_max, dtype=float)
-        self._native = native.module  # C kernels (ifc_spg.kernels), or None: numpy below
         self._zeros = np.zeros(n)
-        self.q_v = None
+        self.q_v: np.ndarray | None = None
         self.qdot_v = np.zeros(n)
-        self.tasks = []
-        self._pending = None
-        self._t0 = None
-        self.stack = None
+        self.tasks: list[Task] = []
+        self._pending: tuple | None = None
+        self._t0: float | None = None
+        self.stack: Any = None
         #: ``[first, latest]`` :class:`Activation` of the running stack's tasks (the first
         #: fixes orientation references, the latest the ``init`` values after a restart)
-        self.activations = []
+        self.activations: list[Activation] = []
         self.info = SpgInfo(status='idle', solver=self._solver.name, tanks=self.tanks,
                             power_budget=0.0, joint_names=tuple(robot.joint_names))
         if stack is not None:
             self.set_stack(stack)
 
+    def _new_solver(self) -> Cascade:
+        name, n, rho = self._solver_args
+        if name not in SOLVERS:  # a solver object of the caller's: the probes share it
+            return self._solver
+        return make_solver(name, n, rho, kernels=self._kernels, q_min=self.robot.q_min,
+                           q_max=self.robot.q_max)
+
+    def _make_tanks(self, pspm: bool | PspmConfig) -> EnergyTanks | None:
+        if pspm is True:
+            pspm = PspmConfig()
+        if not pspm:
+            return None
+        if not isinstance(pspm, PspmConfig):
+            raise ParameterError(f'pspm must be True, False or a PspmConfig, got {pspm!r}')
+        robot = self.robot
+        modulated = ~robot.stiff_mask if robot.ifc == JOINT_IMPEDANCE \
+            else np.zeros(self.n, dtype=bool)
+        return EnergyTanks(robot.stiffness, robot.damping, modulated, self.dt, pspm,
+                           kernels=self._kernels)
+
+    @property
+    def solver(self) -> Cascade:
+        """The cascade solver of the tick (:class:`~ifc_spg.cascade.Cascade`)."""
+        return self._solver
+
     # -- stack management -----------------------------------------------------------
     @property
-    def pending_stack(self):
-        """The stack given to :meth:`set_stack` that the next tick will take over (it
-        becomes :attr:`stack` at that tick boundary), or None when no swap is pending.
+    def pending_stack(self) -> Any:
+        """The stack that the next tick takes over, or None.
+
+        The stack given to :meth:`set_stack` that the next tick will take over (it becomes
+        :attr:`stack` at that tick boundary), or None when no swap is pending.
         """
         return None if self._pending is None else self._pending[0]
 
-    def set_stack(self, stack):
+    def set_stack(self, stack: Any) -> None:
         """Replace the running stack at the next tick (hot swap, no jump in q_v).
 
         ``init`` values are captured when the new stack becomes active. Building the tasks
         happens here, so an invalid stack raises and the running one stays untouched, as
         does a stack whose ``power_budget`` [W] exceeds the ceiling ``max_power`` of the
         PSPM configuration (a :class:`~ifc_spg.task_stack.TaskStackError` naming both
-        numbers and the parameter to raise). Without PSPM the budget has no effect.
+        numbers and the parameter to raise), and a stack with an inequality task for a
+        solver that takes equalities only (:class:`~ifc_spg.errors.ParameterError`).
+        Without PSPM the budget has no effect.
         """
         budget = float(getattr(stack, 'power_budget', None) or 0.0)
         if self.tanks is not None:
@@ -237,42 +299,45 @@ class SetPointGenerator:
                 raise TaskStackError(problem, path=('power_budget',),
                                      source=getattr(stack, 'source', None))
         tasks = stack.build(self.robot) if hasattr(stack, 'build') else list(stack)
-        if self._solver.name == 'nullspace':
+        if not self._solver.supports_inequalities:
             for task in tasks:
                 if not task.equality:
-                    raise IfcSpgError(f"task '{task.name}' is an inequality; the nullspace "
-                                      "baseline handles equality tasks only (use solver 'daqp')")
-        prepare = getattr(self._solver, 'prepare', None)
-        if prepare is not None:  # the solver's models for this stack, now, not at its tick
-            prepare([task.dim for task in tasks], [task.equality for task in tasks])
-            if self.tanks is not None:  # also the stall probes' (a stall must not slow a tick)
-                if self._probe_solver is None:
-                    self._probe_solver = make_solver(*self._solver_args)
-                self._probe_solver.prepare([task.dim for task in tasks],
-                                           [task.equality for task in tasks])
+                    raise ParameterError(
+                        f"task '{task.name}' is an inequality; the {self._solver.name} "
+                        "solver handles equality tasks only (use solver 'daqp')")
+        # the solver's models for this stack, now, not at its tick
+        dims, equalities = [task.dim for task in tasks], [task.equality for task in tasks]
+        self._solver.prepare(dims, equalities)
+        if self.tanks is not None:  # also the stall probes' (a stall must not slow a tick)
+            if self._probe_solver is None:
+                self._probe_solver = self._new_solver()
+            self._probe_solver.prepare(dims, equalities)
         self._pending = (stack, tasks, budget)
 
-    def reset(self, q):
+    def reset(self, q: np.ndarray) -> None:
         """Start from the measured configuration ``q``: q_v = q (clipped into the limits)."""
         q = np.asarray(q, dtype=float)
         self.q_v = np.clip(q, self.robot.q_min, self.robot.q_max)
         self.qdot_v = np.zeros(self.n)
-        if self.tanks is not None:
+        if self.tanks is not None and self._stall is not None:
             self.tanks.reset(q)
             self._stall.reset()
         self._t0 = None
         for task in self.tasks:
-            task._active_lower = task._active_upper = None
+            task.deactivate()
 
-    def snapshot(self):
+    def snapshot(self) -> SpgState:
         """The state the next tick starts from (:class:`SpgState`, copies)."""
         tanks = self.tanks
         return SpgState(None if self.q_v is None else self.q_v.copy(), self.qdot_v.copy(),
                         None if tanks is None else tanks.energy.copy(),
                         None if tanks is None else tanks.shuffled.copy())
 
-    def restore(self, state, q, activations=()):
-        """Continue from a :meth:`snapshot` taken by another SPG of the same robot, stack and
+    def restore(self, state: SpgState, q: np.ndarray,
+                activations: Sequence[Activation] = ()) -> None:
+        """Continue from a :meth:`snapshot` of another SPG.
+
+        Continue from a :meth:`snapshot` taken by another SPG of the same robot, stack and
         parameters (a replay that starts mid-run).
 
         Args:
@@ -285,7 +350,7 @@ class SetPointGenerator:
         self._take_pending()
         self.q_v = np.array(state.q_v, dtype=float)
         self.qdot_v = np.array(state.qdot_v, dtype=float)
-        if self.tanks is not None:
+        if self.tanks is not None and self._stall is not None:
             self.tanks.restore(q, state.tank_energy, state.shuffled)
             self._stall.reset()
         self._t0 = None
@@ -294,23 +359,23 @@ class SetPointGenerator:
                             np.asarray(act.q_v, dtype=float))
             for task in self.tasks:
                 if i:
-                    task._active_lower = task._active_upper = None
+                    task.deactivate()
                 task.activate(self.kin)
             self._t0 = float(act.t)
         self.activations = list(activations)[:1] + list(activations)[1:][-1:]
 
-    def _take_pending(self):
+    def _take_pending(self) -> None:
         if self._pending is not None:
             self.stack, self.tasks, budget = self._pending
             self._pending = None
             self._t0 = None
             self.activations = []
-            if self.tanks is not None:
+            if self.tanks is not None and self._stall is not None:
                 self.tanks.set_power(budget)
                 self._stall.reset()
 
     # -- the tick -------------------------------------------------------------------
-    def step(self, q, qdot, t):
+    def step(self, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
         """One SPG tick.
 
         Args:
@@ -322,14 +387,7 @@ class SetPointGenerator:
             The virtual joint positions q_v in [rad] (a new array).
         """
         t_start = time.perf_counter()
-        q = np.asarray(q, dtype=float)
-        qdot = np.asarray(qdot, dtype=float)
-        if q.shape != (self.n,) or qdot.shape != (self.n,):
-            raise ParameterError(f'q and qdot must have {self.n} entries (joints '
-                                 f'{", ".join(self.robot.joint_names)}), got {q.shape} and '
-                                 f'{qdot.shape}')
-        q = np.ascontiguousarray(q)
-        qdot = np.ascontiguousarray(qdot)
+        q, qdot = self._measurement(q, qdot)
         if self.q_v is None:
             if not np.all(np.isfinite(q)):
                 raise ParameterError('the first measurement must be finite to start from it')
@@ -339,58 +397,95 @@ class SetPointGenerator:
             return self._hold('bad_input', 'non-finite joint state or time stamp', t_start)
         if self._pending is not None:
             self._take_pending()
-        if self._t0 is None:
-            self._t0 = float(t)
-            if self.tasks:  # the tasks capture their init values at this tick
-                act = Activation(q.copy(), qdot.copy(), self.q_v.copy(), float(t))
-                self.activations = self.activations[:1] + [act]
-        task_time = float(t) - self._t0
-        robot = self.robot
+        task_time = self._task_time(q, qdot, t)
         q_v = self.q_v
+        assert q_v is not None  # (reset above)
         self.kin.update(q, qdot, q_v)
 
-        box = limits_box = self._limits.box(q_v)
-        pb = None if self.tanks is None else self.tanks.bounds(q, q_v)
+        limits_box = self._limits.box(q_v)
+        box = self._velocity_box(q, q_v, limits_box)
         qd_prev = self.qdot_v
-        if self._native is not None:
-            box = VelocityBox(*self._native.velocity_box(
-                box.lower, box.upper, None if pb is None else pb.lower,
-                None if pb is None else pb.upper, qd_prev, self._accel))
-        else:
-            if pb is not None:
-                lower = np.maximum(box.lower, pb.lower)
-                upper = np.minimum(box.upper, pb.upper)
-                if not math.isfinite(lower @ self._zeros + upper @ self._zeros):  # NaN
-                    # an overflow in the passivity bounds (absurd measurements): stop that
-                    # joint
-                    lower[np.isnan(lower)] = 0.0
-                    upper[np.isnan(upper)] = 0.0
-                box = VelocityBox(lower, upper)
-            box = intersect_soft(box, VelocityBox(qd_prev - self._accel,
-                                                  qd_prev + self._accel))
-
-        top = []
         t_solve = time.perf_counter()
-        slacks, status, failed, message = [], 'ok', -1, ''
+        tick = self._solve(q, qdot, q_v, box, task_time)
+        solve_time = time.perf_counter() - t_solve
+
+        energy_step = stall = None
+        message = tick.message
+        if self.tanks is not None:
+            energy_step = self.tanks.update(q, q_v, tick.qdot_v)
+            stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, tick.task_levels,
+                                      task_time)
+            if stall is not None and tick.status == 'ok':
+                message = stall_message(stall, self.robot.joint_names)
+        self.q_v = self._kernels.integrate(q_v, self.dt, tick.qdot_v, self._q_min,
+                                           self._q_max)
+        self.qdot_v = tick.qdot_v
+        self.info = SpgInfo(
+            status=tick.status, solver=self._solver.name, slacks=tick.slacks,
+            levels=tick.levels, box=tick.box,
+            tank_energy=None if self.tanks is None else self.tanks.energy,
+            spring_energy_step=energy_step, solve_time=solve_time,
+            tick_time=time.perf_counter() - t_start, task_time=task_time,
+            qdot_v=tick.qdot_v, message=message, failed_level=tick.failed, stall=stall,
+            stall_new=stall is not None and self._stall is not None and self._stall.new,
+            power_budget=0.0 if self.tanks is None else self.tanks.power, tanks=self.tanks,
+            joint_names=self.robot.joint_names)
+        return self.q_v.copy()
+
+    def _measurement(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` and ``qdot`` as contiguous float arrays of n entries (or ParameterError)."""
+        q = np.asarray(q, dtype=float)
+        qdot = np.asarray(qdot, dtype=float)
+        if q.shape != (self.n,) or qdot.shape != (self.n,):
+            raise ParameterError(f'q and qdot must have {self.n} entries (joints '
+                                 f'{", ".join(self.robot.joint_names)}), got {q.shape} and '
+                                 f'{qdot.shape}')
+        return np.ascontiguousarray(q), np.ascontiguousarray(qdot)
+
+    def _task_time(self, q: np.ndarray, qdot: np.ndarray, t: float) -> float:
+        """Seconds since the stack became active; on its first tick, the activation."""
+        if self._t0 is None:
+            self._t0 = float(t)
+            if self.tasks and self.q_v is not None:  # the tasks capture their init values
+                act = Activation(q.copy(), qdot.copy(), self.q_v.copy(), float(t))
+                self.activations = self.activations[:1] + [act]
+        return float(t) - self._t0
+
+    def _velocity_box(self, q: np.ndarray, q_v: np.ndarray,
+                      limits_box: VelocityBox) -> VelocityBox:
+        """The joint limits and the passivity bounds, then (softly) the acceleration limit."""
+        pb = None if self.tanks is None else self.tanks.bounds(q, q_v)
+        return VelocityBox(*self._kernels.velocity_box(
+            limits_box.lower, limits_box.upper, None if pb is None else pb.lower,
+            None if pb is None else pb.upper, self.qdot_v, self._accel))
+
+    def _solve(self, q: np.ndarray, qdot: np.ndarray, q_v: np.ndarray, box: VelocityBox,
+               task_time: float) -> '_Tick':
+        """Solve this tick's levels.
+
+        The levels (the torque limit, folded into the box, then the tasks) and the cascade;
+        a failure or an exception holds (zero velocity clipped into the box).
+        """
+        top: list[Level] = []
+        slacks: list = []
+        status, failed, message = 'ok', -1, ''
         if self._torque_limit is not None:  # the top level, solved in closed form (4.3)
             level, slack, box = self._torque_limit.apply(q, qdot, q_v, box)
             top, slacks = [level], [slack]
         levels = top
         try:
             levels = top + [task.level(self.kin, task_time) for task in self.tasks]
-            if self._solver.name == 'nullspace':
-                qdot_v, _ = self._solver.solve(levels, q_v, robot.q_min, robot.q_max)
-                if not math.isfinite(qdot_v @ self._zeros):
-                    qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution'
-            elif len(levels) > len(top):
-                res = self._solver.solve(levels[len(top):], box)
+            if len(levels) > len(top):
+                res = self._solver.solve(levels[len(top):], box, q_v)
                 qdot_v, status = res.qdot_v, res.status
                 slacks = slacks + res.slacks
                 failed = res.failed_level + len(top) if res.failed_level >= 0 else -1
-                if status != 'ok':
-                    message = (f"level {failed} ('{levels[failed].name}') could not be solved; "
-                               + ('holding q_v' if status == 'hold' else
-                                  "using the higher levels' solution"))
+                if failed >= 0:
+                    message = (f"level {failed} ('{levels[failed].name}') could not be "
+                               'solved; ' + ('holding q_v' if status == 'hold' else
+                                             "using the higher levels' solution"))
+                elif status != 'ok':
+                    message = 'non-finite solution; holding q_v'
             else:
                 qdot_v = np.minimum(np.maximum(0.0, box.lower), box.upper)
                 status = 'idle' if not self.tasks else status
@@ -400,53 +495,34 @@ class SetPointGenerator:
                        f'{exc}); braking to zero velocity and holding q_v')
         if not math.isfinite(qdot_v @ self._zeros):
             qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution; holding q_v'
-        if status == 'hold' or self._solver.name == 'nullspace':
+        if status == 'hold':
             qdot_v = np.clip(qdot_v, box.lower, box.upper)  # brake within a_max, stay safe
-        solve_time = time.perf_counter() - t_solve
+        return _Tick(qdot_v, status, failed, message, slacks, levels, levels[len(top):], box)
 
-        energy_step = None
-        stall = None
-        if self.tanks is not None:
-            energy_step = self.tanks.update(q, q_v, qdot_v)
-            stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, levels[len(top):],
-                                      task_time)
-            if stall is not None and status == 'ok':
-                message = stall_message(stall, self.robot.joint_names)
-        if self._native is not None:
-            self.q_v = self._native.integrate(q_v, self.dt, qdot_v, self._q_min, self._q_max)
-        else:
-            self.q_v = np.minimum(np.maximum(q_v + self.dt * qdot_v, self._q_min), self._q_max)
-        self.qdot_v = qdot_v
-        self.info = SpgInfo(
-            status=status, solver=self._solver.name, slacks=slacks, levels=levels, box=box,
-            tank_energy=None if self.tanks is None else self.tanks.energy,
-            spring_energy_step=energy_step, solve_time=solve_time,
-            tick_time=time.perf_counter() - t_start, task_time=task_time, qdot_v=qdot_v,
-            message=message, failed_level=failed, stall=stall,
-            stall_new=stall is not None and self._stall.new,
-            power_budget=0.0 if self.tanks is None else self.tanks.power, tanks=self.tanks,
-            joint_names=self.robot.joint_names)
-        return self.q_v.copy()
+    def _watch_stall(self, q: np.ndarray, qdot: np.ndarray, q_v: np.ndarray,
+                     qd_prev: np.ndarray, limits_box: VelocityBox, task_levels: list,
+                     task_time: float) -> StallReport | None:
+        """Book this tick in the stall monitor.
 
-    def _watch_stall(self, q, qdot, q_v, qd_prev, limits_box, task_levels, task_time):
-        """Book this tick in the stall monitor; on its probe ticks, solve the cascade again
+        Book this tick in the stall monitor; on its probe ticks, solve the cascade again
         without the passivity bound to learn the power the stack asks for. Returns the
         :class:`~ifc_spg.pspm.StallReport` or None.
         """
         monitor, tanks = self._stall, self.tanks
+        assert monitor is not None and tanks is not None
         requested = None
         if monitor.wants_probe:
             requested = np.zeros(self.n)
-            if task_levels and self._solver.name != 'nullspace':
+            if task_levels:
                 if self._probe_solver is None:
-                    self._probe_solver = make_solver(*self._solver_args)
+                    self._probe_solver = self._new_solver()
                 box = intersect_soft(VelocityBox(np.array(limits_box.lower, dtype=float),
                                                  np.array(limits_box.upper, dtype=float)),
                                      VelocityBox(qd_prev - self._accel, qd_prev + self._accel))
                 if self._torque_limit is not None:
                     _, _, box = self._torque_limit.apply(q, qdot, q_v, box)
                 try:
-                    res = self._probe_solver.solve(task_levels, box)
+                    res = self._probe_solver.solve(task_levels, box, q_v)
                     if math.isfinite(res.qdot_v @ self._zeros):
                         requested = tanks.requested_power(q, q_v, np.asarray(res.qdot_v))
                 except Exception:  # a probe must never take the tick down
@@ -454,7 +530,8 @@ class SetPointGenerator:
         monitor.observe(requested, task_time=task_time)
         return monitor.report
 
-    def _hold(self, status, message, t_start):
+    def _hold(self, status: str, message: str, t_start: float) -> np.ndarray:
+        assert self.q_v is not None
         self.qdot_v = np.zeros(self.n)
         self.info = SpgInfo(status=status, solver=self._solver.name, slacks=[], levels=[],
                             tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
@@ -463,3 +540,16 @@ class SetPointGenerator:
                             power_budget=0.0 if self.tanks is None else self.tanks.power,
                             tanks=self.tanks, joint_names=self.robot.joint_names)
         return self.q_v.copy()
+
+
+class _Tick(NamedTuple):
+    """What :meth:`SetPointGenerator._solve` decided this tick."""
+
+    qdot_v: np.ndarray
+    status: str
+    failed: int
+    message: str
+    slacks: list
+    levels: list
+    task_levels: list
+    box: VelocityBox

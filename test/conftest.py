@@ -32,9 +32,9 @@ def domain(dds_env):
 
 @pytest.fixture(params=['native', 'numpy'])
 def impl(request, monkeypatch):
-    """Run this test with the C kernels of the 2 ms path and with their numpy reference code
-    (objects pick the implementation when created; see ifc_spg.kernels)."""
-    from ifc_spg import kernels as native
+    """Run this test with the C kernels of the 2 ms path and with their numpy reference
+    (objects created in the test take ``ifc_spg.kernels.active`` as their default)."""
+    from ifc_spg import kernels
     if request.param == 'numpy':
-        monkeypatch.setattr(native, 'module', None)
+        monkeypatch.setattr(kernels, 'active', kernels.reference)
     return request.param

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from reference_hqp import reference_cascade
 
-from ifc_spg.cascade.daqp import DaqpCascade, ProxsuiteCascade, level_violation, make_solver
+from ifc_spg.cascade import DaqpCascade, ProxsuiteCascade, level_violation, make_solver
 from ifc_spg.errors import SolverError
+from ifc_spg.kernels import reference
 from ifc_spg.limits import VelocityBox
 from ifc_spg.tasks import Level
 
@@ -169,7 +170,7 @@ def test_failed_level_falls_back_to_higher_levels(monkeypatch):
     box = VelocityBox(np.full(n, -5.0), np.full(n, 5.0))
     solver = DaqpCascade(n)
     good = solver.solve(levels[:1], box).qdot_v
-    original_model, original_solve = solver._solve_model, solver._solve
+    original_model, original_solve = solver.solve_model, solver.solve_qp
     calls = []
 
     def failing_model(model):  # every QP after the first level's returns garbage
@@ -181,8 +182,8 @@ def test_failed_level_falls_back_to_higher_levels(monkeypatch):
         x, f, flag, info = original_solve(*args, **kw)
         return x * np.nan, f, 1, info
 
-    monkeypatch.setattr(solver, '_solve_model', failing_model)
-    monkeypatch.setattr(solver, '_solve', failing_solve)
+    monkeypatch.setattr(solver, 'solve_model', failing_model)
+    monkeypatch.setattr(solver, 'solve_qp', failing_solve)
     res = solver.solve(levels, box)
     assert res.status == 'fallback' and res.failed_level == 1
     np.testing.assert_allclose(res.qdot_v, good)
@@ -190,7 +191,8 @@ def test_failed_level_falls_back_to_higher_levels(monkeypatch):
 
 
 def test_unknown_solver_names_the_choices():
-    with pytest.raises(SolverError, match="did you mean 'daqp'.*available: daqp, proxsuite"):
+    with pytest.raises(SolverError,
+                       match="did you mean 'daqp'.*available: daqp, proxsuite, nullspace"):
         make_solver('daqpp', 7)
 
 
@@ -236,9 +238,7 @@ def test_degenerate_level_is_solved_with_bands_widened_to_the_solver_tolerance()
     # The tick was captured with the numpy row arithmetic; the C kernels round differently
     # and miss this vertex (solved without a retry, checked below), so take the numpy path.
     def numpy_solver():
-        solver = DaqpCascade(17)
-        solver._native = None
-        return solver
+        return DaqpCascade(17, kernels=reference)
 
     solver = numpy_solver()
     res = solver.solve(levels, box)
@@ -268,7 +268,7 @@ def test_failed_warm_solve_retries_cold_and_the_level_model_recovers(monkeypatch
     ref, _ = reference_cascade(levels, box.lower, box.upper, RHO)
     solver = DaqpCascade(n, RHO)
     np.testing.assert_allclose(solver.solve(levels, box).qdot_v, ref, atol=1e-6)
-    original = solver._solve_model
+    original = solver.solve_model
     calls = []
 
     def fail_call(k):
@@ -280,11 +280,11 @@ def test_failed_warm_solve_retries_cold_and_the_level_model_recovers(monkeypatch
 
     for k in range(3):  # the warm solves of 'eq', 'ineq' (slack model), 'posture'
         calls.clear()
-        monkeypatch.setattr(solver, '_solve_model', fail_call(k))
+        monkeypatch.setattr(solver, 'solve_model', fail_call(k))
         res = solver.solve(levels, box)
         assert res.status == 'ok' and len(calls) > k
         np.testing.assert_allclose(res.qdot_v, ref, atol=1e-6)
-    monkeypatch.setattr(solver, '_solve_model', original)
+    monkeypatch.setattr(solver, 'solve_model', original)
     before = solver.cold_retries
     np.testing.assert_allclose(solver.solve(levels, box).qdot_v, ref, atol=1e-6)
     assert solver.cold_retries == before

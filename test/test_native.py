@@ -1,19 +1,22 @@
-"""The C kernels of the 2 ms path (ifc_spg.kernels._native) against their numpy reference code.
+"""The C kernels of the 2 ms path (ifc_spg.kernels._native) against their numpy reference
+(ifc_spg.kernels.reference, used where the module is not built).
 
-Every kernel is compared with the numpy code it replaces (still in the package, used where
-the module is not built) on seeded random inputs, including NaN / inf bounds, stiff joints
-and boxes that do not intersect; then whole closed-loop runs with and without the kernels.
+Every kernel is compared with the reference on seeded random inputs, including NaN / inf
+bounds, stiff joints and boxes that do not intersect; then whole closed-loop runs with the
+one and the other, side by side in one process.
 """
 
+import inspect
 import os
+import re
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from ifc_spg import RobotModel
-from ifc_spg import kernels as native
-from ifc_spg.cascade.daqp import _accept, _lock_if_satisfied, _stack_rows, _Workspace
+from ifc_spg import RobotModel, kernels
 from ifc_spg.kernels import _native as nat  # the kernels, whatever IFC_SPG_NATIVE selects
+from ifc_spg.kernels import reference as ref
 from ifc_spg.limits import JointVelocityLimits, VelocityBox
 from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import EnergyTanks, PspmConfig
@@ -24,10 +27,34 @@ from ifc_spg.tools.bench import icub_stack, lbr_stack
 
 def test_native_kernels_are_built():
     """The install builds the kernels (./run setup); IFC_SPG_NATIVE=0 opts out explicitly."""
+    assert kernels.native is nat
     if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
-        assert native.module is None and 'IFC_SPG_NATIVE=0' in native.describe()
+        assert kernels.active is ref and 'IFC_SPG_NATIVE=0' in kernels.describe()
     else:
-        assert native.module is nat, native.describe()
+        assert kernels.active is nat, kernels.describe()
+
+
+def test_reference_has_the_kernels_functions_and_signatures():
+    """Each C function's docstring starts with its signature: the reference has the same
+    functions with the same parameter names, in the same order."""
+    c_names = sorted(k for k, v in vars(nat).items() if callable(v) and not k.startswith('_'))
+    assert c_names == sorted(ref.__all__)
+    for name in c_names:
+        first = getattr(nat, name).__doc__.split('\n')[0]
+        c_params = re.match(rf'{name}\((.*?)\)', first).group(1).split(', ')
+        assert list(inspect.signature(getattr(ref, name)).parameters) == c_params, name
+
+
+def workspace(n, R):
+    """The arrays of a cascade over R rows and n joints, as DaqpCascade keeps them."""
+    bl, bu = np.full(n + R, -np.inf), np.full(n + R, np.inf)
+    return SimpleNamespace(n=n, A=np.zeros((R, n)), A_unit=np.zeros((R, n)), norm=np.zeros(R),
+                           band=np.zeros(R), orig_lo=np.zeros(R), orig_hi=np.zeros(R), bl=bl,
+                           bu=bu, lo_rows=bl[n:], hi_rows=bu[n:])
+
+
+def stack(kern, levels, ws):
+    kern.stack_rows(levels, ws.A, ws.orig_lo, ws.orig_hi, ws.norm, ws.A_unit, ws.band, 1e-9)
 
 
 def random_levels(rng, n):
@@ -53,9 +80,9 @@ def test_stack_rows_matches_numpy(n):
     for _ in range(200):
         levels = random_levels(rng, n)
         R = sum(lv.A.shape[0] for lv in levels)
-        a, b = _Workspace(n, R, 0.01, {}), _Workspace(n, R, 0.01, {})
-        _stack_rows(levels, [lv.A.shape[0] for lv in levels], a, 1e-9)
-        nat.stack_rows(levels, b.A, b.orig_lo, b.orig_hi, b.norm, b.A_unit, b.band, 1e-9)
+        a, b = workspace(n, R), workspace(n, R)
+        stack(ref, levels, a)
+        stack(nat, levels, b)
         for name in ('A', 'orig_lo', 'orig_hi'):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
         for name in ('norm', 'A_unit', 'band'):
@@ -68,8 +95,8 @@ def random_workspace(rng):
     n = int(rng.choice([7, 17]))
     levels = random_levels(rng, n)
     R = sum(lv.A.shape[0] for lv in levels)
-    ws = _Workspace(n, R, 0.01, {})
-    _stack_rows(levels, [lv.A.shape[0] for lv in levels], ws, 1e-9)
+    ws = workspace(n, R)
+    stack(ref, levels, ws)
     return n, levels, R, ws
 
 
@@ -89,31 +116,44 @@ def test_normal_form_accept_and_lock_match_numpy():
         nat.normal_form(A_i, target, 0.01, H, f)
         np.testing.assert_allclose(H, 0.01 * np.eye(n) + A_i.T @ A_i, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(f, -target @ A_i, rtol=1e-12, atol=1e-9)
+        H_ref, f_ref = np.zeros((n, n)), np.zeros(n)
+        ref.normal_form(A_i, target, 0.01, H_ref, f_ref)
+        np.testing.assert_allclose(H, H_ref, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-9)
         # accepting a solution: clip into the box, the slack, the lock band
         x = rng.normal(size=n)
-        q_ref, a_unit = _accept(ws, x, start, end)
+        args = (x, ws.bl, ws.bu, ws.A_unit[sl], ws.norm[sl], beta, ws.band[sl])
+        lo_ref, hi_ref = np.zeros(end - start), np.zeros(end - start)
+        q_ref, s_ref = ref.accept(*args, lo_ref, hi_ref)
+        np.testing.assert_array_equal(q_ref, np.clip(x, ws.bl[:n], ws.bu[:n]))
         lo, hi = np.zeros(end - start), np.zeros(end - start)
-        q, s = nat.accept(x, ws.bl, ws.bu, ws.A_unit[sl], ws.norm[sl], beta, ws.band[sl],
-                          lo, hi)
+        q, s = nat.accept(*args, lo, hi)
         np.testing.assert_array_equal(q, q_ref)
-        np.testing.assert_allclose(s, a_unit * ws.norm[sl] - beta, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(lo, a_unit - ws.band[sl], rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(hi, a_unit + ws.band[sl], rtol=1e-12, atol=1e-12)
-        q2, _ = nat.accept(x, ws.bl, ws.bu, ws.A_unit[sl], ws.norm[sl], beta, ws.band[sl],
-                           None, None)  # the last level: no lock
-        np.testing.assert_array_equal(q2, q)
+        np.testing.assert_allclose(s, s_ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(lo, lo_ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(hi, hi_ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(hi - lo, 2 * ws.band[sl], rtol=1e-9, atol=1e-12)
+        for kern in (nat, ref):
+            q2, _ = kern.accept(*args, None, None)  # the last level: no lock
+            np.testing.assert_array_equal(q2, q)
         # a satisfied level is locked at its own bounds; a violated one is left alone
         for qdot in (q, np.zeros(n), np.full(n, np.nan)):
-            ref = ws.lo_rows.copy(), ws.hi_rows.copy()
-            done_ref = _lock_if_satisfied(ws, qdot, start, end)
-            want = ws.lo_rows[sl].copy(), ws.hi_rows[sl].copy()
-            ws.lo_rows[:], ws.hi_rows[:] = ref
-            done = nat.lock_if_satisfied(A_i, qdot, ws.orig_lo[sl], ws.orig_hi[sl],
-                                         ws.norm[sl], ws.band[sl], ws.lo_rows[sl],
-                                         ws.hi_rows[sl])
+            locks = []
+            for kern in (ref, nat):
+                lo, hi = np.full(end - start, 7.0), np.full(end - start, 7.0)
+                done = kern.lock_if_satisfied(A_i, qdot, ws.orig_lo[sl], ws.orig_hi[sl],
+                                              ws.norm[sl], ws.band[sl], lo, hi)
+                locks.append((done, lo, hi))
+            (done_ref, lo_ref, hi_ref), (done, lo, hi) = locks
             assert done == done_ref
-            np.testing.assert_allclose(ws.lo_rows[sl], want[0], rtol=1e-13)
-            np.testing.assert_allclose(ws.hi_rows[sl], want[1], rtol=1e-13)
+            if not done:
+                assert np.all(lo == 7.0) and np.all(hi == 7.0)
+            np.testing.assert_allclose(lo, lo_ref, rtol=1e-13)
+            np.testing.assert_allclose(hi, hi_ref, rtol=1e-13)
+        a = A_i @ np.zeros(n)
+        assert ref.lock_if_satisfied(A_i, np.zeros(n), ws.orig_lo[sl], ws.orig_hi[sl],
+                                     ws.norm[sl], ws.band[sl], lo, hi) == bool(
+            np.all((ws.orig_lo[sl] <= a) & (a <= ws.orig_hi[sl])))
 
 
 def test_slack_level_setup_and_accept_match_numpy():
@@ -126,27 +166,31 @@ def test_slack_level_setup_and_accept_match_numpy():
         end = start + int(rng.integers(1, R - start + 1))
         m, sl = end - start, slice(start, end)
         ws.orig_hi[sl][rng.random(m) < 0.3] = ws.orig_lo[sl][rng.random(m) < 0.3] = 0.25
-        # the slack QP's rows and bounds (numpy: as in DaqpCascade._solve_slack_level)
-        C_ref, bl_ref, bu_ref = _slack_model_arrays(ws, start, end)
-        C, bu, bl, _, _ = ws.slack_level(0, start, end, 0.01)
-        nat.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo, ws.orig_hi,
-                        C, bl, bu)
-        np.testing.assert_array_equal(C, C_ref)
-        np.testing.assert_array_equal(bl, bl_ref)
-        np.testing.assert_array_equal(bu, bu_ref)
+        # the slack QP's rows and bounds
+        C_want, bl_want, bu_want = _slack_model_arrays(ws, start, end)
+        for kern in (ref, nat):
+            C, bl, bu = _slack_model_arrays(workspace(n, R), start, end)  # slack columns set
+            kern.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo,
+                             ws.orig_hi, C, bl, bu)
+            np.testing.assert_array_equal(C, C_want)
+            np.testing.assert_array_equal(bl, bl_want)
+            np.testing.assert_array_equal(bu, bu_want)
         # accepting its solution: clip, slack, the lock [lower + s, upper + s] around A qdot
         w = rng.normal(size=n + m)
-        q_ref, a_unit = _accept(ws, w[:n], start, end)
-        a = a_unit * ws.norm[sl]
+        q_want = np.clip(w[:n], ws.bl[:n], ws.bu[:n])
+        a = (ws.A_unit[sl] @ q_want) * ws.norm[sl]
         eq = ws.orig_lo[sl] == ws.orig_hi[sl]
         lo = np.where(eq, a, np.minimum(ws.orig_lo[sl] + w[n:], a)) / ws.norm[sl] - ws.band[sl]
         hi = np.where(eq, a, np.maximum(ws.orig_hi[sl] + w[n:], a)) / ws.norm[sl] + ws.band[sl]
-        q, s = nat.accept_slack(w, ws.bl, ws.bu, ws.A_unit[sl], ws.norm[sl], ws.orig_lo[sl],
-                                ws.orig_hi[sl], ws.band[sl], ws.lo_rows[sl], ws.hi_rows[sl])
-        np.testing.assert_array_equal(q, q_ref)
-        np.testing.assert_array_equal(s, w[n:])
-        np.testing.assert_allclose(ws.lo_rows[sl], lo, rtol=1e-12, atol=1e-15)
-        np.testing.assert_allclose(ws.hi_rows[sl], hi, rtol=1e-12, atol=1e-15)
+        for kern in (ref, nat):
+            lock_lo, lock_hi = np.zeros(m), np.zeros(m)
+            q, s = kern.accept_slack(w, ws.bl, ws.bu, ws.A_unit[sl], ws.norm[sl],
+                                     ws.orig_lo[sl], ws.orig_hi[sl], ws.band[sl], lock_lo,
+                                     lock_hi)
+            np.testing.assert_array_equal(q, q_want)
+            np.testing.assert_array_equal(s, w[n:])
+            np.testing.assert_allclose(lock_lo, lo, rtol=1e-12, atol=1e-15)
+            np.testing.assert_allclose(lock_hi, hi, rtol=1e-12, atol=1e-15)
 
 
 def _slack_model_arrays(ws, start, end):
@@ -163,15 +207,15 @@ def _slack_model_arrays(ws, start, end):
 
 
 @pytest.mark.parametrize('stiff', [False, True])
-def test_torque_limit_level_matches_numpy(monkeypatch, stiff):
+def test_torque_limit_level_matches_numpy(stiff):
     from ifc_spg.limits.torque_limits import TorqueLimitLevel
     rng = np.random.default_rng(13)
     K = rng.uniform(50, 1000, 7)
     if stiff:
         K[[1, 5]] = 0.0  # position-controlled joints: no torque limit
     tau_max = rng.uniform(20, 200, 7)
-    fast, slow = _both(monkeypatch, lambda: TorqueLimitLevel(K, tau_max, 0.002, 0.01, 1e-9))
-    assert fast._native is not None and slow._native is None
+    fast, slow = _both(lambda kern: TorqueLimitLevel(K, tau_max, 0.002, 0.01, 1e-9,
+                                                     kernels=kern))
     for i in range(3000):
         q = rng.normal(size=7)
         q_v = q + rng.normal(scale=rng.choice([1e-3, 0.1, 1.0]), size=7)
@@ -190,21 +234,15 @@ def test_torque_limit_level_matches_numpy(monkeypatch, stiff):
         np.testing.assert_array_equal(got[0].A, want[0].A)
 
 
-def _both(monkeypatch, make):
-    """``make()`` with the kernels and with the numpy code."""
-    monkeypatch.setattr(native, 'module', nat)
-    fast = make()
-    monkeypatch.setattr(native, 'module', None)
-    slow = make()
-    monkeypatch.undo()
-    return fast, slow
+def _both(make):
+    """``make(kernels)`` with the C kernels and with the reference."""
+    return make(nat), make(ref)
 
 
-def test_joint_limit_box_matches_numpy(monkeypatch):
+def test_joint_limit_box_matches_numpy():
     robot = RobotModel.from_config('lbr_iiwa14')
-    fast, slow = _both(monkeypatch, lambda: JointVelocityLimits(
-        robot.q_min, robot.q_max, robot.v_max, robot.a_max, 0.002))
-    assert fast._native is not None and slow._native is None
+    fast, slow = _both(lambda kern: JointVelocityLimits(
+        robot.q_min, robot.q_max, robot.v_max, robot.a_max, 0.002, kernels=kern))
     rng = np.random.default_rng(2)
     span = robot.q_max - robot.q_min
     for _ in range(3000):
@@ -217,6 +255,7 @@ def test_joint_limit_box_matches_numpy(monkeypatch):
         np.testing.assert_allclose(a.upper, b.upper, rtol=1e-14, atol=0)
 
 
+@pytest.mark.filterwarnings('ignore:invalid value:RuntimeWarning')  # NaN @ 0 in numpy
 def test_velocity_box_and_integration_match_numpy():
     from ifc_spg.limits import intersect_soft
     rng = np.random.default_rng(3)
@@ -233,29 +272,30 @@ def test_velocity_box_and_integration_match_numpy():
         lower[np.isnan(lower)] = 0.0
         upper[np.isnan(upper)] = 0.0
         want = intersect_soft(VelocityBox(lower, upper), VelocityBox(qd - acc, qd + acc))
-        got = nat.velocity_box(lim.lower, lim.upper, pb.lower, pb.upper, qd, acc)
-        np.testing.assert_array_equal(got[0], want.lower)
-        np.testing.assert_array_equal(got[1], want.upper)
-        want = intersect_soft(lim, VelocityBox(qd - acc, qd + acc))  # without PSPM
-        got = nat.velocity_box(lim.lower, lim.upper, None, None, qd, acc)
-        np.testing.assert_array_equal(got[0], want.lower)
-        np.testing.assert_array_equal(got[1], want.upper)
+        want_free = intersect_soft(lim, VelocityBox(qd - acc, qd + acc))  # without PSPM
         q_v, q_min = rng.normal(size=n), -rng.uniform(0, 2, n)
         q_max = rng.uniform(0, 2, n)
-        np.testing.assert_array_equal(nat.integrate(q_v, 0.002, qd, q_min, q_max),
-                                      np.minimum(np.maximum(q_v + 0.002 * qd, q_min), q_max))
+        for kern in (nat, ref):
+            got = kern.velocity_box(lim.lower, lim.upper, pb.lower, pb.upper, qd, acc)
+            np.testing.assert_array_equal(got[0], want.lower)
+            np.testing.assert_array_equal(got[1], want.upper)
+            got = kern.velocity_box(lim.lower, lim.upper, None, None, qd, acc)
+            np.testing.assert_array_equal(got[0], want_free.lower)
+            np.testing.assert_array_equal(got[1], want_free.upper)
+            np.testing.assert_array_equal(kern.integrate(q_v, 0.002, qd, q_min, q_max),
+                                          np.minimum(np.maximum(q_v + 0.002 * qd, q_min),
+                                                     q_max))
 
 
 @pytest.mark.filterwarnings('ignore:overflow:RuntimeWarning')  # numpy on the absurd step
 @pytest.mark.parametrize('shuffle', [0.0, 1e-4])
-def test_energy_tanks_match_numpy(monkeypatch, shuffle):
+def test_energy_tanks_match_numpy(shuffle):
     rng = np.random.default_rng(7)
     K, D = rng.uniform(20, 400, 7), rng.uniform(0.5, 5, 7)
     modulated = np.array([1, 1, 0, 1, 1, 1, 0], bool)  # two stiff joints
     cfg = PspmConfig(initial_energy=0.05, max_energy=0.1, shuffle=shuffle,
                      shuffle_budget=10 * shuffle)
-    fast, slow = _both(monkeypatch, lambda: EnergyTanks(K, D, modulated, 0.002, cfg))
-    assert fast._native is not None and slow._native is None
+    fast, slow = _both(lambda kern: EnergyTanks(K, D, modulated, 0.002, cfg, kernels=kern))
     q = rng.normal(size=7)
     fast.reset(q)
     slow.reset(q)
@@ -281,13 +321,11 @@ def test_energy_tanks_match_numpy(monkeypatch, shuffle):
 
 @pytest.mark.parametrize('config,make', [('lbr_iiwa14', lbr_stack),
                                          ('icub_upper_body', icub_stack)])
-def test_closed_loop_with_kernels_matches_numpy(monkeypatch, config, make):
+def test_closed_loop_with_kernels_matches_numpy(config, make):
     """The whole tick (Table 4.1 on the LBR, Table 3.7 on the iCub) with and without the
     kernels, each in its own closed loop: the same q_v to round-off."""
     robot = RobotModel.from_config(config)
-    fast, slow = _both(monkeypatch, lambda: SetPointGenerator(robot, make(robot)))
-    assert fast._native is not None and fast._solver._native is not None
-    assert slow._native is None and slow._solver._native is None
+    fast, slow = _both(lambda kern: SetPointGenerator(robot, make(robot), kernels=kern))
     loops = [(s, JointImpedancePlant(robot, robot.q_home, substeps=1)) for s in (fast, slow)]
     state = [(p.q, p.qdot, 0.0) for _, p in loops]
     worst = 0.0
@@ -311,7 +349,7 @@ def test_bad_arguments_raise_instead_of_crashing():
         nat.integrate([0.0] * 7, 0.002, v, v, v)
     with pytest.raises(ValueError, match='H'):
         nat.normal_form(np.zeros((2, 7)), np.zeros(2), 0.01, np.zeros((6, 6)), v)
-    ws = _Workspace(7, 3, 0.01, {})
+    ws = workspace(7, 3)
     bad = [Level('x', np.zeros((2, 6)), np.zeros(2), np.zeros(2), True)]
     with pytest.raises(ValueError, match='level 0'):
         nat.stack_rows(bad, ws.A, ws.orig_lo, ws.orig_hi, ws.norm, ws.A_unit, ws.band, 1e-9)
@@ -321,5 +359,18 @@ def test_bad_arguments_raise_instead_of_crashing():
     ro = np.zeros(7)
     ro.setflags(write=False)
     with pytest.raises(ValueError, match='writable'):
-        nat.pspm_bounds(v, v, ro, v, None, v, v, 500.0, v)
+        nat.normal_form(np.zeros((2, 7)), np.zeros(2), 0.01, np.zeros((7, 7)), ro)
+
+
+def test_pspm_bounds_reads_q_prev_only():
+    """The caller books q as the next q_prev; the kernel writes nothing it was given."""
+    rng = np.random.default_rng(4)
+    q, q_v, q_prev, e = (rng.normal(size=7) for _ in range(4))
+    args = (q, q_v, q_prev, np.abs(e), None, np.full(7, 2.0), np.full(7, 0.01), 500.0,
+            np.ones(7))
+    before = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+    for kern in (nat, ref):
+        kern.pspm_bounds(*args)
+        for a, b in zip(args, before):
+            np.testing.assert_array_equal(a, b)
 

@@ -192,7 +192,7 @@ def _drive_a1_against_friction(power, seconds=6.0, friction=2.0):
     plant = JointImpedancePlant(IIWA, IIWA.q_home, substeps=4)
     q, qd, t = plant.q, plant.qdot, 0.0
     swing, new, reports = [], 0, []
-    for i in range(int(seconds / 0.002)):
+    for _ in range(int(seconds / 0.002)):
         q_v = spg.step(q, qd, t)
         new += spg.info.stall_new
         if spg.info.stall is not None:
@@ -241,7 +241,7 @@ def test_bounds_are_exact_and_contain_zero():
         for edge in (box.lower, box.upper):
             dq = q_v - q_new
             dE = 0.5 * K * ((dq + 0.002 * edge) ** 2 - dq ** 2)
-            np.testing.assert_allclose(dE, tanks._avail, rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(dE, tanks.available, rtol=1e-9, atol=1e-12)
         step = rng.uniform(box.lower, box.upper)
         tanks.update(q_new, q_v, step)
         assert np.all(tanks.energy >= 0) and np.all(tanks.energy <= 0.1)

@@ -7,13 +7,12 @@ import pinocchio as pin
 import pytest
 
 from ifc_spg import RobotModel
-from ifc_spg.cascade.daqp import DaqpCascade
-from ifc_spg.cascade.nullspace import NullspaceCascade
-from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.cascade import CascadeResult, DaqpCascade, NullspaceCascade
+from ifc_spg.errors import ParameterError
 from ifc_spg.limits import VelocityBox
 from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import PspmConfig
-from ifc_spg.spg import SetPointGenerator
+from ifc_spg.spg import SetPointGenerator, SpgInfo
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, Level, WrenchTask
 
 IIWA = RobotModel.from_config('lbr_iiwa14')
@@ -110,17 +109,40 @@ def test_non_finite_input_holds_the_last_command():
         spg.step(np.zeros(6), np.zeros(6), 0.0)
 
 
-def test_failed_solve_holds_and_reports(monkeypatch):
-    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal=IIWA.q_home + 0.2, gain=5.0)])
+class _FailingCascade(DaqpCascade):
+    """DAQP until ``failing`` is set; then its first level fails ('hold')."""
+
+    failing = False
+
+    def solve(self, levels, box, q_v=None):
+        if not self.failing:
+            return super().solve(levels, box, q_v)
+        return CascadeResult(np.clip(np.zeros(self.n), box.lower, box.upper),
+                             [np.full(lv.A.shape[0], np.nan) for lv in levels], 'hold', 0)
+
+
+def test_failed_solve_holds_and_reports():
+    solver = _FailingCascade(7)
+    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal=IIWA.q_home + 0.2, gain=5.0)],
+                            solver=solver)
+    assert spg.solver is solver
     q = IIWA.q_home.copy()
     q_v = spg.step(q, np.zeros(7), 0.0)
-    monkeypatch.setattr(spg._solver, '_solve_model', lambda model: (np.full(30, np.nan), 0.0,
-                                                                    1, {}))
+    solver.failing = True
     out = spg.step(q, np.zeros(7), DT)
-    assert spg.info.status == 'hold'
-    assert 'holding q_v' in spg.info.message
+    assert spg.info.status == 'hold' and spg.info.failed_level == 1  # (the torque limit is 0)
+    assert "level 1 ('joint_position') could not be solved; holding q_v" in spg.info.message
     assert np.all(np.isfinite(out))
     np.testing.assert_allclose(out, q_v, atol=IIWA.a_max.max() * DT * DT)
+
+
+def test_spg_info_is_frozen_and_rejects_unknown_fields():
+    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal='init')])
+    spg.step(IIWA.q_home, np.zeros(7), 0.0)
+    with pytest.raises(AttributeError):
+        spg.info.status = 'ok'
+    with pytest.raises(TypeError, match='unexpected keyword'):
+        SpgInfo(status='ok', statuss='ok')
 
 
 def test_nullspace_baseline_matches_cascade_for_equality_stacks():
@@ -136,21 +158,31 @@ def test_nullspace_baseline_matches_cascade_for_equality_stacks():
                 break
             b = rng.normal(size=m)
             levels.append(Level(f'L{i}', rng.normal(size=(m, 7)), b, b, True))
-        ns, clamped = NullspaceCascade(7, damping=1e-7).solve(levels, np.zeros(7),
-                                                               IIWA.q_min, IIWA.q_max)
+        ns_solver = NullspaceCascade(7, q_min=IIWA.q_min, q_max=IIWA.q_max, damping=1e-7)
+        ns, clamped = ns_solver.mapping(levels, np.zeros(7))
         assert clamped.size == 0
+        np.testing.assert_array_equal(ns_solver.solve(levels, box, np.zeros(7)).qdot_v, ns)
         hqp = DaqpCascade(7, rho=1e-12).solve(levels, box).qdot_v
         np.testing.assert_allclose(ns, hqp, rtol=1e-4, atol=1e-6)
-    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal='init')], solver='nullspace')
-    with pytest.raises(IfcSpgError, match='equality tasks only'):
+    spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal='init')], solver='nullspace',
+                            torque_limits=False)
+    with pytest.raises(ParameterError, match='equality tasks only'):
         spg.set_stack([JointPositionTask(IIWA, lower=IIWA.q_min, gain=1.0)])
+    with pytest.raises(ParameterError, match='equality tasks only'):
+        SetPointGenerator(IIWA, [JointPositionTask(IIWA, lower=IIWA.q_min, gain=1.0)],
+                          solver='nullspace', torque_limits=False)
+
+
+def test_nullspace_with_torque_limits_is_refused_naming_the_fix():
+    with pytest.raises(ParameterError, match='torque_limits=False'):
+        SetPointGenerator(IIWA, None, solver='nullspace')
 
 
 def test_nullspace_baseline_clamps_joints_near_limits():
     q0 = IIWA.q_home.copy()
     q0[0] = IIWA.q_max[0] - 0.01  # joint 1 within dl_crit of its limit
     tasks = [CartesianPoseTask(IIWA, frame='tool', axes=['y'], equal=[0.5], gain=5.0)]
-    spg = SetPointGenerator(IIWA, tasks, solver='nullspace', pspm=False)
+    spg = SetPointGenerator(IIWA, tasks, solver='nullspace', pspm=False, torque_limits=False)
     _, log = closed_loop(spg, IIWA, 200, q0=q0)
     q_v = np.array([x[0] for x in log])
     assert q_v[:, 0].max() <= IIWA.q_max[0]
@@ -177,7 +209,7 @@ def test_a_stacks_solver_models_are_built_when_it_is_accepted_not_at_its_first_t
     first = TaskStack.from_file(str(cfg / 'table_4_3_pose_wrench_limits.yaml'))
     second = TaskStack.from_file(str(cfg / 'table_4_2_orientation_box.yaml'))
     spg = SetPointGenerator(robot, first, dt=0.002)
-    solver = spg._solver
+    solver = spg.solver
     q, qdot = np.array(robot.q_home, dtype=float), np.zeros(robot.n)
     built = solver.model_count
     assert built > 0                       # by set_stack, before any tick

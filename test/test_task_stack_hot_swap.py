@@ -5,12 +5,13 @@ and check every tick: |dq_v| <= v_max dT and |d qdot_v| <= a_max dT. A rejected 
 leaves the running one untouched.
 """
 
+from types import ModuleType
+
 import numpy as np
 import pytest
 
-from ifc_spg import kernels as native
-from ifc_spg import spg as spg_module
-from ifc_spg.limits import intersect_soft
+from ifc_spg import kernels
+from ifc_spg.limits import VelocityBox
 from ifc_spg.model import RobotModel
 from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.spg import SetPointGenerator
@@ -55,22 +56,23 @@ tasks:
 """
 
 
-def run(pspm, switches, ticks=900, monkeypatch=None):
+def run(pspm, switches, ticks=900, record=False):
     """Run with stack switches at the given ticks; returns per-tick records."""
     robot = RobotModel.from_config('lbr_iiwa14')
     stacks = {'circle': TaskStack.from_yaml(CIRCLE), 'swing': TaskStack.from_yaml(SWING)}
     spg = SetPointGenerator(robot, stacks['circle'], dt=DT, pspm=pspm)
     hard_boxes = []
-    if monkeypatch is not None:  # record the hard box (joint limits and PSPM) of each tick
-        # (through the numpy code, whose intersect_soft can be wrapped; the C kernel is
-        # tested equal to it in test_native.py)
-        monkeypatch.setattr(native, 'module', None)
-        spg = SetPointGenerator(robot, stacks['circle'], dt=DT, pspm=pspm)
+    if record:  # record the hard box (joint limits and PSPM) of each tick
+        recording = ModuleType('recording')  # the tick's kernels, velocity_box wrapped
+        recording.__dict__.update(vars(kernels.active))
 
-        def recording(hard, soft):
-            hard_boxes.append(hard)
-            return intersect_soft(hard, soft)
-        monkeypatch.setattr(spg_module, 'intersect_soft', recording)
+        def velocity_box(lower, upper, pb_lower, pb_upper, qdot_prev, accel):
+            hard_boxes.append(VelocityBox(np.maximum(lower, pb_lower),
+                                          np.minimum(upper, pb_upper)))
+            return kernels.active.velocity_box(lower, upper, pb_lower, pb_upper, qdot_prev,
+                                               accel)
+        recording.velocity_box = velocity_box
+        spg = SetPointGenerator(robot, stacks['circle'], dt=DT, pspm=pspm, kernels=recording)
     plant = JointImpedancePlant(robot, robot.q_home, dt=DT, substeps=2)
     q, qdot, t = plant.q.copy(), plant.qdot.copy(), 0.0
     q_v_prev, qdot_v_prev = None, np.zeros(robot.n)
@@ -105,18 +107,18 @@ def test_switch_mid_motion_respects_velocity_and_acceleration_limits():
     assert spg.stack.name == 'circle'
 
 
-def test_with_pspm_only_passivity_overrides_the_acceleration_limit(monkeypatch):
+def test_with_pspm_only_passivity_overrides_the_acceleration_limit():
     """With PSPM, an empty tank may stop a joint faster than a_max (the velocity box is
     intersected softly: position safety and passivity win). Every tick that exceeds
     a_max dT must be one where the hard box excludes the acceleration box."""
-    _, rec = run(True, {300: 'swing', 600: 'circle'}, monkeypatch=monkeypatch)
+    _, rec = run(True, {300: 'swing', 600: 'circle'}, record=True)
     assert np.all(rec['moving'] > 0.05), rec['moving']
     assert rec['v'].max() <= 1.0 + 1e-9
     over = rec['a'] > 1.0 + 1e-9
     assert np.all(rec['forced'][over].any(axis=1)), np.flatnonzero(over)
     assert not over[[298, 299, 598, 599]].any()  # the swap ticks themselves keep a_max
     # and without switching the same overrides happen: they are PSPM's, not the swap's
-    _, still = run(True, {}, monkeypatch=monkeypatch)
+    _, still = run(True, {}, record=True)
     assert (still['a'] > 1.0 + 1e-9).any()
 
 

@@ -1,34 +1,48 @@
-"""The compiled kernels of the 2 ms path (``ifc_spg.kernels._native``, built from ``_native.c`` at
-install time), or None where they were not built.
+"""The arithmetic of the 2 ms path, chosen once at import.
 
-Each kernel replaces a handful of numpy calls on a few joints or task rows; the numpy code
-next to each use is the reference the tests compare it with, and runs wherever the module
-is missing. ``IFC_SPG_NATIVE=0`` in the environment selects the numpy code. Objects pick
-the implementation when they are created.
+The arithmetic of the 2 ms path, chosen once at import: :data:`active` is the compiled C module
+``ifc_spg.kernels._native`` (built from ``_native.c`` at install time), or
+:mod:`ifc_spg.kernels.reference` (numpy, the same functions and signatures) where it was not built
+or ``IFC_SPG_NATIVE=0`` is set in the environment.
+
+Each kernel replaces a handful of numpy calls on a few joints or task rows. The objects of
+the tick (:class:`~ifc_spg.spg.SetPointGenerator`, the cascade, the limits, the energy
+tanks) take a ``kernels`` argument (default :data:`active`), so the tests can run the C
+module and the reference side by side in one process.
 """
 
+import importlib
 import os
+from types import ModuleType
 
-__all__ = ['module', 'describe']
+from ifc_spg.kernels import reference
+
+__all__ = ['active', 'describe', 'native', 'reference', 'resolve']
 
 
-def _load():
-    if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
-        return None
+def _load() -> ModuleType | None:
     try:
-        from ifc_spg.kernels import _native
+        return importlib.import_module('ifc_spg.kernels._native')
     except ImportError:
         return None
-    return _native
 
 
-module = _load()
+#: The C module, or None where it was not built (whatever IFC_SPG_NATIVE says).
+native: ModuleType | None = _load()
+_disabled = os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0'
+#: The kernels new objects use by default.
+active: ModuleType = reference if native is None or _disabled else native
 
 
-def describe():
+def resolve(kernels: ModuleType | None) -> ModuleType:
+    """``kernels``, or :data:`active` where it is None (a ``kernels`` argument's default)."""
+    return active if kernels is None else kernels
+
+
+def describe() -> str:
     """'native (C)' or 'numpy (...)': which implementation new objects use, and why."""
-    if module is not None:
+    if active is not reference:
         return 'native (C kernels)'
-    if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
+    if _disabled:
         return 'numpy (IFC_SPG_NATIVE=0)'
     return 'numpy (ifc_spg.kernels._native was not built: reinstall with a C compiler)'

@@ -578,8 +578,8 @@ PyDoc_STRVAR(pspm_bounds_doc,
 "    -> (lower, upper, dissipated_min, avail)\n\n"
 "EnergyTanks.bounds: E_Dmin = D/dT (q - q_prev)^2, E_avail = E_r + E_Dmin (+ shuffle unless\n"
 "None), r = sqrt(2 E_avail / K + dq^2) with dq = q_v - q, upper = (r - dq)/dT,\n"
-"lower = -(r + dq)/dT, unbounded where modulated is 0; q_prev <- q. modulated is a float\n"
-"array (1 or 0).");
+"lower = -(r + dq)/dT, unbounded where modulated is 0. modulated is a float array (1 or 0).\n"
+"Writes nothing: the caller keeps q as the next tick's q_prev.");
 
 static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
     PyObject *q_o, *qv_o, *qp_o, *e_o, *sh_o, *dd_o, *tk_o, *mod_o;
@@ -592,7 +592,7 @@ static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
     const double *q = in_data(q_o, n, "q"), *qv = in_data(qv_o, n, "q_v"),
                  *e = in_data(e_o, n, "energy"), *dd = in_data(dd_o, n, "D_over_dt"),
                  *tk = in_data(tk_o, n, "two_over_K"), *mod = in_data(mod_o, n, "modulated");
-    double *qp = out_data(qp_o, n, "q_prev");
+    const double *qp = in_data(qp_o, n, "q_prev");
     const double *sh = NULL;
     if (!q || !qv || !e || !dd || !tk || !mod || !qp) return NULL;
     if (sh_o != Py_None && !(sh = in_data(sh_o, n, "shuffle"))) return NULL;
@@ -604,7 +604,6 @@ static PyObject *pspm_bounds(PyObject *self, PyObject *args) {
         double step = q[j] - qp[j];
         step = step * step * dd[j];
         dm[j] = step;
-        qp[j] = q[j];
         double avail = e[j] + step;
         if (sh) avail += sh[j];
         av[j] = avail;

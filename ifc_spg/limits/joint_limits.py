@@ -20,11 +20,12 @@ This box always contains 0 while q_v is inside its limits. The acceleration box
 not intersect, position safety wins (the nearest point of the position box is taken).
 """
 
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
 
-from ifc_spg import kernels as native
+from ifc_spg import kernels as _kernels
 
 __all__ = ['JointVelocityLimits', 'VelocityBox', 'joint_velocity_bounds', 'intersect_soft',
            'stopping_velocity']
@@ -42,7 +43,8 @@ def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
 
     Args:
         q_v: Virtual joint positions in [rad] (inside [q_min, q_max]).
-        q_min, q_max: Joint position limits in [rad].
+        q_min: Lower joint position limits in [rad].
+        q_max: Upper joint position limits in [rad].
         v_max: Joint velocity limits in [rad/s].
         a_max: Joint acceleration limits in [rad/s^2].
         dt: SPG period in [s].
@@ -78,13 +80,15 @@ class JointVelocityLimits:
     """:func:`joint_velocity_bounds` with the robot's constants precomputed (the 2 ms path).
 
     Args:
-        q_min, q_max: Joint position limits in [rad].
+        q_min: Lower joint position limits in [rad].
+        q_max: Upper joint position limits in [rad].
         v_max: Joint velocity limits in [rad/s].
         a_max: Joint acceleration limits in [rad/s^2].
         dt: SPG period in [s].
+        kernels: The kernels module (default :data:`ifc_spg.kernels.active`).
     """
 
-    def __init__(self, q_min, q_max, v_max, a_max, dt):
+    def __init__(self, q_min, q_max, v_max, a_max, dt, *, kernels: ModuleType | None = None):
         self.n = len(q_min)
         self.dt = float(dt)
         self._q_min = np.asarray(q_min, float)
@@ -111,34 +115,13 @@ class JointVelocityLimits:
         for b in free:
             b.setflags(write=False)
         self._free_box = VelocityBox(*free)
-        self._native = native.module  # C kernel (ifc_spg.kernels), or None: numpy below
+        self._kernels = _kernels.resolve(kernels)
 
     def box(self, q_v):
         """The :class:`VelocityBox` at the virtual configuration ``q_v`` (as the function).
 
         The returned arrays may be read-only (shared between ticks far from the limits).
         """
-        if self._native is not None:
-            box = self._native.limits_box(q_v, self._q_min, self._q_max, self._d_free,
-                                          self._k_scale, self._half_c, self._inv_dt, self._v)
-            return self._free_box if box is None else VelocityBox(*box)
-        n = self.n
-        d = self._d  # d = [q_v - q_min; q_max - q_v]
-        np.subtract(q_v, self._q_min, out=d[:n])
-        np.subtract(self._q_max, q_v, out=d[n:])
-        if (d >= self._d_free).all():
-            return self._free_box
-        np.maximum(d, 0.0, out=d)
-        k = d * self._k_scale
-        k += 0.25
-        np.sqrt(k, out=k)
-        k -= 0.5
-        np.floor(k, out=k)
-        k1 = k + 1.0
-        k *= k1
-        k *= self._half_c
-        stop = d * self._inv_dt
-        stop += k
-        stop /= k1
-        np.minimum(stop, self._v, out=stop)
-        return VelocityBox(-stop[:n], stop[n:])
+        box = self._kernels.limits_box(q_v, self._q_min, self._q_max, self._d_free,
+                                       self._k_scale, self._half_c, self._inv_dt, self._v)
+        return self._free_box if box is None else VelocityBox(*box)

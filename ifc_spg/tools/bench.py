@@ -189,18 +189,13 @@ def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_tic
 
 def bench_native_ratio(name, robot, make_stack, ticks):
     """The tick with the C kernels vs their numpy code: two closed loops, interleaved."""
-    from ifc_spg import kernels as native
+    from ifc_spg import kernels
     from ifc_spg.offline.plants import JointImpedancePlant
     from ifc_spg.spg import SetPointGenerator
-    if native.module is None:
+    if kernels.native is None:
         return None
-    module = native.module
-    fast = SetPointGenerator(robot, make_stack(robot))
-    native.module = None
-    try:
-        slow = SetPointGenerator(robot, make_stack(robot))
-    finally:
-        native.module = module
+    fast = SetPointGenerator(robot, make_stack(robot), kernels=kernels.native)
+    slow = SetPointGenerator(robot, make_stack(robot), kernels=kernels.reference)
     loops = []
     for spg in (fast, slow):
         _closed_loop(spg, robot, 200, False)  # warm-up
@@ -316,7 +311,7 @@ def bench_first_ticks(repeats=20):
             first_t, switch_t, steady = times[mode]
             spg = SetPointGenerator(robot, None, dt=0.002)
             if mode == 'lazy':  # the baseline: models built at the tick that first needs them
-                spg._solver.prepare = None
+                spg.solver.prepare = lambda dims, equalities: None  # type: ignore[method-assign]
             spg.set_stack(lbr_stack(robot))
             q, qdot = np.array(robot.q_home, dtype=float), np.zeros(robot.n)
             for k in range(200):
@@ -338,8 +333,8 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
     from ifc_spg import RobotModel
-    from ifc_spg import kernels as native
-    out = {'ticks': ticks, 'stacks': [], 'implementation': native.describe()}
+    from ifc_spg import kernels
+    out = {'ticks': ticks, 'stacks': [], 'implementation': kernels.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
     icub = RobotModel.from_config('icub_upper_body')
     for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),

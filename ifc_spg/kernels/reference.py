@@ -1,0 +1,302 @@
+"""The numpy reference of the C kernels.
+
+The numpy reference of the C kernels (``ifc_spg.kernels._native``): the same functions, arguments
+and results, computed with numpy exactly as the C loops do (NaN included).
+
+This module runs wherever the C module is missing or ``IFC_SPG_NATIVE=0``, and the tests
+compare the two on random inputs. Arrays are float64; the arguments documented as written
+are the caller's preallocated outputs (the C module requires them C-contiguous), every other
+argument is only read.
+"""
+
+import math
+
+import numpy as np
+
+__all__ = ['accept', 'accept_slack', 'integrate', 'limits_box', 'lock_if_satisfied',
+           'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup', 'stack_rows',
+           'torque_limit', 'velocity_box']
+
+_TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
+
+Array = np.ndarray
+
+
+# ---- the cascade (ifc_spg.cascade.daqp.DaqpCascade) ------------------------------------
+
+def stack_rows(levels: list, A: Array, lower: Array, upper: Array, norm: Array,
+               A_unit: Array, band: Array, lock_tolerance: float) -> None:
+    """Stack the levels' rows and bounds, with norms and lock bands.
+
+    Stack the levels' rows and bounds into A (R, n), lower, upper (R,); then per row norm =
+    max(|row|_2, 1e-300), A_unit = row / norm and band = lock_tolerance (1 + |row|_1) / norm.
+    Writes A, lower, upper, norm, A_unit, band.
+    """
+    row = 0
+    for lev in levels:
+        m = lev.A.shape[0]
+        A[row:row + m] = lev.A
+        lower[row:row + m] = lev.lower
+        upper[row:row + m] = lev.upper
+        row += m
+    np.einsum('ij,ij->i', A, A, out=norm)
+    np.sqrt(norm, out=norm)
+    np.maximum(norm, _TINY, out=norm)
+    np.divide(A, norm[:, None], out=A_unit)
+    np.abs(A).sum(axis=1, out=band)
+    band += 1.0
+    band *= lock_tolerance
+    band /= norm
+
+
+def normal_form(A: Array, beta: Array, rho: float, H: Array, f: Array) -> None:
+    """The cost of an equality level without slacks.
+
+    The cost of an equality level without slacks: writes H = rho I + A^T A (n, n) and f = -A^T
+    beta (n,).
+    """
+    n = H.shape[0]
+    np.dot(A.T, A, out=H)
+    H.reshape(-1)[::n + 1] += rho
+    np.dot(beta, A, out=f)
+    np.negative(f, out=f)
+
+
+def accept(x: Array, bl: Array, bu: Array, A_unit: Array, norm: Array, beta: Array,
+           band: Array, lock_lo: Array | None, lock_hi: Array | None) -> tuple[Array, Array]:
+    """Take an equality level's solution; return ``(qdot, slack)``.
+
+    qdot = x clipped into [bl[:n], bu[:n]], a = A_unit qdot (unit-row coordinates),
+    slack = a norm - beta; unless lock_lo is None, writes the lock band lock_lo = a - band,
+    lock_hi = a + band (m rows each).
+    """
+    n = x.shape[0]
+    qdot = np.minimum(np.maximum(x, bl[:n]), bu[:n])
+    a_unit = A_unit @ qdot
+    slack = a_unit * norm - beta
+    if lock_lo is not None and lock_hi is not None:
+        np.subtract(a_unit, band, out=lock_lo)
+        np.add(a_unit, band, out=lock_hi)
+    return qdot, slack
+
+
+def lock_if_satisfied(A: Array, qdot: Array, lower: Array, upper: Array, norm: Array,
+                      band: Array, lock_lo: Array, lock_hi: Array) -> bool:
+    """Lock a level its solution already satisfies.
+
+    If lower <= A qdot <= upper holds on every row (NaN fails), lock the level at its own
+    bounds in unit-row coordinates (writes lock_lo = lower / norm - band and lock_hi = upper /
+    norm + band) and return True; otherwise write nothing, return False.
+    """
+    a = A @ qdot
+    if not np.maximum(lower - a, a - upper).max() <= 0.0:
+        return False
+    np.divide(lower, norm, out=lock_lo)
+    lock_lo -= band
+    np.divide(upper, norm, out=lock_hi)
+    lock_hi += band
+    return True
+
+
+def slack_setup(A_unit: Array, A: Array, start: int, end: int, ws_bl: Array, ws_bu: Array,
+                lower: Array, upper: Array, C: Array, bl: Array, bu: Array) -> None:
+    """The rows and bounds of an inequality level's slack QP over w = [qdot_v; s].
+
+    Writes the first n columns of C (end, n + m): the higher levels' unit rows
+    A_unit[:start] and this level's rows A[start:end]; and bl/bu (n + m + end): the box
+    ws_bl/ws_bu[:n], the locks ws_bl/ws_bu[n:n + start] and the level's
+    lower/upper[start:end]. The slack columns and entries n..n+m of bl/bu are left as they
+    are.
+    """
+    n = A.shape[1]
+    m = end - start
+    C[:start, :n] = A_unit[:start]
+    C[start:, :n] = A[start:end]
+    bu[:n] = ws_bu[:n]
+    bl[:n] = ws_bl[:n]
+    bu[n + m:n + m + start] = ws_bu[n:n + start]
+    bl[n + m:n + m + start] = ws_bl[n:n + start]
+    bu[n + m + start:] = upper[start:end]
+    bl[n + m + start:] = lower[start:end]
+
+
+def accept_slack(w: Array, bl: Array, bu: Array, A_unit: Array, norm: Array, lower: Array,
+                 upper: Array, band: Array, lock_lo: Array, lock_hi: Array
+                 ) -> tuple[Array, Array]:
+    """Take a slack QP's solution w = [x; s]; return ``(qdot, s)``.
+
+    qdot = x clipped into [bl[:n], bu[:n]], a = (A_unit qdot) norm; writes the lock
+    [lower + s, upper + s] widened to contain a (a itself on equal rows), in unit-row
+    coordinates, widened by band, into lock_lo and lock_hi.
+    """
+    n = A_unit.shape[1]
+    qdot = np.minimum(np.maximum(w[:n], bl[:n]), bu[:n])
+    a = (A_unit @ qdot) * norm
+    s = w[n:]
+    eq = lower == upper
+    lo = np.where(eq, a, np.minimum(lower + s, a))
+    hi = np.where(eq, a, np.maximum(upper + s, a))
+    lock_lo[:] = lo / norm - band
+    lock_hi[:] = hi / norm + band
+    return qdot, s
+
+
+# ---- the torque-limit level (ifc_spg.limits.torque_limits) ------------------------------
+
+def torque_limit(q: Array, qdot: Array, q_v: Array, idx: Array | None, K: Array, gain: float,
+                 gain_tau: Array, K_over: Array, band: Array, lower: Array, upper: Array
+                 ) -> tuple[Array, Array, Array, Array, Array]:
+    """TorqueLimitLevel.apply on the joints idx (an intp array; None: all).
+
+    Returns ``(beta_m, beta_M, s, lower', upper')``: the level's bounds
+    K (qdot - gain (q_v - q)) -+ gain_tau (unbounded where not finite), the slack s of its
+    closed-form solution projected onto the box (NaN -> 0) and the box narrowed by the lock
+    (new arrays).
+    """
+    i = slice(None) if idx is None else idx
+    comp = qdot[i] - gain * (q_v[i] - q[i])
+    comp *= K                                           # K qdot - Lambda tau_s
+    lo_b = comp - gain_tau                              # beta_m
+    hi_b = comp + gain_tau                              # beta_M
+    zeros = np.zeros(K.shape[0])
+    if not math.isfinite(comp @ zeros):  # overflow on absurd measurements:
+        bad = ~np.isfinite(comp)           # leave those joints to the box
+        lo_b[bad], hi_b[bad] = -np.inf, np.inf
+    lower = lower.copy()
+    upper = upper.copy()
+    lower_i, upper_i = lower[i], upper[i]  # (views when every joint is compliant)
+    # minimizer of rho x^2 + dist(K x, [lo_b, hi_b])^2, projected onto the box
+    x = np.minimum(np.maximum(0.0, lo_b), hi_b)
+    x *= K_over
+    np.minimum(np.maximum(x, lower_i), upper_i, out=x)
+    Kx = K * x
+    s = Kx - np.minimum(np.maximum(Kx, lo_b), hi_b)
+    if not math.isfinite(s @ zeros):
+        s[np.isnan(s)] = 0.0
+    lower[i] = np.maximum(lower_i, np.minimum((lo_b + s) / K, x) - band)
+    upper[i] = np.minimum(upper_i, np.maximum((hi_b + s) / K, x) + band)
+    return lo_b, hi_b, s, lower, upper
+
+
+# ---- joint limits (ifc_spg.limits.joint_limits) -----------------------------------------
+
+def limits_box(q_v: Array, q_min: Array, q_max: Array, d_free: Array, k_scale: Array,
+               half_c: Array, inv_dt: float, v: Array) -> tuple[Array, Array] | None:
+    """The joint-limit box (JointVelocityLimits.box).
+
+    JointVelocityLimits.box: None where every distance d = [q_v - q_min; q_max - q_v] is at
+    least d_free (the constant free box applies), else the stopping-velocity box ``(lower,
+    upper)`` (2n-vectors d_free, k_scale, half_c, v).
+    """
+    n = q_v.shape[0]
+    d = np.empty(2 * n)
+    np.subtract(q_v, q_min, out=d[:n])
+    np.subtract(q_max, q_v, out=d[n:])
+    if (d >= d_free).all():
+        return None
+    np.maximum(d, 0.0, out=d)
+    k = d * k_scale
+    k += 0.25
+    np.sqrt(k, out=k)
+    k -= 0.5
+    np.floor(k, out=k)
+    k1 = k + 1.0
+    k *= k1
+    k *= half_c
+    stop = d * inv_dt
+    stop += k
+    stop /= k1
+    np.minimum(stop, v, out=stop)
+    return -stop[:n], stop[n:]
+
+
+# ---- the tick (ifc_spg.spg.SetPointGenerator) -------------------------------------------
+
+def velocity_box(lower: Array, upper: Array, pb_lower: Array | None, pb_upper: Array | None,
+                 qdot_prev: Array, accel: Array) -> tuple[Array, Array]:
+    """The tick's box on qdot_v.
+
+    The tick's box on qdot_v: the joint-limit box intersected with the passivity box (None: no
+    PSPM; a NaN bound becomes 0, stopping that joint), then softly with the acceleration box
+    [qdot_prev - accel, qdot_prev + accel] (limits.intersect_soft).
+    """
+    if pb_lower is not None and pb_upper is not None:
+        lower = np.maximum(lower, pb_lower)
+        upper = np.minimum(upper, pb_upper)
+        zeros = np.zeros(lower.shape[0])
+        if not math.isfinite(lower @ zeros + upper @ zeros):  # NaN
+            # an overflow in the passivity bounds (absurd measurements): stop that joint
+            lower[np.isnan(lower)] = 0.0
+            upper[np.isnan(upper)] = 0.0
+    soft_lower = qdot_prev - accel
+    soft_upper = qdot_prev + accel
+    # limits.intersect_soft(hard, soft): both ends of soft clipped into hard
+    return (np.minimum(np.maximum(soft_lower, lower), upper),
+            np.maximum(np.minimum(soft_upper, upper), lower))
+
+
+def integrate(q_v: Array, dt: float, qdot_v: Array, q_min: Array, q_max: Array) -> Array:
+    """min(max(q_v + dt qdot_v, q_min), q_max) as a new array."""
+    return np.minimum(np.maximum(q_v + dt * qdot_v, q_min), q_max)
+
+
+# ---- the energy tanks (ifc_spg.pspm.EnergyTanks) ----------------------------------------
+
+def pspm_bounds(q: Array, q_v: Array, q_prev: Array, energy: Array, shuffle: Array | None,
+                D_over_dt: Array, two_over_K: Array, inv_dt: float, modulated: Array
+                ) -> tuple[Array, Array, Array, Array]:
+    """EnergyTanks.bounds; returns ``(lower, upper, dissipated_min, avail)``.
+
+    E_Dmin = D/dT (q - q_prev)^2, E_avail = E_r + E_Dmin (+ shuffle unless None),
+    r = sqrt(2 E_avail / K + dq^2) with dq = q_v - q, upper = (r - dq)/dT,
+    lower = -(r + dq)/dT, unbounded where modulated is 0. modulated is a float array (1 or
+    0). Writes nothing: the caller keeps q as the next tick's q_prev.
+    """
+    step = q - q_prev
+    step *= step
+    step *= D_over_dt
+    if shuffle is not None:
+        avail = energy + step + shuffle
+    else:
+        avail = energy + step
+    dq = q_v - q
+    r = avail * two_over_K
+    r += dq * dq
+    np.sqrt(r, out=r)
+    upper = r - dq
+    upper *= inv_dt
+    r += dq
+    r *= -inv_dt
+    lower = r
+    fixed = np.flatnonzero(modulated == 0.0)
+    if fixed.size:
+        lower[fixed] = -np.inf
+        upper[fixed] = np.inf
+    return lower, upper, step, avail
+
+
+def pspm_update(q: Array, q_v: Array, qdot_v: Array, avail: Array, half_K: Array, dt: float,
+                max_energy: float, modulated: Array, energy: Array
+                ) -> tuple[Array, Array, float]:
+    """The energy tanks' booking of a step (EnergyTanks.update).
+
+    EnergyTanks.update before its NaN / round-off repair; returns ``(energy', dEk,
+    min(energy'))``.
+
+    dEk = K/2 ((dq + dt qdot_v)^2 - dq^2), energy' = min(avail - dEk, max_energy), the old
+    energy where modulated is 0; the minimum is NaN if any entry is.
+    """
+    dq = q_v - q
+    new = qdot_v * dt
+    new += dq
+    new *= new
+    dq *= dq
+    new -= dq
+    dEk = new
+    dEk *= half_K
+    e = avail - dEk
+    np.minimum(e, max_energy, out=e)
+    fixed = np.flatnonzero(modulated == 0.0)
+    if fixed.size:
+        e[fixed] = energy[fixed]
+    return e, dEk, float(e.min())
