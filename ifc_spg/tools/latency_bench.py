@@ -1,8 +1,11 @@
-"""Tick-to-command latency of a realtime DDS run: ``sim_bridge`` (realtime, 500 Hz, iiwa,
-free scene) and ``spg_node`` as separate processes over loopback DDS, for each pairing of the
-two ROS backends (rclpy on Fast DDS, the built-in Cyclone DDS backend) in one invocation.
+"""Tick-to-command latency of a realtime DDS run, per pairing of the two ROS backends.
 
-    python -m ifc_spg.tools.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...] [--json]
+``sim_bridge`` (realtime, 500 Hz, iiwa, free scene) and ``spg_node`` run as separate
+processes over loopback DDS, for each pairing of the two ROS backends (rclpy on Fast DDS, the
+built-in Cyclone DDS backend) in one invocation::
+
+    python -m ifc_spg.tools.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...]
+                                          [--json]
 
 The latency of a tick is measured by the bridge on its own clock: from publishing a state to
 receiving the command answering it (same header stamp) — the bridge's publish, the SPG's tick
@@ -22,6 +25,11 @@ import sys
 import tempfile
 import time
 
+from ifc_spg import ros
+from ifc_spg.offline.runner import find_config_dir
+from ifc_spg.ros import dds, messages
+from ifc_spg.ros.testing import loopback_env, random_domain_id, stop_process
+
 __all__ = ['PAIRS', 'main', 'run']
 
 STACK = """version: 1
@@ -40,14 +48,18 @@ def _stamp(msg):
 
 
 class _Listener:
-    """The stamps of the states and commands seen on one backend, in this process (its own
-    context, so that both backends can listen in one invocation).
+    """The stamps of the states and commands seen on one backend, in this process.
+
+    Each listener has its own context, so that both backends can listen in one invocation.
+
+    Args:
+        backend: 'rclpy' or 'cyclonedds'.
     """
 
     def __init__(self, backend):
         self.states, self.commands = set(), set()
         self.backend = backend
-        if backend == 'rclpy':
+        if backend == 'rclpy':  # optional: only where the Jazzy wheels are installed
             import rclpy
             from rclpy.context import Context
             from rclpy.executors import SingleThreadedExecutor
@@ -59,9 +71,7 @@ class _Listener:
             self.executor = SingleThreadedExecutor(context=self.context)
             self.executor.add_node(self.node)
         else:
-            from ifc_spg.ros import dds
-            from ifc_spg.ros.messages import JointState
-
+            JointState = messages.JointState  # the class, as in the rclpy branch
             self.context = dds.Context(['latency_bench'])
             self.node = dds.Node('latency_bench', context=self.context)
             self.executor = self.context.executor((self.node,))
@@ -92,16 +102,12 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
     Args:
         seconds: realtime duration [s].
         stream: progress output.
-        bridge_backend, spg_backend: 'rclpy' or 'cyclonedds' for each process; None: the
-            backend of this process (``ifc_spg.ros.BACKEND``).
+        bridge_backend: 'rclpy' or 'cyclonedds' for the bridge process; None: the backend
+            of this process (``ifc_spg.ros.BACKEND``).
+        spg_backend: The same for the SPG process (and this process' listener).
     """
-    from ifc_spg import ros
-    from ifc_spg.offline.runner import find_config_dir
-    from ifc_spg.ros.testing import loopback_env, random_domain_id, stop_process
-
     bridge_backend = bridge_backend or ros.BACKEND
     spg_backend = spg_backend or ros.BACKEND
-    bindir = Path(sys.executable).parent
     domain = random_domain_id()
     envs = {b: loopback_env(domain, backend=b) for b in {bridge_backend, spg_backend}}
     saved = {k: os.environ.get(k) for k in envs[spg_backend] if k not in os.environ or
@@ -110,6 +116,21 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
     tmp = Path(tempfile.mkdtemp(prefix='latency_bench.'))
     (tmp / 'reach.yaml').write_text(STACK)
     listener = _Listener(spg_backend)
+    try:
+        _run_processes(listener, tmp, envs, seconds, stream, bridge_backend, spg_backend)
+    finally:
+        listener.close()
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+    return _results(listener, tmp, seconds, bridge_backend, spg_backend)
+
+
+def _run_processes(listener, tmp, envs, seconds, stream, bridge_backend, spg_backend):
+    """Start the SPG, then the bridge for ``seconds``; listen until the bridge ends."""
+    bindir = Path(sys.executable).parent
     procs, logs = [], []
 
     def start(name, backend, *args):
@@ -140,18 +161,16 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
             stop_process(proc)
         for f in logs:
             f.close()
-        listener.close()
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
+
+
+def _results(listener, tmp, seconds, bridge_backend, spg_backend):
+    """The results dict of one pairing, from the listener and the bridge's exit lines."""
     bridge_log = (tmp / 'sim_bridge.log').read_text()
     pacing = re.search(r'p50 lateness (\d+) us, p99 (\d+) us, (\d+) overrun\(s\), (\d+) missed',
                        bridge_log)
     measured = re.search(r'command latency p50 ([\d.]+) ms, p99 ([\d.]+) ms, max ([\d.]+) ms',
                          bridge_log)
-    out = {
+    return {
         'bridge_backend': bridge_backend,
         'spg_backend': spg_backend,
         'seconds': seconds,
@@ -167,7 +186,6 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
                              'overruns': int(pacing.group(3))} if pacing else None,
         'logs': str(tmp),
     }
-    return out
 
 
 PAIRS = {'all': [('rclpy', 'rclpy'), ('cyclonedds', 'cyclonedds'), ('rclpy', 'cyclonedds'),
@@ -206,7 +224,7 @@ def main(argv=None):
     parser.add_argument('--json', action='store_true', help='print the results as JSON')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
-        import rclpy  # noqa: F401
+        import rclpy  # noqa: F401 -- optional: is it installed?
         have_rclpy = True
     except ImportError:
         have_rclpy = False
