@@ -367,3 +367,15 @@ def test_constrained_manipulation_delegates_and_reports(monkeypatch):
     wrong = TaskStack.from_yaml(read(path).replace('frame: tool', 'frame: tol'))
     with pytest.raises(TaskStackError, match="did you mean 'tool'"):
         wrong.validate(robot('lbr4'))
+
+
+def test_stack_error_names_the_field_with_its_line_and_column():
+    text = 'version: 1\nrobot: lbr9\ntasks:\n  - type: joint_position\n    equal: init\n'
+    stack = TaskStack.from_yaml(text, source='s.yaml')
+    exc = stack.error(('robot',), 'unknown robot')
+    assert isinstance(exc, TaskStackError)
+    assert (exc.path, exc.line, exc.column, exc.source) == (('robot',), 2, 8, 's.yaml')
+    assert str(exc) == 's.yaml (line 2, column 8): robot: unknown robot'
+    assert stack.document.data['robot'] == 'lbr9'  # the data as written
+    deep = stack.error(('tasks', 0, 'joints'), 'x')  # absent field: its nearest parent
+    assert (deep.line, deep.column) == (4, 5)

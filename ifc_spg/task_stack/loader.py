@@ -12,9 +12,12 @@ are refused. Plain YAML scalars are resolved like YAML 1.2 / JSON (``1e-3`` is a
 None) and a map from paths (``('tasks', 2, 'subspace')``) to 1-based (line, column).
 """
 
+from __future__ import annotations
+
 import json
 import math
 import re
+from typing import Any
 
 import yaml
 
@@ -34,6 +37,10 @@ _NAN = re.compile(r'\.(nan|NaN|NAN)$')
 _NONFINITE = re.compile(r'[-+]?(inf|infinity|nan)$', re.IGNORECASE)
 _NULL = ('', '~', 'null', 'Null', 'NULL')
 _TRUE = ('true', 'True', 'TRUE')
+
+#: A field's path, e.g. ``('tasks', 2, 'subspace')``; marks map paths to (line, column).
+Path = tuple[str | int, ...]
+Marks = dict[Path, tuple[int, int]]
 _FALSE = ('false', 'False', 'FALSE')
 
 
@@ -46,12 +53,13 @@ class Document:
         source: Source name (file name) or None.
     """
 
-    def __init__(self, data, marks=None, source=None):
+    def __init__(self, data: Any, marks: Marks | None = None,
+                 source: str | None = None) -> None:
         self.data = data
         self.marks = marks or {}
         self.source = source
 
-    def mark(self, path):
+    def mark(self, path: Path) -> tuple[int | None, int | None]:
         """(line, column) of the nearest enclosing node of ``path`` that has a position."""
         path = tuple(path)
         while True:
@@ -61,13 +69,13 @@ class Document:
                 return None, None
             path = path[:-1]
 
-    def error(self, path, reason):
+    def error(self, path: Path, reason: str) -> TaskStackError:
         """Return a :class:`TaskStackError` at ``path`` with its source position."""
         line, column = self.mark(path)
         return TaskStackError(reason, path, line, column, self.source)
 
 
-def _check_size(text, source):
+def _check_size(text: Any, source: str | None) -> str:
     if isinstance(text, (bytes, bytearray)):
         if len(text) > MAX_TEXT_BYTES:
             raise TaskStackError(f'text is {len(text)} bytes, more than the limit of '
@@ -91,7 +99,7 @@ def _check_size(text, source):
     return text
 
 
-def load(text, fmt='auto', source=None):
+def load(text: str | bytes, fmt: str = 'auto', source: str | None = None) -> Document:
     """Load task-stack text.
 
     Args:
@@ -126,11 +134,11 @@ def load(text, fmt='auto', source=None):
 
 
 # -- JSON ------------------------------------------------------------------------------
-def _reject_constant(name):
+def _reject_constant(name: str) -> None:
     raise ValueError(f'{name} is not allowed (numbers must be finite)')
 
 
-def _load_json(text, source):
+def _load_json(text: str, source: str | None) -> Any:
     try:
         data = json.loads(text, parse_constant=_reject_constant,
                           object_pairs_hook=_json_object)
@@ -146,8 +154,8 @@ def _load_json(text, source):
     return data
 
 
-def _json_object(pairs):
-    out = {}
+def _json_object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
     for k, v in pairs:
         if k in out:
             raise ValueError(f"duplicate key '{k}'")
@@ -155,7 +163,7 @@ def _json_object(pairs):
     return out
 
 
-def _check_json(x, depth, count, source):
+def _check_json(x: Any, depth: int, count: list[int], source: str | None) -> None:
     count[0] += 1
     if count[0] > MAX_NODES:
         raise TaskStackError(f'document has more than {MAX_NODES} values; a task stack is '
@@ -188,7 +196,7 @@ _CComposer = getattr(yaml, 'CSafeLoader', None)
 _C_DEPTH_BOUND = 2000
 
 
-def _composer(text):
+def _composer(text: str) -> yaml.SafeLoader:
     if _CComposer is not None:
         bound = text.count('\n') + sum(text.count(c) for c in '[{-:?')
         if bound < _C_DEPTH_BOUND:
@@ -196,7 +204,7 @@ def _composer(text):
     return _Composer(text)
 
 
-def _load_yaml(text, source):
+def _load_yaml(text: str, source: str | None) -> Document:
     loader = _composer(text)
     try:
         node = loader.get_single_node()
@@ -215,16 +223,17 @@ def _load_yaml(text, source):
         loader.dispose()
     if node is None:
         return Document(None, {(): (1, 1)}, source)
-    marks = {}
+    marks: Marks = {}
     data = _construct(node, (), marks, [0], source)
     return Document(data, marks, source)
 
 
-def _pos(node):
+def _pos(node: yaml.Node) -> tuple[int, int]:
     return node.start_mark.line + 1, node.start_mark.column + 1
 
 
-def _construct(node, path, marks, count, source):
+def _construct(node: yaml.Node, path: Path, marks: Marks, count: list[int],
+               source: str | None) -> Any:
     count[0] += 1
     line, column = _pos(node)
     if count[0] > MAX_NODES:
@@ -247,7 +256,13 @@ def _construct(node, path, marks, count, source):
     if isinstance(node, yaml.SequenceNode):
         return [_construct(item, path + (i,), marks, count, source)
                 for i, item in enumerate(node.value)]
-    out = {}
+    return _mapping(node, path, marks, count, source)
+
+
+def _mapping(node: yaml.Node, path: Path, marks: Marks, count: list[int],
+             source: str | None) -> dict[str, Any]:
+    """Construct a mapping node: plain keys, no merge keys, no duplicates."""
+    out: dict[str, Any] = {}
     for key_node, value_node in node.value:
         if key_node.tag == 'tag:yaml.org,2002:merge':
             raise TaskStackError("YAML merge keys ('<<') are not supported; write the "
@@ -275,7 +290,7 @@ _STD_TAGS = {
 }
 
 
-def _scalar(node, path, source):
+def _scalar(node: yaml.ScalarNode, path: Path, source: str | None) -> Any:
     value = node.value
     line, column = _pos(node)
     if len(value) > MAX_STRING:

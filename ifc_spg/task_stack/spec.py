@@ -25,7 +25,7 @@ from ifc_spg.task_stack.errors import TaskStackError
 from ifc_spg.tasks.subspace import AXES, SUBSPACE_FRAMES, WRENCH_AXES
 
 if TYPE_CHECKING:
-    from ifc_spg.task_stack.loader import Document
+    from ifc_spg.task_stack.loader import Document, Path
 
 __all__ = [
     'BOUND_FIELDS',
@@ -316,43 +316,47 @@ class _Parser:
         return x
 
     # component vectors
-    def vector(self, path, x, *, allow_init=False, allow_open=False, what='value'):
+    def vector(self, path: Path, x: Any, *, allow_init: bool = False, allow_open: bool = False,
+               what: str = 'value') -> Any:
         """Number | list | mapping name -> number ('init' / None entries if allowed)."""
-        def entry(p, v):
-            if allow_init and v == 'init':
-                return 'init'
-            if allow_open and v is None:
-                return None
-            return self.number(p, v, f"a number{' or init' if allow_init else ''}"
-                                     f"{' or null (open)' if allow_open else ''} for {what}")
+        def entry(p: Path, v: Any) -> Any:
+            return self._entry(p, v, allow_init, allow_open, what)
         if isinstance(x, list):
-            if not x:
-                raise self.err(path, f'{what}: empty list; give one value per component')
-            if len(x) > MAX_DIM:
-                raise self.err(path, f'{what}: {len(x)} values, more than the limit {MAX_DIM}')
+            self._check_count(path, x, what, 'empty list; give one value per component',
+                              'values')
             return tuple(entry(path + (i,), v) for i, v in enumerate(x))
         if isinstance(x, dict):
-            if not x:
-                raise self.err(path, f'{what}: empty mapping; give component: value pairs')
-            if len(x) > MAX_DIM:
-                raise self.err(path, f'{what}: {len(x)} entries, more than the limit {MAX_DIM}')
+            self._check_count(path, x, what, 'empty mapping; give component: value pairs',
+                              'entries')
             return ByName(tuple((k, entry(path + (k,), v)) for k, v in x.items()))
         if allow_init and x == 'init':
             return 'init'
         return entry(path, x)
 
+    def _entry(self, path: Path, v: Any, allow_init: bool, allow_open: bool, what: str) -> Any:
+        """One component: a number, or 'init' / None (open) where allowed."""
+        if allow_init and v == 'init':
+            return 'init'
+        if allow_open and v is None:
+            return None
+        return self.number(path, v, f"a number{' or init' if allow_init else ''}"
+                                    f"{' or null (open)' if allow_open else ''} for {what}")
+
+    def _check_count(self, path: Path, x: list | dict, what: str, empty: str,
+                     items: str) -> None:
+        if not x:
+            raise self.err(path, f'{what}: {empty}')
+        if len(x) > MAX_DIM:
+            raise self.err(path, f'{what}: {len(x)} {items}, more than the limit {MAX_DIM}')
+
     # the document
-    def stack(self, data):
+    def stack(self, data: Any) -> dict[str, Any]:
+        """Parse the whole document into the keyword arguments of a TaskStack."""
         if data is None:
             raise self.err((), 'empty document; a task stack needs version: 1 and tasks')
         self.mapping((), data, 'a task stack')
         self.fields((), data, TOP_FIELDS, 'a task stack')
-        if 'version' not in data:
-            raise self.err((), f'missing field version; add version: {VERSION}')
-        v = data['version']
-        if isinstance(v, bool) or v != VERSION:
-            raise self.err(('version',), f'unsupported version {_show(v)}; this ifc_spg reads '
-                                         f'version {VERSION}')
+        self.version(data)
         name = self.string(('name',), data['name'], 'a stack name') if 'name' in data \
             else 'task_stack'
         robot = self.string(('robot',), data['robot'], 'a robot name') \
@@ -362,6 +366,19 @@ class _Parser:
             raise self.err(('description',), f'expected text, got {_show(desc)}')
         budget = self.power_budget(data['power_budget']) if data.get('power_budget') \
             is not None else None
+        return {'version': VERSION, 'name': name, 'robot': robot, 'description': desc,
+                'power_budget': budget, 'tasks': self.tasks(data)}
+
+    def version(self, data: dict[str, Any]) -> None:
+        if 'version' not in data:
+            raise self.err((), f'missing field version; add version: {VERSION}')
+        v = data['version']
+        if isinstance(v, bool) or v != VERSION:
+            raise self.err(('version',), f'unsupported version {_show(v)}; this ifc_spg reads '
+                                         f'version {VERSION}')
+
+    def tasks(self, data: dict[str, Any]) -> tuple[TaskSpec, ...]:
+        """The task list: at least one, at most MAX_TASKS, with unique names."""
         if 'tasks' not in data:
             raise self.err((), 'missing field tasks; list the tasks, highest priority first')
         tasks = data['tasks']
@@ -379,8 +396,7 @@ class _Parser:
                                f"task name '{t.name}' is used twice (also tasks[{seen[t.name]}]);"
                                ' names must be unique')
             seen[t.name] = t.index
-        return {'version': VERSION, 'name': name, 'robot': robot, 'description': desc,
-                'power_budget': budget, 'tasks': specs}
+        return specs
 
     def power_budget(self, x):
         path = ('power_budget',)
@@ -394,7 +410,8 @@ class _Parser:
                                  'power_budget: strictly passive)')
         return x
 
-    def task(self, path, x, index):
+    def task(self, path: Path, x: Any, index: int) -> TaskSpec:
+        """Parse one task entry (``tasks[index]``)."""
         self.mapping(path, x, 'a task')
         if 'type' not in x:
             raise self.err(path, f"missing field type; one of {', '.join(TASK_TYPES)}")
@@ -404,64 +421,78 @@ class _Parser:
         desc = x.get('description')
         if desc is not None and not isinstance(desc, str):
             raise self.err(path + ('description',), f'expected text, got {_show(desc)}')
-        kw = {'name': name, 'type': ttype, 'index': index, 'description': desc}
+        kw: dict[str, Any] = {'name': name, 'type': ttype, 'index': index, 'description': desc}
         if ttype == 'constrained_manipulation':
-            if 'frame' not in x:
-                raise self.err(path, 'missing field frame (the chain id that grasps the '
-                                     'mechanism, e.g. tool)')
-            kw['frame'] = self.string(path + ('frame',), x['frame'], 'a frame (chain id)')
+            kw['frame'] = self.frame(path, x, 'missing field frame (the chain id that grasps '
+                                              'the mechanism, e.g. tool)')
             kw['options'] = MappingProxyType({
                 k: _freeze(v) for k, v in x.items() if k not in TASK_FIELDS[ttype]})
             return TaskSpec(**kw)
         self.fields(path, x, TASK_FIELDS[ttype], f'a {ttype} task')
-        if ttype in ('cartesian_pose', 'wrench'):
-            if 'frame' not in x:
-                raise self.err(path, f'missing field frame (the chain id) for the {ttype} task')
-            kw['frame'] = self.string(path + ('frame',), x['frame'], 'a frame (chain id)')
-            if x.get('subspace') is not None:
-                kw['subspace'] = self.subspace(path + ('subspace',), x['subspace'], ttype)
-            else:
-                kw['subspace'] = SubspaceSpec(
-                    axes=AXES if ttype == 'cartesian_pose' else WRENCH_AXES)
-        elif x.get('joints') is not None:
-            kw['joints'] = self.joints(path + ('joints',), x['joints'])
+        kw.update(self.task_geometry(path, x, ttype))
+        kw.update(self.task_bounds(path, x))
+        kw.update(self.task_regulation(path, x))
+        for key, parse in (('orientation', self.orientation), ('relative', self.boolean),
+                           ('include_damping', self.boolean)):
+            if key in x:
+                kw[key] = parse(path + (key,), x[key])
+        return TaskSpec(**kw)
+
+    def frame(self, path: Path, x: dict[str, Any], missing: str) -> str:
+        """The task's ``frame`` (a chain id); ``missing`` is the error without one."""
+        if 'frame' not in x:
+            raise self.err(path, missing)
+        return self.string(path + ('frame',), x['frame'], 'a frame (chain id)')
+
+    def task_geometry(self, path: Path, x: dict[str, Any], ttype: str) -> dict[str, Any]:
+        """Frame and subspace (Cartesian tasks) or joints (joint tasks)."""
+        if ttype not in ('cartesian_pose', 'wrench'):
+            if x.get('joints') is not None:
+                return {'joints': self.joints(path + ('joints',), x['joints'])}
+            return {}
+        frame = self.frame(path, x, f'missing field frame (the chain id) for the {ttype} task')
+        if x.get('subspace') is not None:
+            subspace = self.subspace(path + ('subspace',), x['subspace'], ttype)
+        else:
+            subspace = SubspaceSpec(axes=AXES if ttype == 'cartesian_pose' else WRENCH_AXES)
+        return {'frame': frame, 'subspace': subspace}
+
+    def task_bounds(self, path: Path, x: dict[str, Any]) -> dict[str, BoundSpec]:
+        """``equal``, or ``lower`` and/or ``upper``."""
         if 'equal' in x and ('lower' in x or 'upper' in x):
             raise self.err(path + ('equal',), "give either 'equal' (equality task) or "
                                               "'lower'/'upper' (inequality task), not both")
         if not any(k in x for k in BOUND_FIELDS):
             raise self.err(path, "no bounds; give 'equal' (equality task) or 'lower' and/or "
                                  "'upper' (inequality task)")
-        for k in BOUND_FIELDS:
-            if k in x:
-                kw[k] = self.bound(path + (k,), x[k], k)
+        return {k: self.bound(path + (k,), x[k], k) for k in BOUND_FIELDS if k in x}
+
+    def task_regulation(self, path: Path, x: dict[str, Any]) -> dict[str, Any]:
+        """Gain, feed-forward, velocity gain and compensation."""
+        kw: dict[str, Any] = {}
         if 'gain' in x:
             kw['gain'] = self.vector(path + ('gain',), x['gain'], what='gain')
             self.nonnegative_vector(path + ('gain',), kw['gain'], 'gain')
         if 'feedforward' in x:
-            ff = x['feedforward']
-            if ff in (None, 'none', 'zero'):
-                kw['feedforward'] = None
-            elif ff == 'trajectory':
-                kw['feedforward'] = 'trajectory'
-            elif isinstance(ff, str):
-                raise self.err(path + ('feedforward',), f"feedforward {_show(ff)} unknown; "
-                               "use 'trajectory' (the bounds' rates, default), none, or rates "
-                               'per component' + did_you_mean(ff, ('trajectory', 'none')))
-            else:
-                kw['feedforward'] = self.vector(path + ('feedforward',), ff, what='feedforward')
+            kw['feedforward'] = self.feedforward(path + ('feedforward',), x['feedforward'])
         if 'velocity_gain' in x:
             kw['velocity_gain'] = self.number(path + ('velocity_gain',), x['velocity_gain'])
         if 'compensate_velocity' in x:
             kw['compensate_velocity'] = self.boolean(path + ('compensate_velocity',),
                                                      x['compensate_velocity'])
-        if 'orientation' in x:
-            kw['orientation'] = self.orientation(path + ('orientation',), x['orientation'])
-        if 'relative' in x:
-            kw['relative'] = self.boolean(path + ('relative',), x['relative'])
-        if 'include_damping' in x:
-            kw['include_damping'] = self.boolean(path + ('include_damping',),
-                                                 x['include_damping'])
-        return TaskSpec(**kw)
+        return kw
+
+    def feedforward(self, path: Path, ff: Any) -> Any:
+        """'trajectory', None (zero) or rates per component."""
+        if ff in (None, 'none', 'zero'):
+            return None
+        if ff == 'trajectory':
+            return 'trajectory'
+        if isinstance(ff, str):
+            raise self.err(path, f"feedforward {_show(ff)} unknown; use 'trajectory' (the "
+                                 "bounds' rates, default), none, or rates per component"
+                                 + did_you_mean(ff, ('trajectory', 'none')))
+        return self.vector(path, ff, what='feedforward')
 
     def nonnegative_vector(self, path, v, what):
         vals = v.to_data().values() if isinstance(v, ByName) else \
@@ -602,6 +633,12 @@ class _Parser:
             return BoundSpec('constant', (('value', b.get('value')),))
         if kind == 'init':
             return BoundSpec('init')
+        self.check_trajectory(path, x, b)
+        return b
+
+    def check_trajectory(self, path: Path, x: dict[str, Any], b: BoundSpec) -> None:
+        """The checks across a trajectory's parameters."""
+        kind = b.kind
         if kind == 'circle' and x.get('center') is not None and x.get('start') is not None:
             raise self.err(path + ('start',), "circle: give either 'center' or 'start' (the "
                                               'point at t = 0), not both')
@@ -614,21 +651,15 @@ class _Parser:
                 raise self.err(path + ('transition',),
                                f"square: transition {b.get('transition'):g} s is longer than "
                                f'the shorter phase ({short:g} s = period x min(duty, 1 - duty))')
-        return b
 
-    def param(self, path, x, vkind, name):
+    def param(self, path: Path, x: Any, vkind: str, name: str) -> Any:
+        """One trajectory parameter of kind ``vkind`` (see :data:`TRAJECTORIES`)."""
         if vkind == 'vector':
             return self.vector(path, x, what=name)
         if vkind in ('anchor', 'anchor_to'):
             return self.vector(path, x, allow_init=True, what=name)
         if vkind == 'anchor2':
-            v = self.vector(path, x, allow_init=True, what=name)
-            if isinstance(v, tuple) and len(v) != 2:
-                raise self.err(path, f'{name}: expected 2 values (the two plane components) or '
-                                     f'init, got {len(v)}')
-            if isinstance(v, ByName):
-                raise self.err(path, f'{name}: give 2 values (in plane order) or init')
-            return v
+            return self.anchor2(path, x, name)
         if vkind == 'offsets':
             if not isinstance(x, list) or len(x) != 2:
                 raise self.err(path, 'offsets: expected a list of two offsets (first and '
@@ -636,6 +667,20 @@ class _Parser:
             return tuple(self.vector(path + (i,), v, what='offset') for i, v in enumerate(x))
         if vkind == 'plane':
             return self.plane(path, x)
+        return self.scalar_param(path, x, vkind, name)
+
+    def anchor2(self, path: Path, x: Any, name: str) -> Any:
+        """Two values in plane order, or init (a circle's center or start)."""
+        v = self.vector(path, x, allow_init=True, what=name)
+        if isinstance(v, tuple) and len(v) != 2:
+            raise self.err(path, f'{name}: expected 2 values (the two plane components) or '
+                                 f'init, got {len(v)}')
+        if isinstance(v, ByName):
+            raise self.err(path, f'{name}: give 2 values (in plane order) or init')
+        return v
+
+    def scalar_param(self, path: Path, x: Any, vkind: str, name: str) -> float:
+        """A number in the range its kind allows (positive, fraction, ...)."""
         v = self.number(path, x, f'a number for {name}')
         if vkind == 'positive' and not 0.0 < v <= _TIME_LIMIT:
             raise self.err(path, f'{name} must be > 0 (and <= {_TIME_LIMIT:g}), got {v:g}')
