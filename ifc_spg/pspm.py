@@ -31,6 +31,7 @@ for a burst (a collision) stays bounded by n E_max whatever P and t.
 stack asks for energy the budget does not give) and says how much power it asked for.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from types import ModuleType
 from typing import NamedTuple
@@ -63,7 +64,7 @@ class PspmConfig:
     shuffle_budget: float = 0.0
     max_power: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ('initial_energy', 'max_energy', 'shuffle', 'shuffle_budget', 'max_power'):
             v = getattr(self, name)
             unit = 'W' if name == 'max_power' else 'J'
@@ -87,7 +88,8 @@ class EnergyTanks:
         kernels: The kernels module (default :data:`ifc_spg.kernels.active`).
     """
 
-    def __init__(self, stiffness, damping, modulated, dt, config=PspmConfig(), *,
+    def __init__(self, stiffness: np.ndarray, damping: np.ndarray, modulated: np.ndarray,
+                 dt: float, config: PspmConfig = PspmConfig(), *,
                  kernels: ModuleType | None = None):
         self.K = np.asarray(stiffness, dtype=float)
         self.D = np.asarray(damping, dtype=float)
@@ -120,14 +122,15 @@ class EnergyTanks:
         self._modulated = self.mask.astype(float)
         self._kernels = _kernels.resolve(kernels)
 
-    def reset(self, q):
+    def reset(self, q: np.ndarray) -> None:
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
         self.energy = np.full(self.K.size, self.config.initial_energy)
         self.shuffled = np.zeros(self.K.size)
         self.refilled = np.zeros(self.K.size)
         self._q_prev = np.array(q, dtype=float)
 
-    def restore(self, q, energy, shuffled=None):
+    def restore(self, q: np.ndarray, energy: np.ndarray,
+                shuffled: np.ndarray | None = None) -> None:
         """Continue from given tank energies (a replay that starts mid-run).
 
         Continue from energies ``energy`` [J] and shuffled totals ``shuffled`` [J] with
@@ -138,7 +141,7 @@ class EnergyTanks:
             np.array(shuffled, dtype=float)
         self._q_prev = np.array(q, dtype=float)
 
-    def power_error(self, power):
+    def power_error(self, power: float) -> str:
         """Why ``power`` [W] is not an allowed refill rate, or '' if it is (<= the ceiling)."""
         ceiling = self.config.max_power
         if power <= ceiling:
@@ -152,7 +155,7 @@ class EnergyTanks:
                 f'spg_node parameter pspm.max_power; lower power_budget to <= {ceiling:g} or '
                 f'raise pspm.max_power to >= {power:g}')
 
-    def set_power(self, power):
+    def set_power(self, power: float) -> None:
         """Refill the tanks at ``power`` [W] from the next tick on (0 <= power <= ceiling).
 
         Raises:
@@ -167,11 +170,12 @@ class EnergyTanks:
         self.power = power
         self._extra = self._shuffling or power > 0.0
 
-    def empty(self, tol=1e-9):
+    def empty(self, tol: float = 1e-9) -> np.ndarray:
         """Mask of the modulated joints whose tank is empty (<= ``tol`` [J]) after the tick."""
         return (self.energy <= tol) & self.mask
 
-    def requested_power(self, q, q_v, qdot_v):
+    def requested_power(self, q: np.ndarray, q_v: np.ndarray, qdot_v: np.ndarray
+                        ) -> np.ndarray:
         """Power [W] per joint a step would take from the tanks.
 
         Power [W] per joint the step ``qdot_v`` [rad/s] from ``q_v`` would take from the
@@ -184,13 +188,13 @@ class EnergyTanks:
         return np.where(self.mask, dE * self._inv_dt, 0.0)
 
     @property
-    def available(self):
+    def available(self) -> np.ndarray:
         """E_avail of this tick's bounds per joint in [J] (read-only view)."""
         view = self._avail.view()
         view.setflags(write=False)
         return view
 
-    def bounds(self, q, q_v):
+    def bounds(self, q: np.ndarray, q_v: np.ndarray) -> VelocityBox:
         """Return the passivity :class:`VelocityBox` for this tick (contains 0).
 
         Args:
@@ -248,7 +252,7 @@ class EnergyTanks:
         refill[order[:j + 1]] = np.maximum(level - levels[:j + 1], 0.0)
         return refill
 
-    def update(self, q, q_v, qdot_v):
+    def update(self, q: np.ndarray, q_v: np.ndarray, qdot_v: np.ndarray) -> np.ndarray:
         """Book the applied step into the tanks (Alg. C.5 lines 21-25).
 
         Args:
@@ -297,7 +301,7 @@ class StallReport(NamedTuple):
     max_power: float
     since: float
 
-    def suggestion(self):
+    def suggestion(self) -> str:
         """The setting that would give the stack the power it asks for.
 
         The setting that would give the stack the power it asks for: twice the larger of
@@ -351,7 +355,8 @@ class StallMonitor:
         drain_time: Averaging time of the drain rates in [s].
     """
 
-    def __init__(self, tanks, time_constant=0.5, probe_every=25, min_power=1e-3,
+    def __init__(self, tanks: EnergyTanks, time_constant: float = 0.5, probe_every: int = 25,
+                 min_power: float = 1e-3,
                  drain_time=5.0):
         self.tanks = tanks
         self.n = tanks.K.size
@@ -363,20 +368,20 @@ class StallMonitor:
         self.min_power = float(min_power)
         self.reset()
 
-    def reset(self):
+    def reset(self) -> None:
         """A new episode: forget the averages; the next stall is reported again."""
         self._empty = np.zeros(self.n)
         self._active = False            # some joint's empty average is not (yet) zero
         self._power = np.zeros(self.n)
         self._drain = np.zeros(self.n)
-        self._mark = None               # (tank energy, refilled + shuffled) of the last sample
+        self._mark: tuple | None = None  # (tank energy, refilled + shuffled) of the last sample
         self._ticks = 0
-        self.report = None
+        self.report: StallReport | None = None
         self.new = False
-        self._reported = set()
+        self._reported: set[int] = set()
 
     @property
-    def wants_probe(self):
+    def wants_probe(self) -> bool:
         """True when this tick's caller should solve without the passivity bound."""
         return self._active and self._ticks % self.probe_every == 0 and bool(
             np.any(self._empty > 0.5))
@@ -394,7 +399,8 @@ class StallMonitor:
             self._drain += step
         self._mark = mark
 
-    def observe(self, requested_power=None, *, task_time=0.0):
+    def observe(self, requested_power: np.ndarray | None = None, *,
+                task_time: float = 0.0) -> None:
         """Book one tick (after the tanks booked the step).
 
         Args:
@@ -438,7 +444,7 @@ class StallMonitor:
             self.new = True
 
 
-def stall_message(report, joint_names):
+def stall_message(report: StallReport, joint_names: Sequence[str]) -> str:
     """One line for the log and ``spg/status``: which joints, how much power, the fix."""
     names = [joint_names[j] for j in report.joints]
     each = ', '.join(f'{n} {p:.3g}' for n, p in zip(names, report.requested_power))

@@ -123,12 +123,12 @@ class SpgInfo:
                'qdot_v', 'message', 'failed_level', 'pspm')
 
     @property
-    def level_names(self):
+    def level_names(self) -> list[str]:
         """Names of the levels (the torque limit first, if enabled)."""
         return [lv.name for lv in (self.levels or [])]
 
     @property
-    def pspm(self):
+    def pspm(self) -> dict | None:
         """Power budget, refill and stall of the energy tanks (None without PSPM)."""
         if self.tanks is None:
             return None
@@ -147,7 +147,7 @@ class SpgInfo:
                 'fix': stall.suggestion(), 'message': stall_message(stall, names)}}
 
     @property
-    def residuals(self):
+    def residuals(self) -> list[np.ndarray]:
         """Violation of each level's velocity bounds by the final qdot_v (computed on demand)."""
         qdot_v = self.qdot_v
         if qdot_v is None:
@@ -155,13 +155,13 @@ class SpgInfo:
         return [level_violation(lv, qdot_v) for lv in (self.levels or [])]
 
     @property
-    def at_limit(self):
+    def at_limit(self) -> np.ndarray:
         """Indices of joints whose qdot_v sits on the velocity box."""
         if self.box is None or self.qdot_v is None:
             return np.zeros(0, dtype=int)
         return np.flatnonzero((self.qdot_v <= self.box.lower) | (self.qdot_v >= self.box.upper))
 
-    def as_dict(self):
+    def as_dict(self) -> dict:
         """JSON-friendly dict (for ``spg/status``)."""
         def conv(v):
             if isinstance(v, np.ndarray):
@@ -351,6 +351,9 @@ class SetPointGenerator:
         self.q_v = np.array(state.q_v, dtype=float)
         self.qdot_v = np.array(state.qdot_v, dtype=float)
         if self.tanks is not None and self._stall is not None:
+            if state.tank_energy is None:
+                raise ParameterError('the snapshot has no tank energies (taken without PSPM); '
+                                     'restore it into an SPG without PSPM')
             self.tanks.restore(q, state.tank_energy, state.shuffled)
             self._stall.reset()
         self._t0 = None

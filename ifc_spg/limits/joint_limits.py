@@ -38,7 +38,8 @@ class VelocityBox(NamedTuple):
     upper: np.ndarray
 
 
-def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
+def joint_velocity_bounds(q_v: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
+                          v_max: np.ndarray, a_max: np.ndarray, dt: float) -> VelocityBox:
     """Position/velocity shaping (4.32, 4.33) at the virtual configuration.
 
     Args:
@@ -56,7 +57,7 @@ def joint_velocity_bounds(q_v, q_min, q_max, v_max, a_max, dt):
     return VelocityBox(-stop[:n], stop[n:])
 
 
-def stopping_velocity(distance, a_max, dt):
+def stopping_velocity(distance: np.ndarray, a_max: np.ndarray, dt: float) -> np.ndarray:
     """Largest velocity [rad/s] from which braking by a_max dt per tick stops within distance."""
     distance = np.maximum(distance, 0.0)
     c = a_max * dt
@@ -64,7 +65,7 @@ def stopping_velocity(distance, a_max, dt):
     return (distance / dt + 0.5 * c * k * (k + 1.0)) / (k + 1.0)
 
 
-def intersect_soft(hard, soft):
+def intersect_soft(hard: VelocityBox, soft: VelocityBox) -> VelocityBox:
     """Intersect ``hard`` with ``soft``; where empty, the point of ``hard`` nearest ``soft``.
 
     Both ends of ``soft`` clipped into ``hard``: where the boxes overlap this is their
@@ -88,7 +89,8 @@ class JointVelocityLimits:
         kernels: The kernels module (default :data:`ifc_spg.kernels.active`).
     """
 
-    def __init__(self, q_min, q_max, v_max, a_max, dt, *, kernels: ModuleType | None = None):
+    def __init__(self, q_min: np.ndarray, q_max: np.ndarray, v_max: np.ndarray,
+                 a_max: np.ndarray, dt: float, *, kernels: ModuleType | None = None):
         self.n = len(q_min)
         self.dt = float(dt)
         self._q_min = np.asarray(q_min, float)
@@ -117,7 +119,7 @@ class JointVelocityLimits:
         self._free_box = VelocityBox(*free)
         self._kernels = _kernels.resolve(kernels)
 
-    def box(self, q_v):
+    def box(self, q_v: np.ndarray) -> VelocityBox:
         """The :class:`VelocityBox` at the virtual configuration ``q_v`` (as the function).
 
         The returned arrays may be read-only (shared between ticks far from the limits).

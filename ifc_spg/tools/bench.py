@@ -332,8 +332,7 @@ def bench_first_ticks(repeats=20):
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
-    from ifc_spg import RobotModel
-    from ifc_spg import kernels
+    from ifc_spg import RobotModel, kernels
     out = {'ticks': ticks, 'stacks': [], 'implementation': kernels.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
     icub = RobotModel.from_config('icub_upper_body')
