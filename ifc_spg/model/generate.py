@@ -12,6 +12,8 @@ dynamics; geoms are primitive capsules, cylinders, spheres and boxes with
 ``contype=1 conaffinity=0`` (no self-collision, contact with any scene geom).
 """
 
+from __future__ import annotations
+
 import argparse
 import math
 import os
@@ -24,6 +26,7 @@ from ifc_spg.model.registry import (
     DATA_DIR,
     LBR4,
     LBR_IIWA14,
+    ArmTable,
     accrea_home_deg,
 )
 
@@ -139,12 +142,12 @@ def _document(name, body_lines, q_home_deg, extra=()):
     ])
 
 
-def arm_mjcf(arm):
+def arm_mjcf(arm: ArmTable) -> str:
     """Return the MJCF text of a single fixed-base arm (base at the world origin)."""
     return _document(arm.name, _arm_bodies(arm, '', 4, False, ''), arm.q_home_deg)
 
 
-def accrea_mjcf():
+def accrea_mjcf() -> str:
     """Return the MJCF text of the ACCREA-like dual-arm robot: torso plus two arms.
 
     Each arm's base is mounted on the torso side with its A1 axis pointing outwards (left
@@ -176,7 +179,7 @@ def accrea_mjcf():
     return _document('accrea_dual_arm', lines, accrea_home_deg(), sensors)
 
 
-def generate():
+def generate() -> dict[str, str]:
     """Return ``{file name: MJCF text}`` of every generated model file."""
     return {
         'lbr4.xml': arm_mjcf(LBR4),
@@ -185,7 +188,7 @@ def generate():
     }
 
 
-def main(argv=None):
+def main(argv: list[str] | None = None) -> int:
     """Write (or with ``--check`` verify) the generated files in ``ifc_spg/model/data``."""
     parser = argparse.ArgumentParser(prog='python -m ifc_spg.model.generate',
                                      description=__doc__.splitlines()[0])

@@ -18,16 +18,22 @@ Velocity and acceleration limits are not representable in MJCF; they come from t
 tables here. Joint names of the KUKA arms follow KUKA's axis names ``A1`` ... ``A7``.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass, replace
 from functools import partial
 import math
 import os
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import ModelError, UnknownJoint, UnknownRobot, did_you_mean
 from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance
+
+if TYPE_CHECKING:  # annotations only: this module is data and does not import the class
+    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = [
     'ArmTable', 'Link', 'ROBOTS', 'LBR4', 'LBR_IIWA14', 'ACCREA_ARM', 'DATA_DIR',
@@ -205,7 +211,7 @@ ACCREA_ARM = replace(
 # bases are mounted on its sides at ACCREA_SHOULDER = (x, +-y, z) [m], each arm's A1 axis
 # pointing outwards (left +y, right -y).
 ACCREA_SHOULDER = (0.0, 0.12, 1.2)
-ACCREA_TORSO = dict(mass=20.0, size=(0.1, 0.12, 0.65))
+ACCREA_TORSO: dict[str, Any] = dict(mass=20.0, size=(0.1, 0.12, 0.65))
 
 # Cartesian admittance defaults per tool chain: K_x [N/m]*3 + [Nm/rad]*3, M_x [kg]*3 +
 # [kg m^2]*3, D_x [Ns/m]*3 + [Nms/rad]*3. D_x is sized for a rigid grasp, not for
@@ -258,7 +264,7 @@ ICUB_WIPE_PAD = ('l_forearm_dh_frame', (-0.0479, 0.0098, 0.0104), 0.015)
 ICUB_WIPE_ARM_DEG = (-30.0, 45.0, 45.0, 60.0, 25.0, 0.0, 0.0)
 
 
-def model_file(name):
+def model_file(name: str) -> str:
     """Return the path of the shared model file of robot ``name``.
 
     Args:
@@ -270,7 +276,7 @@ def model_file(name):
     return os.path.join(DATA_DIR, f'{name}.xml')
 
 
-def robot_arguments(name):
+def robot_arguments(name: str) -> dict[str, Any]:
     """The :class:`~ifc_spg.model.RobotModel` constructor arguments of configuration ``name``.
 
     ``RobotModel.from_config(name)`` builds the model from them (this module is data: it
@@ -309,7 +315,7 @@ def _load_accrea():
         spec_builder=partial(mjcf_spec, 'accrea_dual_arm'))
 
 
-def accrea_home_deg():
+def accrea_home_deg() -> tuple[float, ...]:
     """Home configuration of the dual arm [deg]: the right arm mirrors the left one."""
     left = ACCREA_ARM.q_home_deg
     # The right mount is the left one reflected in the x-z plane and in the arm's own x-z
@@ -333,10 +339,10 @@ def _check_name(name):
 
 
 # -- iCub -----------------------------------------------------------------------------------
-def icub_urdf_path():
+def icub_urdf_path() -> str:
     """Return the path of the iCub URDF shipped in the ``icub-models`` wheel."""
     try:
-        import icub_models
+        import icub_models  # type: ignore[import-untyped]  # the wheel ships no type hints
     except ImportError as exc:
         raise ModelError("robot 'icub_upper_body' needs the icub-models wheel; "
                          'pip install icub-models') from exc
@@ -384,18 +390,18 @@ def _reorder(values, order):
     return np.array([by_name[j] for j in order], dtype=float)
 
 
-def icub_mjcf_spec():
+def icub_mjcf_spec() -> Any:
     """Return a ``mujoco.MjSpec`` of the iCub upper body from the same URDF as the SPG.
 
     The URDF gets a ``<mujoco><compiler .../></mujoco>`` block (meshes from the wheel,
     static links kept as bodies), every joint not in :data:`ICUB_JOINTS` is deleted (its
     child welded at q = 0, exactly like pinocchio's reduction) and the added frames
     (:data:`ICUB_FRAMES`) and the ``l_hand``/``r_hand`` link frames become sites, so every
-    chain of ``RobotModel.from_config('icub_upper_body')`` is a site of the same name. The left forearm
-    carries a massless wiping pad (:data:`ICUB_WIPE_PAD`, geom ``l_wipe_pad``). The root link is
-    fixed to the world at the origin (iCub convention: x backwards, z up). MuJoCo orders the
-    joints differently from pinocchio (right arm first): map them by name, see
-    :func:`mujoco_indices`.
+    chain of ``RobotModel.from_config('icub_upper_body')`` is a site of the same name. The
+    left forearm carries a massless wiping pad (:data:`ICUB_WIPE_PAD`, geom ``l_wipe_pad``).
+    The root link is fixed to the world at the origin (iCub convention: x backwards, z up).
+    MuJoCo orders the joints differently from pinocchio (right arm first): map them by name,
+    see :func:`mujoco_indices`.
     """
     import mujoco
 
@@ -425,7 +431,7 @@ def icub_mjcf_spec():
     return spec
 
 
-def mjcf_spec(name):
+def mjcf_spec(name: str) -> Any:
     """Return a ``mujoco.MjSpec`` of robot ``name``, loaded from its shared model file.
 
     The spec has no actuators (apply joint torques with ``qfrc_applied`` or add motors);
@@ -447,7 +453,7 @@ def mjcf_spec(name):
     return mujoco.MjSpec.from_file(model_file(name))
 
 
-def mujoco_indices(robot, mj_model):
+def mujoco_indices(robot: RobotModel, mj_model: Any) -> tuple[np.ndarray, np.ndarray]:
     """Return the MuJoCo ``qpos`` and ``dof`` addresses of ``robot``'s joints, in its order.
 
     ``q_mujoco[qpos_adr] = q`` maps a pinocchio configuration into MuJoCo (the iCub's joint

@@ -5,7 +5,11 @@ after construction, and every solver creates its own ``Data`` with :meth:`create
 (STYLE #6).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
 import os
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -17,7 +21,7 @@ from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAd
 __all__ = ['CartesianAdmittance', 'RobotModel', 'JOINT_IMPEDANCE', 'CARTESIAN_ADMITTANCE']
 
 
-def _readonly(x, n, what):
+def _readonly(x: Any, n: int, what: str) -> np.ndarray:
     a = np.array(np.broadcast_to(np.asarray(x, dtype=float), (n,)), dtype=float)
     if not np.all(np.isfinite(a)):
         raise ModelError(f'{what} must be finite, got {a.tolist()}')
@@ -51,9 +55,14 @@ class RobotModel:
         compliant_damping: D with zeros at stiff joints [Nms/rad].
     """
 
-    def __init__(self, model, *, name, frames, stiffness, damping, q_min=None, q_max=None,
-                 v_max=None, a_max=10.0, tau_max=None, stiff_joints=(), q_home=None,
-                 ifc=JOINT_IMPEDANCE, admittance=None, model_file=None, spec_builder=None):
+    def __init__(self, model: pin.Model, *, name: str, frames: Mapping[str, str],
+                 stiffness: Any, damping: Any, q_min: Any = None, q_max: Any = None,
+                 v_max: Any = None, a_max: Any = 10.0, tau_max: Any = None,
+                 stiff_joints: Sequence[str] = (), q_home: Any = None,
+                 ifc: str = JOINT_IMPEDANCE,
+                 admittance: Mapping[str, CartesianAdmittance] | None = None,
+                 model_file: str | None = None,
+                 spec_builder: Callable[[], Any] | None = None) -> None:
         if model.nq != model.nv:
             raise ModelError(f"model '{name}': only 1-DoF revolute/prismatic joints are "
                              f'supported (nq={model.nq} != nv={model.nv}); replace continuous '
@@ -129,7 +138,9 @@ class RobotModel:
 
     # -- construction --------------------------------------------------------------------
     @classmethod
-    def from_urdf(cls, path, *, joints=None, q_lock=None, **ifc_params):
+    def from_urdf(cls, path: str | os.PathLike[str], *, joints: Sequence[str] | None = None,
+                  q_lock: Mapping[str, float] | None = None,
+                  **ifc_params: Any) -> RobotModel:
         """Load a URDF; keep only ``joints`` (others locked at ``q_lock``, default 0)."""
         if not os.path.isfile(path):
             raise ModelError(f"URDF file '{path}' does not exist")
@@ -141,7 +152,9 @@ class RobotModel:
         return cls(model, model_file=str(path), **ifc_params)
 
     @classmethod
-    def from_mjcf(cls, path, *, joints=None, q_lock=None, **ifc_params):
+    def from_mjcf(cls, path: str | os.PathLike[str], *, joints: Sequence[str] | None = None,
+                  q_lock: Mapping[str, float] | None = None,
+                  **ifc_params: Any) -> RobotModel:
         """Load an MJCF file; keep only ``joints`` (others locked at ``q_lock``, default 0)."""
         if not os.path.isfile(path):
             raise ModelError(f"MJCF file '{path}' does not exist")
@@ -153,11 +166,12 @@ class RobotModel:
         return cls(model, model_file=str(path), **ifc_params)
 
     @classmethod
-    def from_config(cls, name):
+    def from_config(cls, name: str) -> RobotModel:
         """Build a named configuration: ``lbr4``, ``lbr_iiwa14``, ``icub_upper_body``, ..."""
         return cls(**registry.robot_arguments(name))
 
-    def with_gains(self, stiffness=None, damping=None, *, where=''):
+    def with_gains(self, stiffness: Any = None, damping: Any = None, *,
+                   where: str = '') -> RobotModel:
         """This robot with other joint-impedance gains (the pinocchio model is shared).
 
         Args:
@@ -175,7 +189,7 @@ class RobotModel:
         """
         if stiffness is None and damping is None:
             return self
-        gains = {}
+        gains: dict[str, np.ndarray] = {}
         for key, raw, old in (('stiffness', stiffness, self.stiffness),
                               ('damping', damping, self.damping)):
             if raw is None:
@@ -201,7 +215,7 @@ class RobotModel:
             admittance=self.admittance, model_file=self.model_file,
             spec_builder=self._spec_builder, **gains)
 
-    def mjcf_spec(self):
+    def mjcf_spec(self) -> Any:
         """Return a fresh ``mujoco.MjSpec`` of this robot for the simulator.
 
         Named configurations build it from the same file pinocchio loaded (the iCub: its
@@ -216,11 +230,11 @@ class RobotModel:
         return mujoco.MjSpec.from_file(str(self.model_file))
 
     # -- lookups -------------------------------------------------------------------------
-    def create_data(self):
+    def create_data(self) -> pin.Data:
         """Return a fresh pinocchio ``Data`` owned by the caller."""
         return self.model.createData()
 
-    def frame_id(self, chain):
+    def frame_id(self, chain: str) -> int:
         """Return the pinocchio frame id of chain id ``chain`` (raises :class:`UnknownFrame`)."""
         try:
             return self._frame_ids[chain]
@@ -230,7 +244,7 @@ class RobotModel:
                 f"{did_you_mean(chain, self._frame_ids)}; available: "
                 f"{', '.join(sorted(self._frame_ids)) or '(none)'}") from None
 
-    def joint_index(self, joint):
+    def joint_index(self, joint: str) -> int:
         """Return the index of joint ``joint`` in q (raises :class:`UnknownJoint`)."""
         try:
             return self._joint_index[joint]
@@ -241,16 +255,17 @@ class RobotModel:
                 f"{', '.join(self.joint_names)}") from None
 
     @property
-    def chains(self):
+    def chains(self) -> tuple[str, ...]:
         """The chain ids (frame names usable in task stacks)."""
         return tuple(self._frame_ids)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f'RobotModel({self.name!r}, n={self.n}, ifc={self.ifc!r}, '
                 f'chains={list(self._frame_ids)})')
 
 
-def _reduce(model, joints, q_lock):
+def _reduce(model: pin.Model, joints: Sequence[str] | None,
+            q_lock: Mapping[str, float] | None) -> pin.Model:
     if joints is None:
         return model
     names = list(model.names[1:])
