@@ -112,44 +112,64 @@ def solve_ik(robot, data, frame_id, q, p_target, R_target, iterations=3, damping
     span = robot.q_max - robot.q_min
     margin = np.minimum(limit_margin, 0.1 * np.where(np.isfinite(span), span, np.inf))
     lo, hi = (robot.q_min + margin)[idx], (robot.q_max - margin)[idx]
-    eye = np.eye(6)
     for it in range(iterations):
-        pin.framesForwardKinematics(robot.model, data, q)
-        oMf = data.oMf[frame_id]
-        r_err = R_target @ oMf.rotation.T
-        e = np.concatenate([p_target - oMf.translation, pin.log3(r_err)])
-        J = pin.computeFrameJacobian(robot.model, data, q, frame_id, _LWA)[:, idx]
-        J[3:] = pin.Jlog3(r_err) @ J[3:]
-        sigma = np.linalg.svd(J, compute_uv=False)[-1]
-        lam2 = damping ** 2
-        if sigma < singular_value:
-            lam2 += max_damping ** 2 * (1.0 - (sigma / singular_value) ** 2)
+        e, J = _pose_error(robot, data, frame_id, q, p_target, R_target, idx)
+        lam2 = _dls_damping(J, damping, singular_value, max_damping)
         z = None
         if it == 0 and q_rest is not None and null_gain > 0:
             z = null_gain * (np.asarray(q_rest, dtype=float)[idx] - q[idx])
         qi = q[idx]
-        free = np.ones(len(idx), dtype=bool)
-        dq = np.zeros(len(idx))
-        for _ in range(len(idx)):
-            Jf = J[:, free]
-            rhs = e - J[:, ~free] @ dq[~free]
-            pinv = Jf.T @ np.linalg.inv(Jf @ Jf.T + lam2 * eye)
-            step = pinv @ rhs
-            if z is not None:
-                step += z[free] - pinv @ (Jf @ z[free])
-            dq[free] = step
-            new = qi + dq
-            bad = free & ((new < lo) | (new > hi))
-            if not bad.any():
-                break
-            # Hold violators at the limit (or where they are, if already beyond it).
-            dq[bad] = np.clip(new[bad], np.minimum(lo, qi)[bad], np.maximum(hi, qi)[bad]) \
-                - qi[bad]
-            free &= ~bad
-            if not free.any():
-                break
-        q[idx] = qi + dq
+        q[idx] = qi + _clamped_step(J, e, z, qi, lo, hi, lam2)
     return q
+
+
+def _pose_error(robot, data, frame_id, q, p_target, R_target, idx):
+    """Error [p_target - p; log3(R_target R^T)] and its Jacobian in the ``idx`` joints."""
+    pin.framesForwardKinematics(robot.model, data, q)
+    oMf = data.oMf[frame_id]
+    r_err = R_target @ oMf.rotation.T
+    e = np.concatenate([p_target - oMf.translation, pin.log3(r_err)])
+    J = pin.computeFrameJacobian(robot.model, data, q, frame_id, _LWA)[:, idx]
+    J[3:] = pin.Jlog3(r_err) @ J[3:]
+    return e, J
+
+
+def _dls_damping(J, damping, singular_value, max_damping):
+    """lambda^2: ``damping``^2, growing towards ``max_damping``^2 near a singularity."""
+    sigma = np.linalg.svd(J, compute_uv=False)[-1]
+    lam2 = damping ** 2
+    if sigma < singular_value:
+        lam2 += max_damping ** 2 * (1.0 - (sigma / singular_value) ** 2)
+    return lam2
+
+
+def _clamped_step(J, e, z, qi, lo, hi, lam2):
+    """The damped least-squares step from ``qi``, re-solved with joints held at their limits.
+
+    ``z`` (or None) is the null-space motion towards the rest posture.
+    """
+    eye = np.eye(6)
+    free = np.ones(len(qi), dtype=bool)
+    dq = np.zeros(len(qi))
+    for _ in range(len(qi)):
+        Jf = J[:, free]
+        rhs = e - J[:, ~free] @ dq[~free]
+        pinv = Jf.T @ np.linalg.inv(Jf @ Jf.T + lam2 * eye)
+        step = pinv @ rhs
+        if z is not None:
+            step += z[free] - pinv @ (Jf @ z[free])
+        dq[free] = step
+        new = qi + dq
+        bad = free & ((new < lo) | (new > hi))
+        if not bad.any():
+            break
+        # Hold violators at the limit (or where they are, if already beyond it).
+        dq[bad] = np.clip(new[bad], np.minimum(lo, qi)[bad], np.maximum(hi, qi)[bad]) \
+            - qi[bad]
+        free &= ~bad
+        if not free.any():
+            break
+    return dq
 
 
 def _admittance_time_constant(adm, rows):

@@ -147,5 +147,6 @@ class FixedDirection(DirectionEstimator):
             np.asarray(direction, dtype=float).reshape(-1))))
 
     def update(self, pdot, stamp=None):
+        """Count the sample; the direction stays fixed. Returns it."""
         self.samples += 1
         return self.direction

@@ -125,6 +125,7 @@ class AxisAlignTask(Task):
         self.sign = -1.0 if pull else 1.0
 
     def level(self, kin, t):
+        """The alignment level: ``S^T J_ang qdot_v = k_o S^T (sign z_ee x d_hat)``."""
         _, R, J = kin.frame(self.frame_id, virtual=True)
         S = R[:, self.columns]  # 3 x m, base frame
         omega = (self.sign * self.k_o) * np.cross(R[:, 2], self.estimator.direction)
@@ -132,9 +133,11 @@ class AxisAlignTask(Task):
         return Level(self.name, S.T @ J[3:], beta, beta, True)
 
     def compute_value(self, kin):
+        """Zero: the alignment is a velocity task (its level holds the error term)."""
         return np.zeros(self.dim)
 
     def compute_jacobian(self, kin):
+        """A = S^T J_v,ang with S the chosen axes of the virtual end-effector frame."""
         _, R, J = kin.frame(self.frame_id, virtual=True)
         return R[:, self.columns].T @ J[3:]
 
@@ -223,14 +226,7 @@ def build_tasks(robot, spec):
     if spec.get('type', 'constrained_manipulation') != 'constrained_manipulation':
         raise _err(f"type must be 'constrained_manipulation', got {spec['type']!r}")
     prefix = str(spec.get('name', 'constrained'))
-    if 'frame' in spec:
-        frame = spec['frame']
-    elif 'tool' in robot.chains:
-        frame = 'tool'
-    else:
-        raise _err(f"'frame' is required for robot '{robot.name}' (it has no 'tool'); "
-                   f"chains: {', '.join(robot.chains)}")
-    robot.frame_id(frame)
+    frame = _frame(robot, spec)
     kappa = _number(spec.get('kappa', 9.0), 'kappa')
     gain = _number(spec.get('gain', 50.0), 'gain')
     max_force = spec.get('max_force')
@@ -241,7 +237,30 @@ def build_tasks(robot, spec):
         raise _err(f"'force' must be 'measured' (alpha_d = P_hat f_s, Table 5.1) or 0, got "
                    f'{force!r}')
     estimator = _make_estimator(spec)
+    orientation, k_o = _orientation(spec)
+    tasks = [ConstrainedWrenchTask(robot, frame=frame, estimator=estimator, kappa=kappa,
+                                   gain=gain, force=force, max_force=max_force,
+                                   name=f'{prefix}.exploration')]
+    tasks.extend(_orientation_tasks(robot, frame, estimator, orientation, k_o, prefix))
+    tasks.extend(_posture_tasks(robot, spec.get('posture', {}), prefix))
+    return tasks
 
+
+def _frame(robot, spec):
+    """The interaction chain: ``frame``, else ``tool`` where the model has it."""
+    if 'frame' in spec:
+        frame = spec['frame']
+    elif 'tool' in robot.chains:
+        frame = 'tool'
+    else:
+        raise _err(f"'frame' is required for robot '{robot.name}' (it has no 'tool'); "
+                   f"chains: {', '.join(robot.chains)}")
+    robot.frame_id(frame)
+    return frame
+
+
+def _orientation(spec):
+    """``(mode, k_o)`` of the ``orientation`` entry (a mode name or ``{mode, gain}``)."""
     orientation = spec.get('orientation', 'fixed')
     k_o = 2.0
     if isinstance(orientation, dict):
@@ -251,31 +270,34 @@ def build_tasks(robot, spec):
     if orientation not in ORIENTATIONS:
         raise _err(f"orientation '{orientation}' unknown{did_you_mean(orientation, ORIENTATIONS)}"
                    f"; choose one of {', '.join(ORIENTATIONS)}")
+    return orientation, k_o
 
-    tasks = [ConstrainedWrenchTask(robot, frame=frame, estimator=estimator, kappa=kappa,
-                                   gain=gain, force=force, max_force=max_force,
-                                   name=f'{prefix}.exploration')]
+
+def _orientation_tasks(robot, frame, estimator, orientation, k_o, prefix):
+    """The orientation levels of 5.15-5.20 (none for ``free``)."""
     if orientation == 'fixed':
-        tasks.append(CartesianPoseTask(robot, frame=frame, axes=('rx', 'ry', 'rz'),
-                                       equal='init', gain=k_o, name=f'{prefix}.orientation'))
-    elif orientation in ('align_z', 'release_y'):
-        z_axis = np.zeros((6, 1))
-        z_axis[5, 0] = 1.0
-        tasks.append(CartesianPoseTask(robot, frame=frame, subspace=z_axis,
-                                       subspace_frame='ee_orientation', equal=0.0, gain=k_o,
-                                       name=f'{prefix}.hold_z'))
-        axes = ('x', 'y') if orientation == 'align_z' else ('x',)
-        tasks.append(AxisAlignTask(robot, frame=frame, estimator=estimator, axes=axes,
-                                   gain=k_o, name=f'{prefix}.{orientation}'))
+        return [CartesianPoseTask(robot, frame=frame, axes=('rx', 'ry', 'rz'), equal='init',
+                                  gain=k_o, name=f'{prefix}.orientation')]
+    if orientation not in ('align_z', 'release_y'):
+        return []
+    z_axis = np.zeros((6, 1))
+    z_axis[5, 0] = 1.0
+    axes = ('x', 'y') if orientation == 'align_z' else ('x',)
+    return [CartesianPoseTask(robot, frame=frame, subspace=z_axis,
+                              subspace_frame='ee_orientation', equal=0.0, gain=k_o,
+                              name=f'{prefix}.hold_z'),
+            AxisAlignTask(robot, frame=frame, estimator=estimator, axes=axes, gain=k_o,
+                          name=f'{prefix}.{orientation}')]
 
-    posture = spec.get('posture', {})
-    if posture is not False and posture is not None:
-        _check_keys(posture, _POSTURE_KEYS, 'posture')
-        p_gain = _number(posture.get('gain', 1.0), 'posture.gain')
-        equal = posture.get('equal', 'init')
-        try:
-            tasks.append(JointPositionTask(robot, equal=equal, gain=p_gain,
-                                           name=f'{prefix}.posture'))
-        except IfcSpgError as exc:
-            raise _err(f'posture.equal: {exc}') from exc
-    return tasks
+
+def _posture_tasks(robot, posture, prefix):
+    """The posture level (joint position), or none for ``posture: false``."""
+    if posture is False or posture is None:
+        return []
+    _check_keys(posture, _POSTURE_KEYS, 'posture')
+    p_gain = _number(posture.get('gain', 1.0), 'posture.gain')
+    equal = posture.get('equal', 'init')
+    try:
+        return [JointPositionTask(robot, equal=equal, gain=p_gain, name=f'{prefix}.posture')]
+    except IfcSpgError as exc:
+        raise _err(f'posture.equal: {exc}') from exc

@@ -68,26 +68,40 @@ def _arm_bodies(arm, prefix, indent, tool_site, mount):
                f'size="{_num(arm.base_radius)} {_num(h / 2)}" pos="0 0 {_num(h / 2)}" '
                f'rgba="{_DARK}" {_COLLISION}/>')
     depth = indent + 2
-    for i, lk in enumerate(arm.links, start=1):
-        pad = ' ' * depth
-        lo, hi = -math.radians(arm.q_max_deg[i - 1]), math.radians(arm.q_max_deg[i - 1])
-        tau = arm.tau_max[i - 1]
-        out.append(f'{pad}<body name="{prefix}link{i}" pos="{_vec(lk.pos)}">')
-        out.append(f'{pad}  <inertial pos="{_vec(lk.com)}" mass="{_num(lk.mass)}" '
-                   f'diaginertia="{_vec(lk.inertia)}"/>')
-        out.append(f'{pad}  <joint name="{prefix}A{i}" type="hinge" axis="{_vec(lk.axis)}" '
-                   f'range="{_num(lo)} {_num(hi)}" actuatorfrcrange="{_num(-tau)} {_num(tau)}" '
-                   f'armature="{_num(arm.armature)}" damping="{_num(arm.joint_damping)}"/>')
-        rgba = _ORANGE if i % 2 == 0 else _GREY
-        if lk.length > 0:
-            out.append(f'{pad}  <geom name="{prefix}link{i}_geom" type="capsule" '
-                       f'fromto="0 0 0 0 0 {_num(lk.length)}" size="{_num(lk.radius)}" '
-                       f'rgba="{rgba}" {_COLLISION}/>')
-        else:
-            out.append(f'{pad}  <geom name="{prefix}link{i}_geom" type="sphere" '
-                       f'size="{_num(lk.radius)}" rgba="{rgba}" {_COLLISION}/>')
+    for i in range(1, len(arm.links) + 1):
+        out.extend(_link(arm, i, prefix, ' ' * depth))
         depth += 2
-    pad = ' ' * depth
+    out.extend(_tool(arm, prefix, ' ' * depth, tool_site))
+    for d in range(depth - 2, indent - 2, -2):
+        out.append(' ' * d + '</body>')
+    return out
+
+
+def _link(arm: ArmTable, i: int, prefix: str, pad: str) -> list[str]:
+    """The opening lines of link ``i`` (1-based): body, inertial, joint and geom."""
+    lk = arm.links[i - 1]
+    lo, hi = -math.radians(arm.q_max_deg[i - 1]), math.radians(arm.q_max_deg[i - 1])
+    tau = arm.tau_max[i - 1]
+    out = [f'{pad}<body name="{prefix}link{i}" pos="{_vec(lk.pos)}">',
+           f'{pad}  <inertial pos="{_vec(lk.com)}" mass="{_num(lk.mass)}" '
+           f'diaginertia="{_vec(lk.inertia)}"/>',
+           f'{pad}  <joint name="{prefix}A{i}" type="hinge" axis="{_vec(lk.axis)}" '
+           f'range="{_num(lo)} {_num(hi)}" actuatorfrcrange="{_num(-tau)} {_num(tau)}" '
+           f'armature="{_num(arm.armature)}" damping="{_num(arm.joint_damping)}"/>']
+    rgba = _ORANGE if i % 2 == 0 else _GREY
+    if lk.length > 0:
+        out.append(f'{pad}  <geom name="{prefix}link{i}_geom" type="capsule" '
+                   f'fromto="0 0 0 0 0 {_num(lk.length)}" size="{_num(lk.radius)}" '
+                   f'rgba="{rgba}" {_COLLISION}/>')
+    else:
+        out.append(f'{pad}  <geom name="{prefix}link{i}_geom" type="sphere" '
+                   f'size="{_num(lk.radius)}" rgba="{rgba}" {_COLLISION}/>')
+    return out
+
+
+def _tool(arm: ArmTable, prefix: str, pad: str, tool_site: bool) -> list[str]:
+    """The flange site and the tool (a separate body with an F/T site if ``tool_site``)."""
+    out = []
     f, r, length = arm.flange, arm.tool_radius, arm.tool_length
     out.append(f'{pad}<site name="{prefix}flange" pos="0 0 {_num(f)}" size="0.005"/>')
     if tool_site:
@@ -107,8 +121,6 @@ def _arm_bodies(arm, prefix, indent, tool_site, mount):
     else:
         out.extend(_tool_geoms(pad, prefix, f, length, r))
         out.append(f'{pad}<site name="{prefix}tool" pos="0 0 {_num(f + length)}" size="0.005"/>')
-    for d in range(depth - 2, indent - 2, -2):
-        out.append(' ' * d + '</body>')
     return out
 
 
