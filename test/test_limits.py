@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ifc_spg import RobotModel
-from ifc_spg.cascade.daqp import DaqpCascade
+from ifc_spg.cascade import DaqpCascade
 from ifc_spg.limits import (
     JointVelocityLimits,
     VelocityBox,
