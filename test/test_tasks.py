@@ -278,15 +278,15 @@ def test_full_pose_equals_the_same_axes_in_another_order():
         np.testing.assert_allclose(A_f[perm], A_s, atol=1e-12)
 
 
-def test_minimal_rotation_takes_u_onto_v_by_the_least_angle():
-    from ifc_spg.tasks.cartesian_pose_task import _minimal_rotation
+def testminimal_rotation_takes_u_onto_v_by_the_least_angle():
+    from ifc_spg.tasks.cartesian_pose_task import minimal_rotation
     rng = np.random.default_rng(5)
     for k in range(500):
         u = rng.normal(size=3)
         u /= np.linalg.norm(u)
         v = rng.normal(size=3) if k % 50 else -u  # include the antiparallel case
         v /= np.linalg.norm(v)
-        R = _minimal_rotation(u, v)
+        R = minimal_rotation(u, v)
         np.testing.assert_allclose(R @ u, v, atol=1e-12)
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
         angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))

@@ -9,6 +9,7 @@ stricter (orthonormal columns, robot-dependent checks) and gives the better mess
 import json
 import os
 import sys
+from typing import Any
 
 from ifc_spg.task_stack.spec import (
     BOUND_FIELDS,
@@ -149,7 +150,7 @@ def _subspace(axes):
                        'numbers each); frame base | ee | ee_orientation.'}
 
 
-def schema():
+def schema() -> dict[str, Any]:
     """Return the JSON Schema (draft 2020-12) of task-stack version 1 as a dict."""
     if set(SUBSPACE_FIELDS) != {'axes', 'columns', 'frame'}:
         raise RuntimeError('subspace fields changed; update the schema')
@@ -196,13 +197,13 @@ def schema():
     }
 
 
-def load_schema():
+def load_schema() -> dict[str, Any]:
     """Return the shipped schema file as a dict."""
     with open(SCHEMA_PATH, encoding='utf-8') as f:
         return json.load(f)
 
 
-def dumps():
+def dumps() -> str:
     """The schema as the text of the shipped file."""
     return json.dumps(schema(), indent=2) + '\n'
 

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from ifc_spg.kinematics import Kinematics
     from ifc_spg.model.robot_model import RobotModel
 
-__all__ = ['CartesianPoseTask']
+__all__ = ['CartesianPoseTask', 'minimal_rotation']
 
 
 class CartesianPoseTask(Task):
@@ -116,8 +116,8 @@ class CartesianPoseTask(Task):
         if a is None:
             return R_ref
         if self.subspace_frame == 'base':  # free rotation about the base axis a
-            return R @ _minimal_rotation(R.T @ a, R_ref.T @ a).T
-        return _minimal_rotation(R @ a, R_ref @ a) @ R
+            return R @ minimal_rotation(R.T @ a, R_ref.T @ a).T
+        return minimal_rotation(R @ a, R_ref @ a) @ R
 
     def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(alpha, A, 0)`` in one computation (gamma is zero: a position task)."""
@@ -176,7 +176,7 @@ def _free_rotation_axis(S: np.ndarray) -> np.ndarray | None:
     return u[:, 2].copy()
 
 
-def _minimal_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def minimal_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The rotation of least angle taking unit vector u onto unit vector v."""
     # (3-vector algebra in Python floats: np.cross costs ~20 us per call)
     u0, u1, u2 = u.tolist()
