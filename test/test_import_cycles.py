@@ -1,7 +1,8 @@
 """The package's import graph has no cycle: a concept depends on the ones below it only.
 
 Every ``import`` of an ``ifc_spg`` module counts, at module level or inside a function (a
-deferred import hides a cycle from the interpreter, not from a reader).
+deferred import hides a cycle from the interpreter, not from a reader) — except those under
+``if TYPE_CHECKING:``, which only type checkers run (annotations naming a higher layer's type).
 """
 
 import ast
@@ -20,6 +21,18 @@ def _module_name(path):
     return '.'.join(parts)
 
 
+def _type_checking_only(tree):
+    """The import nodes under ``if TYPE_CHECKING:`` (or ``typing.TYPE_CHECKING``)."""
+    hidden = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and (
+                (isinstance(node.test, ast.Name) and node.test.id == 'TYPE_CHECKING') or
+                (isinstance(node.test, ast.Attribute) and node.test.attr == 'TYPE_CHECKING')):
+            for stmt in node.body:
+                hidden.update(id(n) for n in ast.walk(stmt))
+    return hidden
+
+
 def import_graph():
     """{module: set of ifc_spg/sim_bridge modules it imports} from the source files."""
     files = {_module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob('*.py')}
@@ -27,7 +40,11 @@ def import_graph():
     for name, path in files.items():
         deps = set()
         is_pkg = path.name == '__init__.py'
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        tree = ast.parse(path.read_text(), str(path))
+        hidden = _type_checking_only(tree)
+        for node in ast.walk(tree):
+            if id(node) in hidden:
+                continue
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom):
@@ -83,7 +100,17 @@ def test_the_cycle_finder_finds_a_cycle():
 def test_the_graph_sees_deferred_and_from_imports():
     graph = import_graph()
     assert 'ifc_spg.spg' in graph['ifc_spg']          # from ifc_spg.spg import ...
+    assert 'ifc_spg.model.registry' in graph['ifc_spg.model.robot_model']
     assert len(graph) > 60
+
+
+def test_type_checking_imports_are_not_edges():
+    tree = ast.parse('from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import a\n'
+                     'import b\n')
+    hidden = _type_checking_only(tree)
+    names = [n.names[0].name for n in ast.walk(tree)
+             if isinstance(n, ast.Import) and id(n) not in hidden]
+    assert names == ['b']
 
 
 @pytest.mark.parametrize('package', PACKAGES)
