@@ -383,3 +383,18 @@ def test_reference_rotation_is_captured_at_activation_and_read_only():
     np.testing.assert_array_equal(task.reference_rotation, R0)
     with pytest.raises(ValueError):
         task.reference_rotation[0, 0] = 2.0
+
+
+def test_bound_is_abstract_and_init_resolves_only_on_activation():
+    from ifc_spg.tasks import INIT, Bound, Constant
+
+    class NoEvaluate(Bound):
+        pass
+
+    with pytest.raises(TypeError, match='evaluate'):
+        NoEvaluate()
+    with pytest.raises(IfcSpgError, match='before activation'):
+        INIT.evaluate(0.0)
+    resolved = INIT.activate(np.array([1.0, 2.0]))
+    assert isinstance(resolved, Constant)
+    np.testing.assert_array_equal(resolved.evaluate(3.0)[0], [1.0, 2.0])

@@ -8,6 +8,7 @@ task's subspace coordinates and its rate (the default feed-forward, SPEC 4.25-4.
 
 from __future__ import annotations
 
+import abc
 from typing import Any
 
 import numpy as np
@@ -17,8 +18,8 @@ from ifc_spg.errors import IfcSpgError
 __all__ = ['Bound', 'Constant', 'Init', 'INIT', 'as_bound']
 
 
-class Bound:
-    """A task bound alpha(t) with rate d(alpha)/dt, in subspace coordinates.
+class Bound(abc.ABC):
+    """A task bound alpha(t) with rate d(alpha)/dt, in subspace coordinates (abstract).
 
     Subclasses implement :meth:`evaluate`; :meth:`activate` resolves values that depend on
     the task value at activation (``init``) and returns the bound to use.
@@ -34,9 +35,9 @@ class Bound:
         """
         return self
 
+    @abc.abstractmethod
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(value (m,), rate (m,))`` at task time ``t`` in [s]."""
-        raise NotImplementedError(f'{type(self).__name__} does not implement evaluate(t)')
 
 
 class Constant(Bound):
@@ -80,6 +81,11 @@ class Init(Bound):
         value = np.array(self.other.evaluate(0.0)[0], dtype=float)
         value[self.mask] = init_value[self.mask]
         return Constant(value)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Raise: ``init`` has no value before activation; evaluate what activate returns."""
+        raise IfcSpgError('an init bound has no value before activation; evaluate the bound '
+                          'that activate(init_value) returns')
 
     def __repr__(self) -> str:
         return 'Init()' if self.mask is None else f'Init(mask={self.mask.tolist()})'
