@@ -1,0 +1,359 @@
+"""The pass rules of the reproduction: one row per thesis claim, fixed before the runs.
+
+Each :class:`Claim` names the thesis statement and where it is printed (table, figure,
+section), the thesis value (most Ch. 3/4 experiments are plots without numbers: then the
+statement is the value), our metric, the rule (``op`` and ``bound``) and, in ``history``,
+every change of a setup or threshold made after a result had been seen, with the reason.
+The harness (:mod:`experiments.reproduce`) evaluates the rules on the numbers of each run
+and prints per claim: thesis value, ours, rule, verdict. An experiment is reproduced when
+all of its claims pass. Nothing here is tuned to a run: a rule that fails, fails.
+
+Version 2 (issue 21). Version 1 was the one-line checks in ``reproduce.py`` (the summary
+texts of docs/REPRODUCTION.md before issue 21).
+"""
+
+import dataclasses
+import math
+
+__all__ = ['CLAIMS', 'Claim', 'evaluate', 'VERSION']
+
+VERSION = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Claim:
+    """One thesis claim and its pass rule.
+
+    Attributes:
+        id: Unique name (``<experiment>.<what>``).
+        experiment: Experiment name in :mod:`experiments.reproduce`.
+        source: Where the thesis (or report) states it.
+        thesis: The thesis value or statement.
+        metric: What we measure (with unit).
+        get: numbers -> our value (float or bool), from the experiment's check numbers.
+        op: '<', '<=', '>', '>=', 'abs<=' (|ours - target| <= bound), 'factor' (ours
+            within a factor ``bound`` of ``target``) or 'true'.
+        bound: The threshold (or tolerance for 'abs<=' / 'factor').
+        target: The value compared against for 'abs<=' / 'factor'.
+        scale: Display factor of ours/bound (e.g. 1e3 for m -> mm).
+        unit: Display unit.
+        quick: Evaluated in ``--quick`` runs too (False: needs the full run).
+        history: Changes after a result had been seen, and why.
+    """
+
+    id: str
+    experiment: str
+    source: str
+    thesis: str
+    metric: str
+    get: object
+    op: str
+    bound: float = 0.0
+    target: float = None
+    scale: float = 1.0
+    unit: str = ''
+    quick: bool = True
+    history: str = ''
+
+    def rule(self):
+        """The pass rule as text."""
+        u = f' {self.unit}' if self.unit else ''
+        if self.op == 'true':
+            return 'holds'
+        if self.op == 'abs<=':
+            return f'{self.target * self.scale:g} +- {self.bound * self.scale:g}{u}'
+        if self.op == 'factor':
+            return (f'{self.target * self.scale / self.bound:.3g} ... '
+                    f'{self.target * self.scale * self.bound:.3g}{u} (x/ {self.bound:g})')
+        return f'{self.op} {self.bound * self.scale:g}{u}'
+
+
+def _ok(c, v):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return False
+    ops = {'<': lambda: v < c.bound, '<=': lambda: v <= c.bound, '>': lambda: v > c.bound,
+           '>=': lambda: v >= c.bound, 'true': lambda: bool(v),
+           'abs<=': lambda: abs(v - c.target) <= c.bound,
+           'factor': lambda: c.target / c.bound <= v <= c.target * c.bound}
+    return bool(ops[c.op]())
+
+
+def evaluate(experiment, numbers, quick=False):
+    """Evaluate the claims of ``experiment`` on its check numbers; a list of dict rows."""
+    rows = []
+    for c in CLAIMS:
+        if c.experiment != experiment or (quick and not c.quick):
+            continue
+        try:
+            v = c.get(numbers)
+        except (KeyError, IndexError, TypeError, ZeroDivisionError):
+            v = None
+        if isinstance(v, bool) or c.op == 'true':
+            ours = 'yes' if v else 'no'
+        elif v is None:
+            ours = 'n/a'
+        else:
+            ours = f'{float(v) * c.scale:.3g}{(" " + c.unit) if c.unit else ""}'
+        rows.append({'id': c.id, 'experiment': c.experiment, 'source': c.source,
+                     'thesis': c.thesis, 'metric': c.metric, 'ours': ours,
+                     'value': None if v is None else (bool(v) if c.op == 'true' else float(v)),
+                     'rule': c.rule(), 'passed': _ok(c, v), 'history': c.history})
+    return rows
+
+
+def _ratio(key, hi=-1, lo=0):
+    return lambda n: n[key][hi] / n[key][lo]
+
+
+_PLOT = 'no number (plot)'
+_OURS = ('threshold ours (the thesis prints plots only), unchanged since it was first '
+         'written')
+
+CLAIMS = (
+    # -- Ch. 3, LBR (Sec. 3.3.1) ---------------------------------------------------------
+    Claim('table_3_2.force', 'table_3_2', 'Table 3.2, Sec. 3.3.1, Fig. 3.12(a)',
+          'constant 8 N contact force while tracking the circle', 'force error RMS [N]',
+          lambda n: n['force_error_rms_n'], '<', 4.0, unit='N', history=_OURS),
+    Claim('table_3_2.position', 'table_3_2', 'Table 3.2, Fig. 3.12(a)',
+          'circle tracked (' + _PLOT + ')', 'physical circle error RMS',
+          lambda n: n['position_error_rms_m'], '<', 0.02, scale=1e3, unit='mm', history=_OURS),
+    Claim('table_3_2.contact', 'table_3_2', 'Table 3.2, Fig. 3.12(a)', 'contact kept',
+          'share of samples under 1 N', lambda n: n['contact_lost_share'], '<', 0.05,
+          scale=100, unit='%', history=_OURS),
+    Claim('k_sweep.position', 'k_sweep', 'Fig. 3.15, Sec. 3.3.1',
+          'higher stiffness: better position tracking', 'position error RMS, K=400 / K=40',
+          _ratio('position_error_rms_m'), '<', 0.9,
+          history='margin 10 % ours, unchanged'),
+    Claim('k_sweep.force', 'k_sweep', 'Fig. 3.15 caption',
+          'slightly higher average force error for higher stiffness',
+          'force error RMS, K=400 / K=40', _ratio('force_error_rms_n'), '>', 1.0,
+          history='new in v2 (the caption states it; v1 checked the position trend only)'),
+    Claim('speed_sweep.position', 'speed_sweep', 'Fig. 3.14 (K = 400 Nm/rad)',
+          'position tracking decreases for faster execution', 'position error RMS, '
+          '15 / 2.5 cm/s', _ratio('position_error_rms_m'), '>', 1.1,
+          history="v1 ran the sweep at K = 200; v2 at the thesis' K = 400 (issue 21)"),
+    Claim('speed_sweep.force', 'speed_sweep', 'Fig. 3.14 (K = 400 Nm/rad)',
+          'force error increases with speed (dynamic effects)', 'force error RMS, '
+          '15 / 2.5 cm/s', _ratio('force_error_rms_n'), '>', 1.1,
+          history='as speed_sweep.position'),
+    Claim('table_3_3.force', 'table_3_3', 'Table 3.3, Fig. 3.12(b)', '8 N while wiping',
+          'force error RMS', lambda n: n['force_error_rms_n'], '<', 4.0, unit='N',
+          history=_OURS),
+    Claim('table_3_3.position', 'table_3_3', 'Table 3.3', 'Lissajous figure wiped '
+          '("neither very accurate position nor force tracking required")',
+          'physical wipe error RMS', lambda n: n['position_error_rms_m'], '<', 0.03,
+          scale=1e3, unit='mm', history=_OURS),
+    Claim('table_3_3.contact', 'table_3_3', 'Table 3.3', 'contact kept',
+          'share of samples under 1 N', lambda n: n['contact_lost_share'], '<', 0.05,
+          scale=100, unit='%', history=_OURS),
+    Claim('table_3_4.limit_full', 'table_3_4', 'Sec. 3.3.1, Fig. 3.13',
+          'constant orientation: a joint limit is hit (clamping)',
+          'ticks with a joint within dl_crit + 1 mrad of a limit, full',
+          lambda n: n['full']['ticks_at_joint_limit'], '>', 0,
+          history='setup (R = 0.15 m, A7 started 6 deg from its limit) chosen in v1 so that '
+          'the limit is hit (the thesis gives neither R nor the start pose)'),
+    Claim('table_3_4.contact', 'table_3_4', 'Table 3.4 task 1', '6 N on the paper while '
+          'drawing', 'share of samples under 1 N, worse of full / relaxed',
+          lambda n: max(n['full']['contact_lost_share'], n['relaxed']['contact_lost_share']),
+          '<', 0.05, scale=100, unit='%',
+          history='added in v2 after the first nullspace run lost the contact (the rule of '
+          'Tables 3.2/3.3, fixed in v1)'),
+    Claim('table_3_4.limit_relaxed', 'table_3_4', 'Sec. 3.3.1, Fig. 3.13',
+          'rotation about the pen free: the limit is avoided', 'ticks at a limit, relaxed',
+          lambda n: n['relaxed']['ticks_at_joint_limit'], '<=', 0),
+    Claim('table_3_4.peak_qdot', 'table_3_4', 'Sec. 3.3.1, Fig. 3.13',
+          'smaller joint velocities when relaxed', 'peak |qdot|, relaxed / full',
+          lambda n: n['relaxed']['peak_qdot_norm_rad_s'] / n['full']['peak_qdot_norm_rad_s'],
+          '<', 1.0),
+    Claim('table_3_4.discontinuity', 'table_3_4', 'Fig. 3.13 caption',
+          'clamping at the limit causes a discontinuity of the joint velocities; relaxed '
+          'avoids it', 'largest per-tick jump of qdot_v (2-norm), full / relaxed',
+          lambda n: n['full']['max_qdot_v_jump_rad_s'] / n['relaxed']['max_qdot_v_jump_rad_s'],
+          '>=', 2.0, history='new in v2 (v1 measured the jump of the measured |qdot| and '
+          'did not check it); factor 2 fixed before the first v2 run'),
+    Claim('table_3_5.moved', 'table_3_5', 'Table 3.5, Fig. 3.12(d)',
+          'the arm can be pushed around manually', 'tool displacement max',
+          lambda n: n['max_displacement_m'], '>', 0.03, scale=100, unit='cm', history=_OURS),
+    Claim('table_3_5.orientation', 'table_3_5', 'Table 3.5',
+          'fixed orientation held (' + _PLOT + ')', 'physical orientation error from 0.5 s '
+          'after a push', lambda n: n['max_orientation_error_settled_deg'], '<', 3.0,
+          unit='deg', history=_OURS),
+    Claim('table_3_5.virtual', 'table_3_5', 'Table 3.5', 'fixed orientation held',
+          'virtual orientation error max', lambda n: n['max_virtual_orientation_error_deg'],
+          '<', 0.5, unit='deg', history=_OURS),
+    # -- Ch. 3, iCub (Sec. 3.3.2) --------------------------------------------------------
+    Claim('table_3_6.moved', 'table_3_6', 'Table 3.6, Fig. 3.16',
+          'static interaction torques minimised (hand can be pushed)',
+          'r_palm displacement max', lambda n: n['max_displacement_m'], '>', 0.03, scale=100,
+          unit='cm', history=_OURS),
+    Claim('table_3_6.orientation', 'table_3_6', 'Table 3.6, Fig. 3.16(a)',
+          'orientation of the right hand (cup) held', 'physical orientation error from '
+          '0.5 s after a push', lambda n: n['max_orientation_error_settled_deg'], '<', 3.0,
+          unit='deg', history='v1 widened the settling window 0.5 -> 1 s after a failing run '
+          '(the iCub return time constant ~0.33 s); v2 restores the 0.5 s written first'),
+    Claim('table_3_6.virtual', 'table_3_6', 'Table 3.6', 'orientation held',
+          'virtual orientation error max', lambda n: n['max_virtual_orientation_error_deg'],
+          '<', 0.5, unit='deg', history=_OURS),
+    Claim('table_3_6.wrist', 'table_3_6', 'Table 3.6 task 2',
+          'stiff wrist joints kept at q_bar', 'wrist q_v deviation from q_bar max',
+          lambda n: n['max_wrist_virtual_deviation_deg'], '<', 0.5, unit='deg',
+          history=_OURS),
+    Claim('table_3_6.wrist_track', 'table_3_6', 'Sec. 3.3.2.1 (wrists not compliant)',
+          'the stiff wrists follow q_v', '|q - q_v| of the wrists max',
+          lambda n: n['max_wrist_tracking_error_rad'], '<', 1e-3, unit='rad', history=_OURS),
+    Claim('table_3_7.force', 'table_3_7', 'Table 3.7, Fig. 3.17', 'left hand wipes with '
+          '7 N', 'left wrist force error RMS', lambda n: n['force_error_rms_n'], '<', 3.5,
+          unit='N', history=_OURS),
+    Claim('table_3_7.contact', 'table_3_7', 'Table 3.7', 'contact kept',
+          'share of samples under 1 N', lambda n: n['contact_lost_share'], '<', 0.1,
+          scale=100, unit='%', history=_OURS),
+    Claim('table_3_7.wipe', 'table_3_7', 'Table 3.7 task 3', 'y alternates between two '
+          'points (8 cm steps)', 'left hand y range', lambda n: n['left_hand_y_range_m'],
+          '>=', 0.04, scale=100, unit='cm', quick=False, history=_OURS),
+    Claim('table_3_7.cup_orientation', 'table_3_7', 'Table 3.7 task 5',
+          'right hand keeps its initial orientation', 'orientation error max',
+          lambda n: n['right_hand_orientation_error_max_deg'], '<', 3.0, unit='deg',
+          history=_OURS),
+    Claim('table_3_7.cup_position', 'table_3_7', 'Table 3.7 task 6',
+          'right hand keeps its initial position', 'displacement max',
+          lambda n: n['right_hand_displacement_max_m'], '<', 0.02, scale=1e3, unit='mm',
+          history=_OURS),
+    Claim('table_3_7.roll_yaw_cup_orientation', 'table_3_7', 'Table 3.7 task 1 (other '
+          'reading) and task 5', 'right hand keeps its initial orientation',
+          'orientation error max, torso roll and yaw clamped',
+          lambda n: n['roll_yaw']['right_hand_orientation_error_max_deg'], '<', 3.0,
+          unit='deg', quick=False, history='new in v2: the other reading of "joints 2 and 3"'),
+    Claim('table_3_7.roll_yaw_cup_position', 'table_3_7', 'Table 3.7 task 1 (other '
+          'reading) and task 6', 'right hand keeps its initial position',
+          'displacement max, torso roll and yaw clamped',
+          lambda n: n['roll_yaw']['right_hand_displacement_max_m'], '<', 0.02, scale=1e3,
+          unit='mm', quick=False, history='as table_3_7.roll_yaw_cup_orientation'),
+    # -- Ch. 4 (Sec. 4.3) -----------------------------------------------------------------
+    Claim('table_4_1.hit', 'table_4_1', 'Fig. 4.13/4.14', 'the obstacle blocks the path in '
+          'every variant', 'variants with > 3 N on the obstacle (of 4)',
+          lambda n: sum(n[v]['obstacle_hit_s'] is not None for v in
+                        ('1a_3a', '1b_3a', '1a_3b', '1b_3b')), '>=', 4, history=_OURS),
+    Claim('table_4_1.1b_torque', 'table_4_1', 'Table 4.1 task 1b, Fig. 4.14 (II)',
+          '|tau_s| <= 5 Nm', 'max |tau_s| of 1b_3a, 1b_3b from 1 s after the switch',
+          lambda n: max(n[v]['max_abs_static_torque_nm'] for v in ('1b_3a', '1b_3b')),
+          '<=', 5.25, unit='Nm', history='5 % over the bound allowed (ours), unchanged'),
+    Claim('table_4_1.3b_force', 'table_4_1', 'Table 4.1 task 3b, Fig. 4.14 (VI)',
+          '|f_y|, |f_z| <= 10 N', 'max static tangential force of 1a_3b, 1b_3b',
+          lambda n: max(max(n[v]['max_abs_static_tangential_force_n'],
+                            n[v]['max_abs_task_tangential_force_n'])
+                        for v in ('1a_3b', '1b_3b')), '<=', 10.5, unit='N',
+          history='5 % over the bound allowed (ours), unchanged'),
+    Claim('table_4_1.1a_3a_torque', 'table_4_1', 'Fig. 4.14 left (IV)',
+          'without the bounds the interaction grows (classical IFC)',
+          'max |tau_s| of 1a_3a', lambda n: n['1a_3a']['max_abs_static_torque_nm'], '>', 6.0,
+          unit='Nm', history=_OURS),
+    Claim('table_4_1.1a_3a_force', 'table_4_1', 'Fig. 4.14 left (IV)',
+          'forces along y and z unconstrained', 'max static tangential force of 1a_3a',
+          lambda n: n['1a_3a']['max_abs_static_tangential_force_n'], '>', 12.0, unit='N',
+          history=_OURS),
+    Claim('table_4_1.1b_stall', 'table_4_1', 'Fig. 4.14 middle (XI)',
+          'with 1b "at some point no motion is possible at all"',
+          'virtual tool travel along y in the last second of 1b_3a',
+          lambda n: n['1b_3a']['virtual_y_travel_last_1s_m'], '<', 0.002, scale=1e3,
+          unit='mm', quick=False,
+          history='new in v2 (issue 21: ours slides along the obstacle); 2 mm fixed before '
+          'the run'),
+    Claim('table_4_2.virtual', 'table_4_2', 'Table 4.2, Fig. 4.16',
+          'the virtual end-effector stays in the box', 'virtual tool outside, max of K = '
+          '200/50', lambda n: max(n[v]['max_virtual_outside_m'] for v in ('high_k', 'low_k')),
+          '<', 1e-3, scale=1e3, unit='mm', history=_OURS),
+    Claim('table_4_2.physical', 'table_4_2', 'Fig. 4.16 caption',
+          'the physical end-effector can be pushed out', 'physical outside, K = 200',
+          lambda n: n['high_k']['max_physical_outside_m'], '>', 1e-3, scale=1e3, unit='mm',
+          history=_OURS),
+    Claim('table_4_2.stiffness', 'table_4_2', 'Fig. 4.16 caption',
+          'the stiffness sets the force needed to push it out', 'physical outside, '
+          'K = 50 / K = 200', lambda n: n['low_k']['max_physical_outside_m'] /
+          n['high_k']['max_physical_outside_m'], '>', 1.5, history=_OURS),
+    Claim('table_4_3.held', 'table_4_3', 'Table 4.3, Fig. 4.17',
+          'pose held while the force limits are not reached', 'position error, 5 N push',
+          lambda n: n['error_small_push_m'], '<', 0.005, scale=1e3, unit='mm', history=_OURS),
+    Claim('table_4_3.yields', 'table_4_3', 'Fig. 4.17', 'deviates when the limits are '
+          'reached', 'position error, 25 N push', lambda n: n['error_large_push_m'], '>', 0.02,
+          scale=1e3, unit='mm', history=_OURS),
+    Claim('table_4_3.returns', 'table_4_3', 'Fig. 4.17', 'returns when the forces vanish',
+          'error at the end / during the 25 N push',
+          lambda n: n['error_end_m'] / n['error_large_push_m'], '<', 0.15, history=_OURS),
+    Claim('table_4_4.along', 'table_4_4', 'Table 4.4', 'motion along z_ee allowed',
+          'displacement along z_ee max', lambda n: n['max_along_z_ee_m'], '>', 0.02,
+          scale=100, unit='cm', history=_OURS),
+    Claim('table_4_4.perp', 'table_4_4', 'Table 4.4', 'constant position in all other '
+          'directions', 'perpendicular displacement left 0.5 s after each push',
+          lambda n: max(abs(p) for _, p in n['after_each_push_along_perp_m']), '<', 0.003,
+          scale=1e3, unit='mm', history=_OURS),
+    Claim('table_4_5.unstable', 'table_4_5', 'Sec. 4.3 (4.85), Fig. 4.18 left',
+          'without (4.80)/(4.81) the regulator (K = 200, k_p = 100, k_d = 0.8) is unstable: '
+          'the SPG keeps generating energy', '-int tau_5 qdot_5 dt at the end / c^2 '
+          '(without PSPM)', lambda n: n['no_pspm']['energy_in_end_j'] / n['c2_j'], '<', -2.0,
+          history='v1 lowered the A5 damping 2.5 -> 0.5 Nms/rad to get an instability; v2 '
+          "runs the thesis' LBR-IV plant (D5 = 2.5)"),
+    Claim('table_4_5.growing', 'table_4_5', 'Fig. 4.18 left', 'energy generation grows '
+          'without bound', 'fall of -int tau_5 qdot_5 dt over the second half / c^2',
+          lambda n: (n['no_pspm']['energy_in_mid_j'] - n['no_pspm']['energy_in_end_j']) /
+          n['c2_j'], '>', 0.5, history='as table_4_5.unstable'),
+    Claim('table_4_5.bounded', 'table_4_5', 'Sec. 4.2 (4.84), Fig. 4.18 right',
+          'with PSPM the energy generated is bounded by c^2', 'min of -int tau_5 qdot_5 dt '
+          '+ c^2 (with PSPM)', lambda n: n['pspm']['energy_in_min_j'] + n['c2_j'], '>=',
+          -1e-4, scale=1e3, unit='mJ',
+          history='v1 passed through a 1 mJ tolerance (50 % of c^2) at -2.07 mJ; v2: 0.1 mJ '
+          '(integration tolerance)'),
+    Claim('table_4_5.decays', 'table_4_5', 'Fig. 4.18 right', 'the task regulation is '
+          'stabilised', '|q5 error| in the last second, with / without PSPM',
+          lambda n: n['pspm']['error_amplitude_last_1s_rad'] /
+          n['no_pspm']['error_amplitude_last_1s_rad'], '<', 0.5, history=_OURS),
+    # -- Ch. 5 (Sec. 5.5.3) ---------------------------------------------------------------
+    Claim('table_5_1.fixed_reduction', 'table_5_1', 'Sec. 5.5.3 (Table 5.1), p. text',
+          'fixed d_hat: RMS |f_perp| reduced by 70 %', 'reduction, 9 runs (K x kappa)',
+          lambda n: n['fixed_direction']['reduction_percent'], '>=', 70.0, unit='%',
+          history="rule from v1 (>= the thesis' 70 %), unchanged"),
+    Claim('table_5_1.sma_reduction', 'table_5_1', 'Sec. 5.5.3',
+          'SMA estimator: RMS |f_perp| reduced by 86 %', 'reduction, 9 runs, SMA seeded '
+          '45 deg off (the initialisation error the thesis names, Figs. 5.6/5.7)',
+          lambda n: n['sma_estimator']['reduction_percent'], '>=', 80.0, unit='%',
+          history='v1 passed with the SMA started at the true direction (it duplicated the '
+          'fixed case) after the 45 deg case (-75 %) failed; v2: 45 deg is the pass case'),
+    Claim('table_5_1.fixed_jc_abs', 'table_5_1', 'Sec. 5.5.3', 'fixed d_hat, previous '
+          'approach: RMS |f_perp| 0.58 N', 'overall RMS |f_perp|, joint compliance',
+          lambda n: n['fixed_direction']['rms_f_perp_jc_to_ts_n'][0], 'factor', 2.0, 0.58,
+          unit='N', history='new in v2; factor 2 fixed before the run'),
+    Claim('table_5_1.fixed_ts_abs', 'table_5_1', 'Sec. 5.5.3', 'fixed d_hat, task '
+          'specification: 0.17 N', 'overall RMS |f_perp|, task specification',
+          lambda n: n['fixed_direction']['rms_f_perp_jc_to_ts_n'][1], 'factor', 2.0, 0.17,
+          unit='N', history='new in v2'),
+    Claim('table_5_1.sma_jc_abs', 'table_5_1', 'Sec. 5.5.3', 'SMA, previous approach: '
+          '11.17 N', 'overall RMS |f_perp|, joint compliance (SMA)',
+          lambda n: n['sma_estimator']['rms_f_perp_jc_to_ts_n'][0], 'factor', 2.0, 11.17,
+          unit='N', history='new in v2'),
+    Claim('table_5_1.sma_ts_abs', 'table_5_1', 'Sec. 5.5.3', 'SMA, task specification: '
+          '1.54 N', 'overall RMS |f_perp|, task specification (SMA)',
+          lambda n: n['sma_estimator']['rms_f_perp_jc_to_ts_n'][1], 'factor', 2.0, 1.54,
+          unit='N', history='new in v2'),
+    Claim('table_5_1.lifted', 'table_5_1', 'Sec. 5.5.3', 'the 0.3 m lift is executed in '
+          'every trial', 'runs that finish the 0.29 m lift (of 36; 4 in --quick)',
+          lambda n: sum(sum(n[c]['opened'].values()) for c in
+                        ('fixed_direction', 'sma_estimator')) / n['runs_total'], '>=', 1.0,
+          history='new in v2 (v1: 4 of 9 task-specification runs never finished in 80 s); '
+          'v2 runs up to 240 s (a first v2 run with 160 s left 4 of 36 unfinished)'),
+    # -- report Ch. 6 (Vukcevic 2018) ------------------------------------------------------
+    Claim('report_6.s1_mu', 'report_6', 'report Sec. 6.2, Fig. 6.2', 'mu* = 5 Nm (sticks)',
+          'mu*, arm as described (COM 0.5 m)', lambda n: n['described']['s1_mu'], 'abs<=',
+          0.01, 5.0, unit='Nm'),
+    Claim('report_6.s1_qdd', 'report_6', 'report Sec. 6.2, Fig. 6.3', 'qdd = 0',
+          'qdd, arm as described', lambda n: n['described']['s1_qdd'], 'abs<=', 1e-6, 0.0,
+          unit='rad/s^2'),
+    Claim('report_6.s2_mu', 'report_6', 'report Sec. 6.3, Fig. 6.5', '|mu*| = 10 Nm',
+          '|mu*|, arm as described', lambda n: abs(n['described']['s2_mu']), 'abs<=', 0.01,
+          10.0, unit='Nm'),
+    Claim('report_6.s2_qdd_described', 'report_6', 'report Sec. 6.3', 'qdd = -0.44 rad/s^2',
+          'qdd, arm as described (1 kg point mass at 0.5 m: I = 0.25 kg m^2)',
+          lambda n: n['described']['s2_qdd'], 'abs<=', 0.005, -0.44, unit='rad/s^2'),
+    Claim('report_6.s2_qdd_kdl', 'report_6', 'report Sec. 6.3', 'qdd = -0.44 rad/s^2',
+          'qdd, KDL reading (COM at 1.5 m, I = 2.25 kg m^2) - an INFERENCE about the '
+          "report's code, not stated in it", lambda n: n['kdl']['s2_qdd'], 'abs<=', 0.005,
+          -0.44, unit='rad/s^2'),
+)
