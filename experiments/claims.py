@@ -120,6 +120,22 @@ CLAIMS = (
     Claim('table_3_2.contact', 'table_3_2', 'Table 3.2, Fig. 3.12(a)', 'contact kept',
           'share of samples under 1 N', lambda n: n['contact_lost_share'], '<', 0.05,
           scale=100, unit='%', history=_OURS),
+    Claim('table_3_2.3b_force', 'table_3_2', 'Table 3.2 task 3b', 'as 3a with joint torque '
+          '0 as task 3', 'force error RMS, task 3b', lambda n: n['task3b']['force_error_rms_n'],
+          '<', 4.0, unit='N', quick=False, history='new in v2 (task 3b was not run in v1); '
+          'the rule of task 3a'),
+    Claim('table_3_2.3b_position', 'table_3_2', 'Table 3.2 task 3b', 'circle tracked',
+          'physical circle error RMS, task 3b',
+          lambda n: n['task3b']['position_error_rms_m'], '<', 0.02, scale=1e3, unit='mm',
+          quick=False, history='as table_3_2.3b_force'),
+    Claim('table_3_2.obstacle_touched', 'table_3_2', 'Sec. 3.3.1, Fig. 3.12(a-2)',
+          'an unknown obstacle blocks the path', 'force on the obstacle max (25-tick mean)',
+          lambda n: n['obstacle']['max_obstacle_force_n'], '>', 3.0, unit='N', quick=False,
+          history='new in v2 (the obstacle trial was not run in v1); 3 N as in Table 4.1'),
+    Claim('table_3_2.obstacle_stable', 'table_3_2', 'Sec. 3.3.1, Fig. 3.12(a-2)',
+          '"the manipulator remains stable" after the collision', 'peak |qdot| in the last '
+          '2 s', lambda n: n['obstacle']['peak_qdot_last_2s_rad_s'], '<', 1.0, unit='rad/s',
+          quick=False, history='new in v2; 1 rad/s fixed before the run'),
     Claim('k_sweep.position', 'k_sweep', 'Fig. 3.15, Sec. 3.3.1',
           'higher stiffness: better position tracking', 'position error RMS, K=400 / K=40',
           _ratio('position_error_rms_m'), '<', 0.9,
