@@ -25,7 +25,9 @@ from ifc_spg.constrained.task_specification import build_tasks
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.model import RobotModel
+from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks.static_interaction import static_wrench
+from sim_bridge.simulation import Simulation
 
 __all__ = [
     'DEFAULT_Q0_DEG',
@@ -70,7 +72,6 @@ class TaskSpecificationStrategy:
 
     def __init__(self, robot, params=None, *, frame='tool', direction=None, pspm=None,
                  solver='daqp'):
-        from ifc_spg.spg import SetPointGenerator
         p = params or StrategyParams()
         e = p.estimator
         spec = {'frame': frame, 'kappa': p.kappa, 'gain': p.force_gain,
@@ -290,7 +291,6 @@ def sim_frame(sim):
 
 def run(scenario):
     """Run one scenario in lockstep; returns a :class:`RunLog`."""
-    from sim_bridge.simulation import Simulation
     p = scenario.params
     robot = RobotModel.from_config(scenario.robot)
     if robot.ifc == 'joint_impedance':

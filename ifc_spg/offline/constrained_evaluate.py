@@ -1,4 +1,6 @@
-"""Scenario evaluation of constrained manipulation: ``python -m ifc_spg.offline.constrained_evaluate``.
+"""Scenario evaluation of constrained manipulation.
+
+    python -m ifc_spg.offline.constrained_evaluate
 
 Runs the strategies in the lockstep simulator and prints a JSON report:
 
@@ -25,6 +27,7 @@ import json
 import math
 import sys
 
+from ifc_spg.constrained.metrics import pooled_rms
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.offline.constrained import Scenario, run
@@ -83,8 +86,6 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
         ``static_reduction_percent``), ``opened`` (runs that reached ``travel``); and
         ``thesis``.
     """
-    from ifc_spg.constrained.metrics import pooled_rms
-
     out = {}
     for label in cases:
         if label not in THESIS_5_5_3:

@@ -28,6 +28,7 @@ from ifc_spg.dynamics import kdl, native
 from ifc_spg.dynamics.models import iiwa_like_model, random_chain_model
 from ifc_spg.dynamics.static_friction import StaticFrictionSolver
 from ifc_spg.dynamics.vereshchagin import VereshchaginSolver
+from ifc_spg.model import RobotModel
 
 __all__ = ['main']
 
@@ -125,7 +126,6 @@ def _kdl_chains():
     """The chains of the KDL comparison: (label, model, tip frame)."""
     chains = []
     try:
-        from ifc_spg.model import RobotModel
         rm = RobotModel.from_config('lbr_iiwa14')
         chains.append(('lbr_iiwa14', rm.model, rm.frames['tool']))
     except Exception as exc:  # noqa: BLE001 - optional model from another module
@@ -228,7 +228,6 @@ def main(argv=None):
           f' * n,  R^2 = {sc["r2"]:.4f}')
     out['iiwa'] = [bench_iiwa(rng, calls)]
     try:
-        from ifc_spg.model import RobotModel
         rm = RobotModel.from_config('lbr_iiwa14')
         out['iiwa'].append(bench_iiwa(rng, calls, rm.model, 'RobotModel lbr_iiwa14'))
     except Exception as exc:  # noqa: BLE001 - optional model from another module

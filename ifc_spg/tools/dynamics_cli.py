@@ -19,7 +19,9 @@ import sys
 
 import numpy as np
 
+from ifc_spg.dynamics.scenarios import external_joint_torques, load_problem, report_problems
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.tools import dynamics_bench as bench
 
 __all__ = ['main']
 
@@ -35,7 +37,6 @@ def run_problem(prob, *, samples=21, plot_dir=None, out=None):
     Returns:
         dict with the plain result, the friction result and the sampling result.
     """
-    from ifc_spg.dynamics.scenarios import external_joint_torques
     solver = prob.solver()
     plain = solver.solve(prob.q, prob.qd, prob.tau, **prob.kwargs)
     out = sys.stdout if out is None else out
@@ -133,7 +134,6 @@ def main(argv=None):
     """Entry point of ``ifc-spg dynamics``; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == 'bench':
-        from ifc_spg.tools import dynamics_bench as bench
         return bench.main(argv[1:])
     parser = argparse.ArgumentParser(
         prog='ifc-spg dynamics', description=__doc__.split('\n\n')[0],
@@ -148,12 +148,10 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         if args.command == 'scenarios':
-            from ifc_spg.dynamics.scenarios import report_problems
             problems = report_problems() + report_problems(implemented=True)
         else:
             if not args.problem:
                 parser.error('solve needs a problem file: ifc-spg dynamics solve FILE.yaml')
-            from ifc_spg.dynamics.scenarios import load_problem
             problems = [load_problem(args.problem)]
         for prob in problems:
             run_problem(prob, samples=args.samples, plot_dir=args.plot)

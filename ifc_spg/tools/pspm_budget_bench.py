@@ -28,8 +28,11 @@ import tempfile
 import time
 
 import numpy as np
+import pinocchio as pin
 import yaml
 
+from ifc_spg.model import RobotModel
+from ifc_spg.offline.bag import BagReader
 from ifc_spg.offline.runner import find_config_dir, run_scenario, scenario_from_dict
 
 __all__ = ['shipped_scenario', 'surface_tracking_figures', 'run_stack', 'main']
@@ -69,7 +72,8 @@ def shipped_scenario(stack_file, seconds, robot=None, scene=None, scene_options=
         stack_file: File name in ``config/tasks/``.
         seconds: Duration [s].
         robot: Override the robot (default: the stack's ``robot``).
-        scene, scene_options: Override the thesis scenario's scene (and its options).
+        scene: Override the thesis scenario's scene.
+        scene_options: Override the scene's options.
         power: Override the stack's power_budget and the ceiling [W] (to measure a need).
     """
     tasks_dir = find_config_dir() / 'tasks'
@@ -115,10 +119,6 @@ def surface_tracking_figures(bag, robot, *, period, start=0.0, settle=SURFACE_SE
         ``{'force_rms_n', 'force_mean_n', 'spans_m': [per full period], 'min_span_m'}``;
         a period's span is the smaller of the measured tool's x and y extent.
     """
-    import pinocchio as pin
-
-    from ifc_spg.offline.bag import BagReader
-
     fid = robot.frame_id(frame)
     data = robot.create_data()
     t_js, xy, t_f, fz = [], [], [], []
@@ -149,8 +149,6 @@ def run_stack(stack_file, seconds, out_dir=None, power=None):
     ``net_j_per_min`` is the energy the SPG spent from the tanks beyond what the IFC damper
     returned, per minute: initial tank energy + refill - final tank energy.
     """
-    from ifc_spg.model import RobotModel
-
     data = shipped_scenario(stack_file, seconds, power=power)
     scenario = scenario_from_dict(data, where=f'bench:{stack_file}',
                                   base=find_config_dir() / 'tasks')
