@@ -117,8 +117,9 @@ def test_record_over_dds_counts_match_and_sigterm_closes(tmp_path, dds_env):
         _wait_line(rec, 'recording')
         talker = _start(['ros', 'talker', '--ros-args', '-p', 'rate:=1000.0', '-p', 'count:=400',
                          '-p', 'wait_for_subscribers:=1'], dds_env)
+        # the talker waited for acks: everything is in the reader, and the recorder writes
+        # what arrived before it closes the bag
         assert talker.wait(60) == 0, talker.stderr.read()
-        time.sleep(0.3)  # the talker waited for acks: everything is in the reader
         rec.send_signal(signal.SIGTERM)
         assert rec.wait(20) == 0, rec.stderr.read()
     finally:
@@ -152,7 +153,6 @@ def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
                          '--wait-for-subscribers', '1'], dds_env)
         assert player.wait(60) == 0, player.stderr.read()
         elapsed = time.monotonic() - t0
-        time.sleep(0.3)
         rec.send_signal(signal.SIGINT)
         assert rec.wait(20) == 0, rec.stderr.read()
     finally:

@@ -2,6 +2,7 @@
 
 import json
 
+from helpers import wait_for
 import numpy as np
 import pytest
 
@@ -104,7 +105,6 @@ def test_sigterm_stops_the_run_with_a_closed_bag_and_metrics(tmp_path):
     import signal
     import subprocess
     import sys
-    import time
 
     scenario = find_config_dir() / 'scenarios' / 'surface_short.yaml'
     out = tmp_path / 'run'
@@ -112,10 +112,9 @@ def test_sigterm_stops_the_run_with_a_closed_bag_and_metrics(tmp_path):
     proc = subprocess.Popen([exe, 'run', str(scenario), '-o', str(out), '--duration', '600'],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        deadline = time.monotonic() + 60
-        while not (out / 'bag').exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(1.0)  # some ticks
+        # the first MCAP chunk (~1 MB, a few hundred ticks) reached the file: the run is ticking
+        assert wait_for(lambda: any(p.stat().st_size > 0 for p in (out / 'bag').glob('*.mcap')),
+                        60)
         proc.send_signal(signal.SIGTERM)
         output, _ = proc.communicate(timeout=60)
     finally:

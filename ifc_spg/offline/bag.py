@@ -601,7 +601,7 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
             if duration is not None and time.monotonic() - start >= duration:
                 break
             rec.spin_once(0.05)
-        rec.drain()
+        _flush(rec)
     finally:
         writer.close()
         for s, h in old.items():
@@ -613,6 +613,18 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
         print(f'bag closed: {path}; ' + ', '.join(f'{t}: {c}' for t, c in writer.counts.items()),
               flush=True)
     return dict(writer.counts)
+
+
+def _flush(rec, timeout_s=1.0):
+    """Write what already arrived: spin until 50 ms pass without a message (at most 1 s).
+
+    Samples a reliable writer saw acknowledged sit in the reader; rclpy hands them over only
+    in callbacks, so a stop right after the last publish still spins them out.
+    """
+    deadline = time.monotonic() + timeout_s
+    while rec.spin_once(0.05) and time.monotonic() < deadline:
+        pass
+    rec.drain()
 
 
 # -- play ---------------------------------------------------------------------------------
