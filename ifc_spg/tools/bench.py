@@ -30,13 +30,19 @@ import sys
 import time
 
 import numpy as np
+import pinocchio as pin
+
+from ifc_spg import RobotModel, SetPointGenerator, TaskStack, kernels
+from ifc_spg.offline.plants import JointImpedancePlant
+from ifc_spg.offline.runner import find_config_dir
+from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
+from ifc_spg.tasks.bounds import Bound
 
 __all__ = ['main', 'run_benchmarks']
 
 
 def _circle(center, radius, freq, plane=(1, 2), select=(0, 1, 2)):
     """A circle in ``plane`` around ``center`` (3D); outputs the components ``select``."""
-    from ifc_spg.tasks.bounds import Bound
     select = list(select)
 
     class Circle(Bound):
@@ -55,7 +61,6 @@ def _circle(center, radius, freq, plane=(1, 2), select=(0, 1, 2)):
 
 
 def _tool_pose(robot, q, frame):
-    import pinocchio as pin
     data = robot.create_data()
     pin.framesForwardKinematics(robot.model, data, q)
     return data.oMf[robot.frame_id(frame)].translation.copy()
@@ -63,7 +68,6 @@ def _tool_pose(robot, q, frame):
 
 def lbr_stack(robot):
     """Table 4.1 (1b) on the iiwa: 5 levels."""
-    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask
     p0 = _tool_pose(robot, robot.q_home, 'tool')
     return [
         CartesianPoseTask(robot, frame='tool', axes=['z'], lower=[p0[2] - 0.03], gain=20.0,
@@ -80,7 +84,6 @@ def lbr_stack(robot):
 
 def icub_stack(robot):
     """Table 3.7 on the iCub: 7 levels."""
-    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, WrenchTask
     torso = [j for j in robot.joint_names if 'torso' in j]
     pl = _tool_pose(robot, robot.q_home, 'l_contact')
     return [
@@ -119,10 +122,10 @@ def calibrate_baseline(seconds):
 
 
 def _closed_loop(spg, robot, ticks, progress, budget=None, baseline=None):
-    """Run ``ticks`` closed-loop ticks (fewer if ``budget`` seconds run out first); with a
-    ``baseline`` count, time ``_busy(baseline)`` after each tick too (see module doc).
+    """Run ``ticks`` closed-loop ticks (fewer if ``budget`` seconds run out first).
+
+    With a ``baseline`` count, time ``_busy(baseline)`` after each tick too (see module doc).
     """
-    from ifc_spg.offline.plants import JointImpedancePlant
     plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
     q, qd, t = plant.q, plant.qdot, 0.0
     times = np.empty(ticks)
@@ -159,10 +162,11 @@ def _stats(times):
 
 def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_ticks=None,
                 slow_budget=None):
-    """Tick times of one stack per solver; solvers other than DAQP run ``slow_ticks`` ticks
-    at most, within ``slow_budget`` seconds (proxsuite can stall for seconds per tick).
+    """Tick times of one stack per solver.
+
+    Solvers other than DAQP run ``slow_ticks`` ticks at most, within ``slow_budget`` seconds
+    (proxsuite can stall for seconds per tick).
     """
-    from ifc_spg.spg import SetPointGenerator
     rows = []
     for solver in solvers:
         slow = solver != 'daqp'
@@ -189,9 +193,6 @@ def bench_stack(name, robot, make_stack, solvers, ticks, progress=True, slow_tic
 
 def bench_native_ratio(name, robot, make_stack, ticks):
     """The tick with the C kernels vs their numpy code: two closed loops, interleaved."""
-    from ifc_spg import kernels
-    from ifc_spg.offline.plants import JointImpedancePlant
-    from ifc_spg.spg import SetPointGenerator
     if kernels.native is None:
         return None
     fast = SetPointGenerator(robot, make_stack(robot), kernels=kernels.native)
@@ -220,86 +221,71 @@ def bench_native_ratio(name, robot, make_stack, ticks):
 
 def bench_pink(ticks):
     """Our 2-level strict stack vs pink's weighted solve, interleaved in one loop."""
-    import pink
-    from pink.tasks import FrameTask, PostureTask
-    import pinocchio as pin
+    import pink  # the library compared with: needed by this benchmark only
 
-    from ifc_spg import RobotModel
-    from ifc_spg.spg import SetPointGenerator
-    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask
     robot = RobotModel.from_config('lbr_iiwa14')
+    dt = 0.002
+    zeros = np.zeros(robot.n)
 
-    def make_ours(pspm):
-        return SetPointGenerator(robot, [
+    def ours(pspm):
+        spg = SetPointGenerator(robot, [
             CartesianPoseTask(robot, frame='tool', equal='init', gain=1.0, name='pose'),
             JointPositionTask(robot, equal=robot.q_home, gain=1.0, name='posture')],
             torque_limits=False, pspm=pspm)
-    ours = make_ours(True)
-    # the same without the passivity layer (pink has none): the like-for-like tick
-    ours_np = make_ours(False)
-    # pink: same two tasks, weighted; its configuration does the kinematics
-    frame_name = robot.frames['tool']
-    config = pink.Configuration(robot.model, robot.create_data(), robot.q_home.copy())
-    pose_task = FrameTask(frame_name, position_cost=1.0, orientation_cost=1.0, gain=1.0)
-    pose_task.set_target(config.get_transform_frame_to_world(frame_name))
-    posture_task = PostureTask(cost=1e-3)
-    posture_task.set_target(robot.q_home.copy())
-    dt = 0.002
-    q_ours = robot.q_home.copy()
-    q_np = robot.q_home.copy()
-    q_pink = robot.q_home.copy()
-    t_ours = np.empty(ticks)
-    t_np = np.empty(ticks)
-    t_pink = np.empty(ticks)
+        q = [robot.q_home.copy()]
+
+        def tick(i):
+            q[0] = spg.step(q[0], zeros, i * dt)
+        return tick
+
+    # without the passivity layer too (pink has none): the like-for-like tick
+    steps = (ours(True), ours(False), _pink_ticker(pink, robot, dt))
     gc.collect()
     gc.disable()
     try:
-        zeros = np.zeros(robot.n)
-
-        def tick_ours(i):
-            nonlocal q_ours
-            t0 = time.perf_counter()
-            q_ours = ours.step(q_ours, zeros, i * dt)
-            t_ours[i] = time.perf_counter() - t0
-
-        def tick_np(i):
-            nonlocal q_np
-            t0 = time.perf_counter()
-            q_np = ours_np.step(q_np, zeros, i * dt)
-            t_np[i] = time.perf_counter() - t0
-
-        def tick_pink(i):
-            nonlocal q_pink
-            t0 = time.perf_counter()
-            config.update(q_pink)
-            v = pink.solve_ik(config, [pose_task, posture_task], dt, solver='daqp')
-            q_pink = pin.integrate(robot.model, q_pink, v * dt)
-            t_pink[i] = time.perf_counter() - t0
-
-        order = (tick_ours, tick_np, tick_pink)
+        times = np.empty((3, ticks))
         for i in range(ticks):  # rotate who goes first (caches, frequency scaling)
             for k in range(3):
-                order[(i + k) % 3](i)
+                j = (i + k) % 3
+                t0 = time.perf_counter()
+                steps[j](i)
+                times[j, i] = time.perf_counter() - t0
     finally:
         gc.enable()
-    a, b, c = _stats(t_ours), _stats(t_pink), _stats(t_np)
+    a, c, b = (_stats(t) for t in times)
     return {'ours': a, 'pink': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
             'ratio_p99': a['p99_us'] / b['p99_us'], 'ours_no_pspm': c,
             'ratio_no_pspm_p50': c['p50_us'] / b['p50_us'],
             'ratio_no_pspm_p99': c['p99_us'] / b['p99_us']}
 
 
-def bench_first_ticks(repeats=20):
-    """The first tick of a stack and the tick of a switch to a stack of another shape, timed
-    apart from the steady ticks (a robot misses a command on any tick over its period).
+def _pink_ticker(pink, robot, dt):
+    """The pink tick on the same two tasks, weighted; its configuration does the kinematics."""
+    from pink.tasks import FrameTask, PostureTask
 
+    frame_name = robot.frames['tool']
+    config = pink.Configuration(robot.model, robot.create_data(), robot.q_home.copy())
+    pose_task = FrameTask(frame_name, position_cost=1.0, orientation_cost=1.0, gain=1.0)
+    pose_task.set_target(config.get_transform_frame_to_world(frame_name))
+    posture_task = PostureTask(cost=1e-3)
+    posture_task.set_target(robot.q_home.copy())
+    q = [robot.q_home.copy()]
+
+    def tick(i):
+        config.update(q[0])
+        v = pink.solve_ik(config, [pose_task, posture_task], dt, solver='daqp')
+        q[0] = pin.integrate(robot.model, q[0], v * dt)
+    return tick
+
+
+def bench_first_ticks(repeats=20):
+    """The first tick of a stack and the tick of a switch to a stack of another shape.
+
+    Timed apart from the steady ticks (a robot misses a command on any tick over its period).
     Each repeat: a new SPG with the LBR Table 4.1 stack, 100 closed-loop ticks, a switch to the
     Table 4.2 stack (other levels), 100 more. Returns the first-tick, switch-tick and
     steady-tick statistics [us] over the repeats, and the max of everything.
     """
-    from ifc_spg import RobotModel, SetPointGenerator, TaskStack
-    from ifc_spg.offline.runner import find_config_dir
-
     robot = RobotModel.from_config('lbr_iiwa14')
     tasks = find_config_dir() / 'tasks'
     second = TaskStack.from_file(str(tasks / 'table_4_2_orientation_box.yaml'))
@@ -332,7 +318,6 @@ def bench_first_ticks(repeats=20):
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0):
     """Run all benchmarks; return a JSON-friendly dict."""
-    from ifc_spg import RobotModel, kernels
     out = {'ticks': ticks, 'stacks': [], 'implementation': kernels.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
     icub = RobotModel.from_config('icub_upper_body')
@@ -382,8 +367,8 @@ def format_report(res):
                          f"{b['p99_us']:.0f} us, max {b['max_us']:.0f} us, {b['over_1ms']} "
                          f"over 1 ms")
     if res.get('native'):
-        lines += ['', 'C kernels vs their numpy reference code (ifc_spg.kernels), two closed loops '
-                  'interleaved:']
+        lines += ['', 'C kernels vs their numpy reference code (ifc_spg.kernels), two closed '
+                  'loops interleaved:']
         for r in res['native']:
             a, b = r['native'], r['numpy']
             lines.append(f"  {r['stack']:<16}C p50 {a['p50_us']:.1f} / p99 {a['p99_us']:.1f} us,"
