@@ -289,6 +289,28 @@ def sim_frame(sim):
     return u, np.cross(z, u), z
 
 
+def _simulation(scenario, robot, period):
+    """The scenario's simulation, from its q0 (or the scene's initial pose)."""
+    q0 = scenario.q0_deg if scenario.q0_deg is not None else initial_pose_deg(
+        scenario.robot, scenario.scene)
+    if q0 is not None:
+        q0 = tuple(np.radians(np.asarray(q0, dtype=float)))
+    return Simulation(robot=robot, scene=scenario.scene, scene_options=dict(
+        scenario.scene_options), command_period=period, q0=q0, **scenario.sim)
+
+
+def _record(rows, s, ctrl, h, true_direction):
+    """Append one tick's samples (state ``s``, static wrench ``h``) to ``rows``."""
+    rows['t'].append(s.t)
+    rows['env_q'].append(s.env_q[0])
+    rows['force'].append(-s.contact_wrench[:3])
+    rows['fs'].append(h[:3].copy())
+    rows['est'].append(np.array(ctrl.estimator.direction))
+    rows['true'].append(true_direction)
+    rows['q'].append(s.q)
+    rows['ik'].append(getattr(ctrl, 'ik_residual', math.nan))
+
+
 def run(scenario):
     """Run one scenario in lockstep; returns a :class:`RunLog`."""
     p = scenario.params
@@ -296,12 +318,7 @@ def run(scenario):
     if robot.ifc == 'joint_impedance':
         robot = robot_with_stiffness(robot, p.stiffness)
     period = p.dt
-    q0 = scenario.q0_deg if scenario.q0_deg is not None else initial_pose_deg(
-        scenario.robot, scenario.scene)
-    if q0 is not None:
-        q0 = tuple(np.radians(np.asarray(q0, dtype=float)))
-    sim = Simulation(robot=robot, scene=scenario.scene, scene_options=dict(
-        scenario.scene_options), command_period=period, q0=q0, **scenario.sim)
+    sim = _simulation(scenario, robot, period)
     try:
         handle = _HandleDirection(sim)
         d_true0 = handle(sim)
@@ -321,15 +338,7 @@ def run(scenario):
             s = sim.read_state()
             q_v = ctrl.step(s.q, s.qd, s.t)
             kin.update(s.q, s.qd, s.q_v)
-            h = static_wrench(robot, kin, frame)[0]
-            rows['t'].append(s.t)
-            rows['env_q'].append(s.env_q[0])
-            rows['force'].append(-s.contact_wrench[:3])
-            rows['fs'].append(h[:3].copy())
-            rows['est'].append(np.array(ctrl.estimator.direction))
-            rows['true'].append(handle(sim))
-            rows['q'].append(s.q)
-            rows['ik'].append(getattr(ctrl, 'ik_residual', math.nan))
+            _record(rows, s, ctrl, static_wrench(robot, kin, frame)[0], handle(sim))
             sim.write_command(q_v)
             sim.step(steps)
             if t_open is None and abs(s.env_q[0] - rows['env_q'][0]) >= scenario.target:

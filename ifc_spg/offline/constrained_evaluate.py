@@ -59,6 +59,22 @@ _KEEP = ('rms_f_perp', 'rms_fs_perp', 'max_f_perp', 'travel', 'time_to_open',
          'rms_error_angle_deg', 'samples')
 
 
+def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration):
+    """Both strategies once per (K, kappa) on the vertical drawer: one row each."""
+    rows = []
+    for k in stiffnesses:
+        for kappa in kappas:
+            row = {'stiffness': float(k), 'kappa': float(kappa)}
+            for strategy in ('joint_compliance', 'task_specification'):
+                log = run(Scenario(strategy=strategy, scene='drawer_vertical',
+                                   params=StrategyParams(stiffness=k, kappa=kappa),
+                                   fixed_direction=fixed, initial_error_deg=initial_error_deg,
+                                   target=travel, duration=duration))
+                row[strategy] = {key: log.metrics.get(key) for key in _KEEP}
+            rows.append(row)
+    return rows
+
+
 def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.0,
                sma_initial_error_deg=0.0, cases=('fixed_direction', 'sma_estimator')):
     """The thesis comparison (5.5.3) on the 1.2 kg vertical drawer; a dict of metrics.
@@ -93,18 +109,7 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
                                  f"{did_you_mean(label, THESIS_5_5_3)}; cases: "
                                  f"{', '.join(THESIS_5_5_3)}")
         fixed = label == 'fixed_direction'
-        rows = []
-        for k in stiffnesses:
-            for kappa in kappas:
-                row = {'stiffness': float(k), 'kappa': float(kappa)}
-                for strategy in ('joint_compliance', 'task_specification'):
-                    log = run(Scenario(strategy=strategy, scene='drawer_vertical',
-                                       params=StrategyParams(stiffness=k, kappa=kappa),
-                                       fixed_direction=fixed,
-                                       initial_error_deg=sma_initial_error_deg,
-                                       target=travel, duration=duration))
-                    row[strategy] = {key: log.metrics.get(key) for key in _KEEP}
-                rows.append(row)
+        rows = _grid_runs(stiffnesses, kappas, fixed, sma_initial_error_deg, travel, duration)
         res = {'runs': rows, 'travel_target': travel, 'duration': duration}
         if not fixed:
             res['initial_error_deg'] = sma_initial_error_deg
