@@ -83,7 +83,7 @@ def run_problem(prob, *, samples=21, plot_dir=None, out=None):
 
 def _plot(prob, fr, sr, tau_ext, plot_dir):
     """Figures like the report's 6.2-6.7 (1 stationary joint), a contour for 2."""
-    import matplotlib
+    import matplotlib  # heavy, and only for --plot
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     os.makedirs(plot_dir, exist_ok=True)
