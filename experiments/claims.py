@@ -355,6 +355,24 @@ CLAIMS = (
                         ('fixed_direction', 'sma_estimator')) / n['runs_total'], '>=', 1.0,
           history='new in v2 (v1: 4 of 9 task-specification runs never finished in 80 s); '
           'v2 runs up to 240 s (a first v2 run with 160 s left 4 of 36 unfinished)'),
+    Claim('fig_5_11.jc_small_error', 'fig_5_11', 'Sec. 5.5.2, Fig. 5.11 right',
+          'trajectory following: erroneous forces remain, even for very small estimation '
+          'errors', 'RMS |f_perp| over the second half of the lift, joint compliance, 10 deg',
+          lambda n: n['joint_compliance_10']['rms_f_perp_second_half_n'], '>', 1.0, unit='N',
+          quick=False, history='new in v2; 1 N fixed before the run'),
+    Claim('fig_5_11.ts_vanish', 'fig_5_11', 'Sec. 5.5.2, Fig. 5.11 left',
+          'task specification: forces build up for a large initial error until the '
+          'mechanism moves, then vanish rapidly', 'RMS |f_perp| second / first half of the '
+          'lift, task specification, 45 deg',
+          lambda n: n['task_specification_45']['rms_f_perp_second_half_n'] /
+          n['task_specification_45']['rms_f_perp_first_half_n'], '<', 0.5,
+          history='new in v2; factor 0.5 fixed before the run'),
+    Claim('fig_5_11.ts_below_jc', 'fig_5_11', 'Sec. 5.5.2, Fig. 5.11',
+          'the new approach has lower erroneous forces', 'RMS |f_perp| second half, task '
+          'specification / joint compliance, 45 deg',
+          lambda n: n['task_specification_45']['rms_f_perp_second_half_n'] /
+          n['joint_compliance_45']['rms_f_perp_second_half_n'], '<', 1.0,
+          history='new in v2'),
     # -- report Ch. 6 (Vukcevic 2018) ------------------------------------------------------
     Claim('report_6.s1_mu', 'report_6', 'report Sec. 6.2, Fig. 6.2', 'mu* = 5 Nm (sticks)',
           'mu*, arm as described (COM 0.5 m)', lambda n: n['described']['s1_mu'], 'abs<=',

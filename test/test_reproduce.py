@@ -279,3 +279,19 @@ def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
     saved = json.loads((tmp_path / 'table_5_1.json').read_text())
     assert saved['sma_estimator']['initial_error_deg'] == 45.0
     assert saved['fixed_direction']['runs'][0]['task_specification']['travel'] >= 0.29
+
+
+def test_fig_5_11_forces_vanish_once_the_estimate_converges(tmp_path):
+    """Fig. 5.11, quick: the 45 deg initial error only, K = 40, both strategies, 0.29 m lift;
+    the task-specification strategy's |f_perp| falls once the drawer moves."""
+    check, fig, _ = reproduce.run_experiment(_BY_NAME['fig_5_11'], tmp_path, quick=True)
+    n = check.numbers
+    assert set(n) == {'joint_compliance_45', 'task_specification_45'}
+    for v in n.values():
+        assert v['travel_m'] >= 0.29
+    got = {c['id']: c['passed'] for c in check.claims}
+    assert set(got) == {'fig_5_11.ts_vanish', 'fig_5_11.ts_below_jc'}
+    ts = n['task_specification_45']
+    assert got['fig_5_11.ts_vanish'] == (ts['rms_f_perp_second_half_n'] <
+                                         0.5 * ts['rms_f_perp_first_half_n'])
+    assert fig is not None and fig.exists()
