@@ -1576,7 +1576,7 @@ NOTES = {
     'fig_5_11': 'Sec. 5.4.3 / 5.5.2: Fig. 5.11 only (the drawer on the LBR, K and kappa not '
                 'given in the thesis: the middle of the Table 5.1 grid). Figs. 5.12 (horizontal '
                 'drawer) and 5.13 (crank with varying radius and kappa) are not run. The '
-                'joint-compliance strategy\'s |f_perp| rises during the lift for both initial '
+                "joint-compliance strategy's |f_perp| rises during the lift for both initial "
                 'errors.',
     'report_6': 'The arm as the report describes it (1 kg point mass at 0.5 m, I = 0.25 kg '
                 'm^2) gives qdd = -4 rad/s^2 for the -1 Nm of scenario 2; the printed '
