@@ -215,8 +215,8 @@ def test_task_stack_file_parameter(domain, tmp_path, capsys):
     assert str(bad) in err and 'tasks[0].type' in err
     ros.init(['spg_node', '--ros-args', '-p', f'task_stack_file:={good}'])
     spg = SpgNode(ros.Node('spg_node'))
-    assert spg.runner.spg._pending is not None and spg.runner.status()['pending_stack'] == \
-        {'id': 1, 'name': 'reach'}
+    assert spg.runner.spg.pending_stack is not None and \
+        spg.runner.status()['pending_stack'] == {'id': 1, 'name': 'reach'}
 
 
 def test_help_exits_0(capsys):
@@ -262,8 +262,9 @@ def test_impedance_parameters_set_the_gains_the_spg_computes_with(domain):
     spg, fake = _start([f'impedance.stiffness:={K}', 'impedance.damping:=[12.5]'])
     np.testing.assert_array_equal(spg.runner.robot.stiffness, K)
     np.testing.assert_array_equal(spg.runner.robot.damping, np.full(7, 12.5))
-    # the torque-limit level |K (q_v - q)| <= tau_max and the energy tanks use them
-    np.testing.assert_array_equal(spg.runner.spg._torque_limit.K, K)
+    # the SPG's robot, which the torque-limit level |K (q_v - q)| <= tau_max is built from,
+    # and the energy tanks use them
+    np.testing.assert_array_equal(spg.runner.spg.robot.stiffness, K)
     np.testing.assert_array_equal(spg.runner.spg.tanks.K, K)
     np.testing.assert_array_equal(spg.runner.spg.tanks.D, np.full(7, 12.5))
     # and the status (hence every bag) records what the SPG used

@@ -159,7 +159,7 @@ def test_bad_stack_keeps_the_running_one(robot):
     event = runner.handle_task_stack(STACK.replace('joint_position', 'joint_positon'))
     assert not event.accepted and (event.stack_id, event.name) == (1, 'reach')
     assert 'tasks[0].type' in event.message and 'joint_positon' in event.message
-    assert runner.spg.stack is not None and runner.spg._pending is None
+    assert runner.spg.stack is not None and runner.spg.pending_stack is None
     doc = runner.status(('stack_rejected', event.message))
     assert doc['event']['type'] == 'stack_rejected' and doc['errors'][-1]['source'] == \
         'task_stack'

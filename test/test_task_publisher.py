@@ -129,7 +129,7 @@ def test_stays_alive_until_sigterm_and_exits_0(tmp_path, dds_env):
                             stderr=subprocess.DEVNULL)
     try:
         assert listener.spin_until(lambda: listener.received, 30.0)
-        time.sleep(0.3)
+        time.sleep(0.3)  # let time pass: without --linger it must not exit by itself
         assert proc.poll() is None
     finally:
         code = stop_process(proc)

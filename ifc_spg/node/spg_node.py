@@ -41,6 +41,7 @@ it to topics and timers.
 """
 
 from collections import deque
+from dataclasses import replace
 import gc
 import signal
 import sys
@@ -48,9 +49,11 @@ import time
 
 import numpy as np
 
-from ifc_spg.errors import IfcSpgError
-from ifc_spg.node.config import declare_parameters
+from ifc_spg import ros
+from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+from ifc_spg.node.config import PARAMETERS, declare_parameters
 from ifc_spg.node.core import SpgRunner, status_json
+from ifc_spg.ros import msg
 
 __all__ = ['SpgNode', 'main']
 
@@ -84,8 +87,6 @@ def _command_order(config, joint_names):
     Raises:
         ParameterError: Not exactly the robot's joints (names the missing / unknown ones).
     """
-    from ifc_spg.errors import ParameterError, did_you_mean
-
     names = list(config.command_joints) or list(joint_names)
     unknown = [n for n in names if n not in joint_names]
     if unknown:
@@ -109,11 +110,7 @@ class SpgNode:
     """
 
     def __init__(self, node, clock=time.monotonic):
-        from ifc_spg import ros
-        from ifc_spg.ros import msg
-
         self.node = node
-        self._msg = msg
         self.config = c = declare_parameters(node)
         self.runner = SpgRunner(c, clock=clock)
         self.log = node.get_logger()
@@ -163,6 +160,7 @@ class SpgNode:
         self.publish_config()
 
     def _start_timers(self):
+        """(Re)create the watchdog and diagnostics timers with the configured periods."""
         c, node = self.config, self.node
         for timer in (self._watchdog_timer, self._diag_timer):
             if timer is not None:
@@ -174,15 +172,14 @@ class SpgNode:
         self._diag_timer = node.create_timer(c.diagnostics_period, self.publish_diagnostics)
 
     def on_set_parameters(self, parameters):
-        """A parameter change at run time (``ros2 param set``, SetParameters): the
-        :data:`LIVE_PARAMETERS` apply from the next tick; the others are refused with the
-        reason (they shape the solver, the model or the topics: restart the node).
+        """A parameter change at run time (``ros2 param set``, SetParameters).
+
+        The :data:`LIVE_PARAMETERS` apply from the next tick; the others are refused with
+        the reason (they shape the solver, the model or the topics: restart the node).
+
+        Args:
+            parameters: The ``Parameter`` objects to set.
         """
-        from dataclasses import replace
-
-        from ifc_spg import ros
-        from ifc_spg.node.config import PARAMETERS
-
         fields = {p.name: p.field for p in PARAMETERS}
         changes = {}
         for param in parameters:
@@ -227,13 +224,12 @@ class SpgNode:
     # -- callbacks ----------------------------------------------------------------------
     def on_enable(self, message):
         """``spg/enable`` (latched Bool): switch commanding on or off, as the parameter."""
-        from ifc_spg import ros
-
         results = self.node.set_parameters([ros.Parameter('enable', value=bool(message.data))])
         if not results[0].successful:
             self.log.error(f'spg/enable: {results[0].reason}')
 
     def _set_enable(self, old, new):
+        """Log and report a change of ``enable``; enabling restarts from the measured q."""
         if new and not old:
             self.runner.request_restart()
             self.log.warning('enabled: commanding from the measured q at the next joint state')
@@ -265,9 +261,11 @@ class SpgNode:
         self._tick(message, message.header.stamp)
 
     def on_timer_tick(self):
-        """``tick: timer``: one tick with the latest joint state, stamped with its stamp plus
-        its age (task time runs on; q is not extrapolated). A state older than
-        watchdog.timeout stops commanding, as a stopped stream does.
+        """``tick: timer``: one tick with the latest joint state.
+
+        The tick is stamped with the state's stamp plus its age (task time runs on; q is not
+        extrapolated). A state older than watchdog.timeout stops commanding, as a stopped
+        stream does.
         """
         if self._latest is None:
             return
@@ -287,7 +285,7 @@ class SpgNode:
             return
         self._last_tick_ns = stamp_ns
         self._ages.append(age)
-        stamp = self._msg.Time()
+        stamp = msg.Time()
         stamp.sec, stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
         self._tick(message, stamp)
 
@@ -311,7 +309,14 @@ class SpgNode:
         self.commands_sent += 1
         if runner.config_version != self._config_version:
             self.publish_config()
-        self.pub_state.publish(self._msg.Float64MultiArray(data=runner.state_vector().tolist()))
+        self.pub_state.publish(msg.Float64MultiArray(data=runner.state_vector().tolist()))
+        self._report_events(cmd, was_stale, stalls)
+        if cmd.tick % self.config.status_decimation == 0:
+            self.publish_status()
+
+    def _report_events(self, cmd, was_stale, stalls):
+        """Log and report a restart, a continuation after a pause, or a new PSPM stall."""
+        runner = self.runner
         if cmd.resumed and cmd.tick > 1:
             text = (f'joint states are back (stamp {cmd.stamp_ns * 1e-9:.3f} s): restarted from '
                     f'the measured q (restart {runner.resumes})')
@@ -327,8 +332,6 @@ class SpgNode:
         if runner.pspm_stalls != stalls:  # an empty tank clips the stack: once per episode
             self.log.warning(runner.last_stall)
             self.publish_status(('pspm_stall', runner.last_stall))
-        if cmd.tick % self.config.status_decimation == 0:
-            self.publish_status()
 
     def on_task_stack(self, message):
         """A new task stack: accept (hot swap at the next tick) or reject with the reason."""
@@ -336,6 +339,7 @@ class SpgNode:
         self._report_stack(event)
 
     def _report_stack(self, event):
+        """Log a stack event and publish it on the status topic."""
         if event.accepted:
             self.log.info(event.message)
             self.publish_status(('stack_accepted', event.message))
@@ -346,7 +350,7 @@ class SpgNode:
 
     # -- commands, one writer per interface (q_v, qdot_v in the robot's joint order) -------
     def _joint_state_command(self, stamp, position, velocity):
-        out = self._msg.JointState()
+        out = msg.JointState()
         out.header.stamp = stamp
         order = self._command_order
         out.name = [self.runner.joint_names[i] for i in order]
@@ -355,12 +359,11 @@ class SpgNode:
         self.pub_command.publish(out)
 
     def _float64_multi_array_command(self, stamp, position, velocity):
-        out = self._msg.Float64MultiArray()
+        out = msg.Float64MultiArray()
         out.data = [float(position[i]) for i in self._command_order]
         self.pub_command.publish(out)
 
     def _joint_trajectory_command(self, stamp, position, velocity):
-        msg = self._msg
         out = msg.JointTrajectory()
         out.header.stamp = stamp
         order = self._command_order
@@ -384,8 +387,13 @@ class SpgNode:
 
     # -- outputs ------------------------------------------------------------------------
     def publish_status(self, event=None):
-        """Publish the runner's status JSON on the status topic (with ``tick: timer``, also
-        the joint states' age at the ticks: ``state_age`` p50/p99/max [s]).
+        """Publish the runner's status JSON on the status topic.
+
+        With ``tick: timer``, also the joint states' age at the ticks: ``state_age``
+        p50/p99/max [s].
+
+        Args:
+            event: Optional (type, message) of an event, see :meth:`SpgRunner.status`.
         """
         status = self.runner.status(event)
         if self._ages:
@@ -393,16 +401,15 @@ class SpgNode:
             status['state_age'] = {'p50': float(np.percentile(ages, 50)),
                                    'p99': float(np.percentile(ages, 99)),
                                    'max': float(ages[-1]), 'n': int(ages.size)}
-        self.pub_status.publish(self._msg.String(data=status_json(status)))
+        self.pub_status.publish(msg.String(data=status_json(status)))
 
     def publish_config(self):
         """Publish the runner's :meth:`~ifc_spg.node.core.SpgRunner.config_doc` (latched)."""
         self._config_version = self.runner.config_version
-        self.pub_config.publish(self._msg.String(data=status_json(self.runner.config_doc())))
+        self.pub_config.publish(msg.String(data=status_json(self.runner.config_doc())))
 
     def publish_diagnostics(self):
         """Publish one DiagnosticArray with the runner's summary."""
-        msg = self._msg
         item = self.runner.diagnostics()
         status = msg.DiagnosticStatus()
         level = _LEVELS[item.level]
@@ -418,6 +425,7 @@ class SpgNode:
         self.pub_diag.publish(array)
 
     def _log_throttled(self, level, text, period=1.0):
+        """Log ``text`` at most once per ``period`` [s] per kind (the text before ':')."""
         key = text.split(':', 1)[0]
         now = time.monotonic()
         last, suppressed = self._logged.get(key, (-1e18, 0))
@@ -435,8 +443,6 @@ def main(argv=None):
     if '-h' in argv or '--help' in argv:
         print(__doc__)
         return 0
-    from ifc_spg import ros
-
     try:
         ros.init(args=argv)
     except IfcSpgError as exc:

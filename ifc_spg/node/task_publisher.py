@@ -27,7 +27,11 @@ import signal
 import sys
 import time
 
+from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.model import RobotModel
+from ifc_spg.ros.msg import String
+from ifc_spg.task_stack import TaskStack, TaskStackError
 
 __all__ = ['main', 'parse_entry', 'load_entries']
 
@@ -66,9 +70,6 @@ def load_entries(entries, robot=None):
         IfcSpgError: The first invalid file; a TaskStackError reads
             ``FILE (line L, column C): tasks[2].frame: reason`` as in ``ifc-spg check``.
     """
-    from ifc_spg.model import RobotModel
-    from ifc_spg.task_stack import TaskStack, TaskStackError
-
     models = {}
     out = []
     for i, entry in enumerate(entries):
@@ -83,7 +84,7 @@ def load_entries(entries, robot=None):
                     except IfcSpgError as exc:
                         if robot:
                             raise
-                        raise stack._doc.error(('robot',), str(exc)) from None
+                        raise stack.error(('robot',), str(exc)) from None
                 stack.validate(models[name])
         except TaskStackError as exc:
             raise (exc if exc.source else exc.with_source(path)) from None
@@ -95,6 +96,7 @@ def load_entries(entries, robot=None):
 
 
 def _parser():
+    """The command-line parser (the ROS arguments removed first)."""
     p = argparse.ArgumentParser(
         prog='task_publisher', description='Publish task-stack files (latched).',
         epilog='ROS arguments go after --ros-args (remaps, namespace).')
@@ -115,6 +117,7 @@ def _parser():
 
 
 def _wait(condition, timeout, ok):
+    """Poll ``condition`` until it holds, ``timeout`` [s] passed or ``ok()`` is False."""
     deadline = time.monotonic() + timeout
     while not condition():
         if time.monotonic() > deadline or not ok():
@@ -126,8 +129,6 @@ def _wait(condition, timeout, ok):
 def main(argv=None):
     """Entry point of the ``task_publisher`` executable; returns the exit code."""
     argv = list(sys.argv if argv is None else argv)
-    from ifc_spg import ros
-
     user = ros.remove_ros_args(argv)[1:]
     parser = _parser()
     try:
@@ -140,15 +141,9 @@ def main(argv=None):
     try:
         entries = load_entries(args.files, args.robot)
     except IfcSpgError as exc:
-        from ifc_spg.task_stack import TaskStackError
         print(exc if isinstance(exc, TaskStackError) else f'task_publisher: {exc}',
               file=sys.stderr)
         return 2
-    wait_subs = args.wait_subscribers if args.wait_subscribers is not None else \
-        (1 if args.once else 0)
-
-    from ifc_spg.ros.msg import String
-
     stop = []
 
     def on_signal(signum, frame):
@@ -157,40 +152,51 @@ def main(argv=None):
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     ros.init(args=argv)
     node = ros.Node('task_publisher')
-    log = node.get_logger()
-    log.info(f'task_publisher: {ros.describe()}')
+    node.get_logger().info(f'task_publisher: {ros.describe()}')
     try:
-        pub = node.create_publisher(String, args.topic, ros.latched(1))
-        def alive():
-            return not stop
-
-        if wait_subs and not _wait(lambda: pub.get_subscription_count() >= wait_subs,
-                                   args.timeout, alive):
-            if stop:
-                return 0
-            log.error(f'no {wait_subs} subscriber(s) on {pub.topic_name} after '
-                      f'{args.timeout} s; nothing published')
-            return 1
-        start = time.monotonic()
-        for t, path, text, name in entries:
-            if not _wait(lambda t=t: time.monotonic() - start >= t, t + 1.0, alive):
-                return 0
-            pub.publish(String(data=text))
-            log.info(f"published '{path}' (stack '{name}') on {pub.topic_name} at "
-                     f'+{time.monotonic() - start:.3f} s')
-        if args.once:
-            ros.wait_for_acks(pub, args.timeout)
-            return 0
-        linger = float('inf') if args.linger is None else args.linger
-        end = time.monotonic() + linger
-        _wait(lambda: time.monotonic() >= end, linger + 1.0 if linger < 1e9 else 1e12, alive)
-        return 0
+        return _publish(node, args, entries, alive=lambda: not stop)
     finally:
         node.destroy_node()
         if ros.ok():
             ros.shutdown()
         for s, handler in previous.items():
             signal.signal(s, handler)
+
+
+def _publish(node, args, entries, alive):
+    """Publish ``entries`` on ``node`` as ``args`` ask; the exit code.
+
+    Args:
+        node: The node to publish from.
+        args: The parsed command line.
+        entries: [(t, file, text, stack name)] of :func:`load_entries`.
+        alive: ``alive()`` is False once a signal asked to stop.
+    """
+    log = node.get_logger()
+    wait_subs = args.wait_subscribers if args.wait_subscribers is not None else \
+        (1 if args.once else 0)
+    pub = node.create_publisher(String, args.topic, ros.latched(1))
+    if wait_subs and not _wait(lambda: pub.get_subscription_count() >= wait_subs,
+                               args.timeout, alive):
+        if not alive():
+            return 0
+        log.error(f'no {wait_subs} subscriber(s) on {pub.topic_name} after '
+                  f'{args.timeout} s; nothing published')
+        return 1
+    start = time.monotonic()
+    for t, path, text, name in entries:
+        if not _wait(lambda t=t: time.monotonic() - start >= t, t + 1.0, alive):
+            return 0
+        pub.publish(String(data=text))
+        log.info(f"published '{path}' (stack '{name}') on {pub.topic_name} at "
+                 f'+{time.monotonic() - start:.3f} s')
+    if args.once:
+        ros.wait_for_acks(pub, args.timeout)
+        return 0
+    linger = float('inf') if args.linger is None else args.linger
+    end = time.monotonic() + linger
+    _wait(lambda: time.monotonic() >= end, linger + 1.0 if linger < 1e9 else 1e12, alive)
+    return 0
 
 
 if __name__ == '__main__':
