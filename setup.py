@@ -19,8 +19,10 @@ def tree(src, dst):
 
 
 def native_extensions():
-    """The C kernels of the 2 ms path (optional: without a compiler or numpy the package
-    falls back to its numpy code, see ifc_spg/kernels/__init__.py).
+    """The C kernels of the 2 ms path.
+
+    Optional: without a compiler or numpy the package falls back to its numpy code, see
+    ifc_spg/kernels/__init__.py.
     """
     try:
         import numpy
@@ -40,7 +42,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'experiments', 'experiments.*']),
-    package_data={'ifc_spg': ['py.typed', 'model/data/*', 'schema/*.json', 'dynamics/kdl_bench.cpp']},
+    package_data={'ifc_spg': ['py.typed', 'model/data/*', 'schema/*.json',
+                              'dynamics/kdl_bench.cpp']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

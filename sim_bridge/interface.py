@@ -149,6 +149,7 @@ class FakeInterface(RobotInterface):
         self.reset()
 
     def reset(self, q0=None):
+        """At rest at ``q0`` [rad] (default zeros), commanding it, at t = 0."""
         n = len(self.joint_names)
         self._q = np.zeros(n) if q0 is None else check_vector(q0, n, 'q0', self.joint_names)
         self._qd = np.zeros(n)
@@ -157,6 +158,7 @@ class FakeInterface(RobotInterface):
         self._missed = 0
 
     def read_state(self):
+        """The current :class:`State`."""
         self._check_open()
         n = len(self.joint_names)
         return State(t=self._t, joint_names=self.joint_names, q=self._q.copy(),
@@ -165,10 +167,12 @@ class FakeInterface(RobotInterface):
                      missed_commands=self._missed)
 
     def write_command(self, q_v, qd_v=None):
+        """Command the virtual joint positions ``q_v`` [rad] (``qd_v`` is ignored)."""
         self._check_open()
         self._q_v = check_vector(q_v, len(self.joint_names), 'q_v', self.joint_names)
 
     def step(self, n=1):
+        """Advance ``n`` steps of ``dt``: each joint a damped spring towards q_v."""
         self._check_open()
         w = self._omega
         for _ in range(int(n)):
@@ -178,9 +182,11 @@ class FakeInterface(RobotInterface):
             self._t += self.dt
 
     def read_time(self):
+        """The simulated time [s]."""
         return self._t
 
     def close(self):
+        """Close it; further calls raise."""
         self._closed = True
 
     def _check_open(self):

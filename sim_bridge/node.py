@@ -263,9 +263,10 @@ class SimBridge:
             self.latencies.append(time.monotonic() - sent)
 
     def _decode_command(self, message):
-        """(q_v in the simulation's joint order, stamp) of a command of the configured
-        interface; a Float64MultiArray has no stamp: (0, 0), which lockstep takes as the
-        answer to the state it waits for.
+        """(q_v in the simulation's joint order, stamp) of a command.
+
+        Of the configured interface; a Float64MultiArray has no stamp: (0, 0), which
+        lockstep takes as the answer to the state it waits for.
         """
         interface = self.params.command_interface
         if interface == 'float64_multi_array':
@@ -358,7 +359,16 @@ class SimBridge:
         return m
 
     # -- the loop -------------------------------------------------------------------------
-    def _apply_inputs(self):
+    @property
+    def pending_pushes(self):
+        """The pushes received on sim/apply_wrench and not yet applied.
+
+        Each is (target, wrench [N, Nm], duration [s]).
+        """
+        return tuple(self._pushes)
+
+    def apply_inputs(self):
+        """Apply the received pushes and the latest command to the simulation (one step)."""
         for target, wrench, duration in self._pushes:
             try:
                 self.sim.apply_wrench(target, wrench, duration)
@@ -370,7 +380,7 @@ class SimBridge:
             self._command = None
 
     def _advance(self):
-        self._apply_inputs()
+        self.apply_inputs()
         self.sim.step(self.steps_per_tick)
         self.ticks += 1
         missed = self.sim.missed_commands
@@ -418,8 +428,9 @@ class SimBridge:
         return self.pacing
 
     def wait_for_subscribers(self, ok=lambda: True):
-        """Wait for ``wait_for_subscribers`` subscriptions on joint_states (see its
-        description); False if they did not come within 60 s.
+        """Wait for ``wait_for_subscribers`` subscriptions on joint_states.
+
+        See its description; False if they did not come within 60 s.
         """
         import time
 

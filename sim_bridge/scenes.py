@@ -181,6 +181,11 @@ def _add_handle(spec, body, anchor, grasp, axis):
     """Handle bar at the tool, a site aligned with the tool frame, and the grasp.
 
     Args:
+        spec: The MjSpec being built.
+        body: The scene body the handle bar belongs to.
+        anchor: The tool frame (:class:`Anchor`).
+        grasp: 'weld', 'connect' (an equality between the tool site and the handle) or
+            'none'.
         axis: Direction of the handle bar in the body frame.
     """
     u, v, z = anchor.frame()
@@ -219,6 +224,10 @@ def _tool_contact_pairs(spec, anchor, scene_body, scene_geom, friction, solref,
     """Explicit contact pairs between every tool geom and ``scene_geom`` (see the module doc).
 
     Args:
+        spec: The MjSpec being built.
+        anchor: The tool frame (:class:`Anchor`).
+        scene_body: The body ``scene_geom`` belongs to.
+        scene_geom: The scene's geom the tool touches.
         friction: Sliding friction coefficient mu (>= 0).
         solref: Normal contact reference (timeconst [s], dampratio).
         solref_friction: Friction reference (timeconst [s], dampratio); slow on purpose.
@@ -252,9 +261,11 @@ def _xy(value, name):
 def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4), friction=0.3,
            solref_friction=TOOL_SOLREF_FRICTION, offset=(0.0, 0.0), obstacle_offset=None,
            obstacle_size=(0.05, 0.02, 0.02)):
-    """Table top ``gap`` [m] below the tool frame, centred ``offset`` (x, y) [m] (world)
-    from the tool; with ``obstacle_offset`` (x, y) [m] (world, from the tool) a box of
-    half sizes ``obstacle_size`` [m] stands on it (same contact parameters as the top).
+    """Table top ``gap`` [m] below the tool frame.
+
+    Centred ``offset`` (x, y) [m] (world) from the tool; with ``obstacle_offset`` (x, y) [m]
+    (world, from the tool) a box of half sizes ``obstacle_size`` [m] stands on it (same
+    contact parameters as the top).
     """
     off = _xy(offset, 'table offset')
     top = anchor.tool_pos[2] - gap

@@ -153,10 +153,27 @@ class Simulation(RobotInterface):
 
     # -- construction --------------------------------------------------------------------
     def _build(self, config):
+        """Load the robot, add the scene and the actuators, compile, index, make the law."""
         robot = self.robot
         rspec = load_robot_spec(robot)
         self.robot_spec = rspec
         spec = rspec.spec
+        self._override_joints(spec, config)
+        self.contact_chain = contact_chain = self._pick_contact_chain(rspec, config)
+        anchor = self._anchor(spec, rspec, contact_chain)
+        self.scene = build_scene(spec, config.scene, anchor, config.scene_options)
+        self._add_actuators(spec)
+        try:
+            self.model = spec.compile()
+        except ValueError as exc:
+            raise ModelError(f"MuJoCo could not compile robot '{robot.name}' with scene "
+                             f"'{config.scene}': {exc}") from exc
+        self._index(self.model, rspec, contact_chain)
+        self.law = self._make_law(config)
+        self.law.setup(self)
+
+    def _override_joints(self, spec, config):
+        """Apply the configured joint damping, friction loss and armature (per joint)."""
         names = self.joint_names
         n = len(names)
         overrides = {k: _per_joint(getattr(config, k), n, k, names)
@@ -169,21 +186,24 @@ class Simulation(RobotInterface):
                 joint.frictionloss = overrides['frictionloss'][i]
             if overrides['armature'] is not None:
                 joint.armature = overrides['armature'][i]
+
+    def _pick_contact_chain(self, rspec, config):
+        """The configured contact chain, else the tool, an admittance chain, an F/T chain."""
+        robot = self.robot
         chains = list(rspec.chain_sites)
         if config.contact_chain is not None:
             if config.contact_chain not in rspec.chain_sites:
                 raise UnknownFrame(f"contact_chain '{config.contact_chain}' not a chain of "
                                    f"'{robot.name}'{did_you_mean(config.contact_chain, chains)}"
                                    f"; chains: {', '.join(chains)}")
-            contact_chain = config.contact_chain
-        else:
-            preferred = ['tool'] + [c for c in chains if c in robot.admittance] + list(
-                rspec.ft_sensors) + chains
-            contact_chain = next(c for c in preferred if c in rspec.chain_sites)
-        self.contact_chain = contact_chain
-        anchor = self._anchor(spec, rspec, contact_chain)
-        self.scene = build_scene(spec, config.scene, anchor, config.scene_options)
-        for jname in names:
+            return config.contact_chain
+        preferred = ['tool'] + [c for c in chains if c in robot.admittance] + list(
+            rspec.ft_sensors) + chains
+        return next(c for c in preferred if c in rspec.chain_sites)
+
+    def _add_actuators(self, spec):
+        """One affine position actuator per joint, and the solver options."""
+        for jname in self.joint_names:
             spec.add_actuator(name=f'ifc_{jname}', target=jname,
                               trntype=mujoco.mjtTrn.mjTRN_JOINT,
                               gaintype=mujoco.mjtGain.mjGAIN_FIXED,
@@ -196,12 +216,10 @@ class Simulation(RobotInterface):
         # use it against sliding-contact chatter (see sim_bridge.scenes).
         spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         spec.option.impratio = 10.0
-        try:
-            self.model = spec.compile()
-        except ValueError as exc:
-            raise ModelError(f"MuJoCo could not compile robot '{robot.name}' with scene "
-                             f"'{config.scene}': {exc}") from exc
-        m = self.model
+
+    def _index(self, m, rspec, contact_chain):
+        """Data and the addresses of joints, actuators, sites, sensors in the model ``m``."""
+        names = self.joint_names
         self.data = mujoco.MjData(m)
         self._kin_data = mujoco.MjData(m)
         jids = [m.joint(j).id for j in names]
@@ -229,6 +247,11 @@ class Simulation(RobotInterface):
                           la.torque) for la in self.scene.latches]
         self._gravity = np.array(m.opt.gravity)
         self._scratch6 = np.zeros(6)
+
+    def _make_law(self, config):
+        """The robot's controller: Cartesian admittance (accrea) or joint impedance."""
+        robot = self.robot
+        names = self.joint_names
         stiffness = robot.stiffness if config.stiffness is None else _per_joint(
             config.stiffness, len(names), 'stiffness', names)
         damping = robot.damping if config.damping is None else _per_joint(
@@ -242,13 +265,11 @@ class Simulation(RobotInterface):
                                        f"{did_you_mean(chain, admittance)}; chains: "
                                        f"{', '.join(admittance)}")
                 admittance[chain] = params
-            self.law = CartesianAdmittanceLaw(admittance, **config.admittance_gains)
-        else:
-            mask = np.array(robot.stiff_mask) if self.interface == 'icub' else \
-                np.zeros(len(names), dtype=bool)
-            self.law = JointImpedance(np.array(stiffness, float), np.array(damping, float),
-                                      mask, tuple(config.stiff_gains), self.interface)
-        self.law.setup(self)
+            return CartesianAdmittanceLaw(admittance, **config.admittance_gains)
+        mask = np.array(robot.stiff_mask) if self.interface == 'icub' else \
+            np.zeros(len(names), dtype=bool)
+        return JointImpedance(np.array(stiffness, float), np.array(damping, float),
+                              mask, tuple(config.stiff_gains), self.interface)
 
     def _anchor(self, spec, rspec, chain):
         """Tool pose at q0 from a throw-away compile of the bare robot."""
@@ -485,6 +506,11 @@ class Simulation(RobotInterface):
                                    f"; chains: {', '.join(self._chain_site_ids)}")
         body = int(m.site_bodyid[site]) if site is not None else m.body(target).id
         self._pushes.append((body, site, w, self.data.time + duration))
+
+    @property
+    def active_pushes(self):
+        """The pushes acting now: (body id, site id or None, wrench, end time [s]) each."""
+        return tuple(self._pushes)
 
     def clear_wrenches(self):
         """Remove every push."""

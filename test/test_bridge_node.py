@@ -99,12 +99,12 @@ def test_push_topic_moves_the_tool(domain):
     push.header.frame_id = 'tool;duration=0.1'
     push.wrench.force.z = 20.0
     pub.publish(push)
-    assert ros.spin_until(lambda: bridge._pushes, 5.0, nodes=(bridge.node, spg_node))
-    bridge._apply_inputs()
+    assert ros.spin_until(lambda: bridge.pending_pushes, 5.0, nodes=(bridge.node, spg_node))
+    bridge.apply_inputs()
     z0 = bridge.sim.chain_pose('tool')[0][2]
     bridge.sim.step(101)
     assert bridge.sim.chain_pose('tool')[0][2] > z0 + 1e-3
-    assert bridge.sim._pushes == [] and not bridge.sim.data.xfrc_applied.any()  # expired
+    assert bridge.sim.active_pushes == () and not bridge.sim.data.xfrc_applied.any()  # expired
     bridge.close()
 
 

@@ -134,14 +134,13 @@ def test_adversarial_stacks_keep_every_command_inside_the_limits(case):
     assert not loop.sim.warnings()
 
 
-def test_solver_failures_brake_hold_and_are_reported():
+def test_solver_failures_brake_hold_and_are_reported(monkeypatch):
     loop = Loop(watchdog=0.0)
     assert loop.runner.handle_task_stack(STACKS[2]).accepted     # a moving sine
     loop.run(0.6)
     moving = np.max(np.abs(loop.commands[-1].velocity))
     assert moving > 0.05
     spg = loop.runner.spg
-    solve = spg._solver.solve
     n = loop.robot.n
     mode = {'k': 0}
 
@@ -151,7 +150,7 @@ def test_solver_failures_brake_hold_and_are_reported():
             raise RuntimeError('solver exploded')
         return CascadeResult(np.full(n, np.nan), [], 'ok', -1)   # a NaN "solution"
 
-    spg._solver.solve = broken
+    monkeypatch.setattr(spg.solver, 'solve', broken)              # the public cascade
     brake_ticks = int(np.ceil(moving / (np.min(loop.robot.a_max) * DT))) + 1
     cmds = loop.run(brake_ticks * DT + 0.1)
     assert set(loop.statuses[-len(cmds):]) == {'hold'}
@@ -163,7 +162,7 @@ def test_solver_failures_brake_hold_and_are_reported():
     tail = cmds[brake_ticks:]
     assert all(np.all(c.velocity == 0.0) for c in tail)
     assert all(np.array_equal(c.position, tail[0].position) for c in tail)
-    spg._solver.solve = solve                                     # the solver recovers
+    monkeypatch.undo()                                            # the solver recovers
     loop.run(0.2)
     assert loop.statuses[-1] == 'ok' and loop.runner.diagnostics().level == 'OK'
     assert loop.checker.violations == 0

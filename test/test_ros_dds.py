@@ -7,6 +7,7 @@ tool looking at the wire.
 
 import time
 
+from helpers import wait_for
 import pytest
 
 from ifc_spg.errors import IfcSpgError, ParameterError
@@ -88,13 +89,8 @@ def test_best_effort_publisher_does_not_match_reliable_subscription(domain):
 
 
 def _read_all(reader, timeout=5.0, predicate=lambda samples: bool(samples)):
-    deadline = time.monotonic() + timeout
     samples = []
-    while time.monotonic() < deadline:
-        samples += reader.take(64)
-        if predicate(samples):
-            break
-        time.sleep(0.02)
+    wait_for(lambda: samples.extend(reader.take(64)) or predicate(samples), timeout)
     return samples
 
 
@@ -137,20 +133,12 @@ def test_wire_names_user_data_and_discovery_info(domain):
     assert ours and ours[0].qos[Policy.Userdata].data == b'enclave=/;'
 
     # ros_discovery_info: transient local, so a late reader gets the latest graph
-    info_topic = Topic(spy, 'ros_discovery_info', dds._idl_type(messages.ParticipantEntitiesInfo))
+    info_topic = Topic(spy, 'ros_discovery_info', dds.idl_type(messages.ParticipantEntitiesInfo))
     info_reader = DataReader(spy, info_topic, Qos(
         Policy.Reliability.Reliable(max_blocking_time=0), Policy.Durability.TransientLocal,
         Policy.History.KeepAll, Policy.DataRepresentation(use_cdrv0_representation=True)))
-    from cyclonedds._clayer import ddspy_take
-    from cyclonedds.core import InstanceState, SampleState, ViewState
-
-    deadline = time.monotonic() + 5.0
     infos = []
-    while time.monotonic() < deadline and not infos:
-        for data, _info in ddspy_take(info_reader._ref, SampleState.Any | ViewState.Any |
-                                     InstanceState.Any, 16):
-            infos.append(messages.deserialize(messages.ParticipantEntitiesInfo, data))
-        time.sleep(0.02)
+    wait_for(lambda: infos.extend(info_reader.take(16)) or infos, 5.0)
     assert infos, 'no ros_discovery_info received'
     last = infos[-1]
     assert bytes(last.gid.data) == ctx.gid

@@ -98,8 +98,10 @@ if _rclpy_available(_choice()):
     _nodes = _weakref.WeakSet()
 
     class Node(_RclpyNode):
-        """rclpy's Node; :func:`shutdown` destroys the nodes of the context it shuts down (as
-        the built-in backend does), so that a node does not outlive its context on the graph.
+        """rclpy's Node, destroyed with its context.
+
+        :func:`shutdown` destroys the nodes of the context it shuts down (as the built-in
+        backend does), so that a node does not outlive its context on the graph.
         """
 
         def __init__(self, *args, **kwargs):
@@ -111,8 +113,10 @@ if _rclpy_available(_choice()):
         return QoSProfile(depth=depth, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
     def init(args=None, *, context=None, **kwargs):
-        """rclpy.init, after the ``--ros-args`` are checked by the same parser as the built-in
-        backend's (clear errors, e.g. ``malformed '-p rate=5'``); returns the context.
+        """rclpy.init, after the ``--ros-args`` are checked; returns the context.
+
+        The same parser as the built-in backend's checks them (clear errors, e.g.
+        ``malformed '-p rate=5'``).
         """
         import sys
 
@@ -121,8 +125,9 @@ if _rclpy_available(_choice()):
         return context or rclpy.get_default_context()
 
     def shutdown(*, context=None):
-        """Destroy the nodes of the default (or given) context and shut it down; a no-op
-        when it is not initialised.
+        """Destroy the nodes of the default (or given) context and shut it down.
+
+        A no-op when it is not initialised.
         """
         ctx = context or rclpy.get_default_context()
         for node in list(_nodes):
@@ -143,8 +148,9 @@ if _rclpy_available(_choice()):
     _executors = _weakref.WeakValueDictionary()
 
     class _NodesExecutor:
-        """A SingleThreadedExecutor over a fixed set of nodes; a node taken over by another
-        executor in between is added back before each spin.
+        """A SingleThreadedExecutor over a fixed set of nodes.
+
+        A node taken over by another executor in between is added back before each spin.
         """
 
         def __init__(self, nodes):
@@ -171,7 +177,8 @@ if _rclpy_available(_choice()):
                     raise
 
     def wait_for_acks(publisher, timeout_sec=1.0):
-        """Wait until every matched reliable reader acknowledged what ``publisher`` sent;
+        """Wait until every matched reliable reader acknowledged what ``publisher`` sent.
+
         True if they did within ``timeout_sec`` [s].
         """
         from rclpy.duration import Duration
@@ -179,8 +186,9 @@ if _rclpy_available(_choice()):
         return publisher.wait_for_all_acked(Duration(seconds=timeout_sec))
 
     def spin(node, executor=None):
-        """Run callbacks of ``node`` until its context shuts down (a signal ends it quietly,
-        as with the built-in backend).
+        """Run callbacks of ``node`` until its context shuts down.
+
+        A signal ends it quietly, as with the built-in backend.
         """
         ex = globals()['executor']((node,)) if executor is None else executor
         while node.context.ok():
@@ -252,15 +260,17 @@ else:
         return nodes[0].context.executor(nodes)
 
     def wait_for_acks(publisher, timeout_sec=1.0):
-        """Wait until every matched reliable reader acknowledged what ``publisher`` sent;
+        """Wait until every matched reliable reader acknowledged what ``publisher`` sent.
+
         True if they did within ``timeout_sec`` [s].
         """
         return publisher.wait_for_acks(timeout_sec)
 
 
 def describe():
-    """The backend line every node logs at start-up, e.g. ``ROS 2 backend: rclpy on
-    rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``.
+    """The backend line every node logs at start-up.
+
+    For example ``ROS 2 backend: rclpy on rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``.
     """
     domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
     return f'ROS 2 backend: {BACKEND} on {RMW}, ROS_DOMAIN_ID {domain}'

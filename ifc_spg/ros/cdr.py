@@ -195,6 +195,7 @@ class _SerGen(_Gen):
         self.primitive('uint32', f'len({expr})')
 
     def field(self, ftype, expr):
+        """Write one field, the value of ``expr``."""
         base, kind, length = parse_field_type(ftype)
         if kind == 'single':
             if base == 'string':
@@ -217,21 +218,28 @@ class _SerGen(_Gen):
             self.emit(f'    _bad_array({x!r}, len({x}), {length})')
         self.flush()
         if base in PRIMITIVES and base not in ('bool', 'byte'):
-            code, size, tcode = PRIMITIVES[base]
-            align = _align_of(base)
-            if kind == 'array' and length:
-                pad = self.static_pad(align)
-                if pad is None:
-                    self.runtime_align(align)
-                elif pad:
-                    self.emit(f'b += _Z[{pad}]')
-            elif align > 4:
-                self.emit(f'if len({x}):')
-                self.emit(f'    b += _Z[(4 - len(b)) & {align - 1}]')
-            self.emit(f'b += _seq_bytes({x}, {tcode!r}, {code!r})')
-            self._after_numbers(kind, length, align, size)
+            self._numbers(base, kind, length, x)
             return
-        # bool / byte / string / message sequences: element by element
+        self._elements(base, x)
+
+    def _numbers(self, base, kind, length, x):
+        """A sequence or array of numbers ``x``, aligned, in one piece."""
+        code, size, tcode = PRIMITIVES[base]
+        align = _align_of(base)
+        if kind == 'array' and length:
+            pad = self.static_pad(align)
+            if pad is None:
+                self.runtime_align(align)
+            elif pad:
+                self.emit(f'b += _Z[{pad}]')
+        elif align > 4:
+            self.emit(f'if len({x}):')
+            self.emit(f'    b += _Z[(4 - len(b)) & {align - 1}]')
+        self.emit(f'b += _seq_bytes({x}, {tcode!r}, {code!r})')
+        self._after_numbers(kind, length, align, size)
+
+    def _elements(self, base, x):
+        """Bool / byte / string / message sequences: element by element."""
         item = self.tmp('e')
         self.emit(f'for {item} in {x}:')
         self.indent += 1
@@ -299,17 +307,7 @@ class _DeGen(_Gen):
         """Read one field into ``target`` (an attribute expression or local name)."""
         base, kind, length = parse_field_type(ftype)
         if kind == 'single':
-            if base == 'string':
-                self.string(target)
-            elif base == 'byte':
-                t = self.tmp('c')
-                self.primitive(base, t)
-                self.flush()
-                self.emit(f'{target} = {t}')
-            elif base in PRIMITIVES:
-                self.primitive(base, target)
-            else:
-                self.message(base, target)
+            self._single(base, target)
             return
         n = self.tmp('n')
         if kind == 'sequence':
@@ -319,21 +317,43 @@ class _DeGen(_Gen):
             self.flush()
             self.emit(f'{n} = {length}')
         if base in PRIMITIVES and base not in ('bool', 'byte'):
-            code, size, tcode = PRIMITIVES[base]
-            align = _align_of(base)
-            if kind == 'array' and length:
-                pad = self.static_pad(align)
-                if pad is None:
-                    self.runtime_align(align)
-                elif pad:
-                    self.emit(f'p += {pad}')
-            elif align > 4:
-                self.emit(f'if {n}:')
-                self.emit(f'    p += -p & {align - 1}')
-            self.emit(f'{target} = _seq_from(v, p, {n}, {tcode!r}, {code!r}, {size})')
-            self.emit(f'p += {n} * {size}')
-            self._after_numbers(kind, length, align, size)
+            self._numbers(base, kind, length, n, target)
             return
+        self._elements(base, n, target)
+
+    def _single(self, base, target):
+        """Read one value of type ``base`` into ``target``."""
+        if base == 'string':
+            self.string(target)
+        elif base == 'byte':
+            t = self.tmp('c')
+            self.primitive(base, t)
+            self.flush()
+            self.emit(f'{target} = {t}')
+        elif base in PRIMITIVES:
+            self.primitive(base, target)
+        else:
+            self.message(base, target)
+
+    def _numbers(self, base, kind, length, n, target):
+        """Read ``n`` numbers into ``target`` in one piece, aligned."""
+        code, size, tcode = PRIMITIVES[base]
+        align = _align_of(base)
+        if kind == 'array' and length:
+            pad = self.static_pad(align)
+            if pad is None:
+                self.runtime_align(align)
+            elif pad:
+                self.emit(f'p += {pad}')
+        elif align > 4:
+            self.emit(f'if {n}:')
+            self.emit(f'    p += -p & {align - 1}')
+        self.emit(f'{target} = _seq_from(v, p, {n}, {tcode!r}, {code!r}, {size})')
+        self.emit(f'p += {n} * {size}')
+        self._after_numbers(kind, length, align, size)
+
+    def _elements(self, base, n, target):
+        """Read ``n`` bools / bytes / strings / messages into the list ``target``."""
         lst = self.tmp('l')
         item = self.tmp('e')
         self.emit(f'{lst} = []')

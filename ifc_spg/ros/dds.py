@@ -1,5 +1,6 @@
-"""The built-in ROS 2 backend: rclpy's node API over PyPI ``cyclonedds``, on the wire as
-``rmw_cyclonedds_cpp`` (Jazzy).
+"""The built-in ROS 2 backend: rclpy's node API over PyPI ``cyclonedds``.
+
+On the wire it is ``rmw_cyclonedds_cpp`` (Jazzy).
 
 What a real ROS 2 peer sees:
 
@@ -89,7 +90,7 @@ def _idl_field(ftype):
                  'int64': t.int64, 'uint64': t.uint64, 'float32': t.float32,
                  'float64': t.float64}[base]
     else:
-        inner = _idl_type(messages.REGISTRY[base])
+        inner = idl_type(messages.REGISTRY[base])
     if kind == 'sequence':
         return t.sequence[inner, length] if length else t.sequence[inner]
     if kind == 'array':
@@ -97,7 +98,7 @@ def _idl_field(ftype):
     return inner
 
 
-def _idl_type(cls):
+def idl_type(cls):
     """A cyclonedds IdlStruct with the DDS type name and layout of message class ``cls``."""
     if cls not in _IDL_TYPES:
         from cyclonedds.idl import make_idl_struct
@@ -157,7 +158,7 @@ class Context:
                 if name == dds_name and other is not cls:
                     raise ParameterError(f"topic '{dds_name}' is already used with type "
                                          f'{other._TYPE}, not {cls._TYPE}')
-            self._topics[key] = Topic(self.participant, dds_name, _idl_type(cls))
+            self._topics[key] = Topic(self.participant, dds_name, idl_type(cls))
         return self._topics[key]
 
     def ok(self):
@@ -359,8 +360,9 @@ class Subscription:
 
 
 class Timer:
-    """Calls ``callback()`` every ``timer_period_ns`` on the steady clock, skipping missed
-    periods as rcl does.
+    """Calls ``callback()`` every ``timer_period_ns`` on the steady clock.
+
+    Missed periods are skipped, as rcl does.
     """
 
     def __init__(self, node, period_s, callback, autostart=True):
@@ -528,9 +530,10 @@ class Node:
                 ex.subs = [s for s in ex.subs if s is not sub]
 
     def count_publishers(self, topic_name):
-        """Publishers matched on ``topic_name``, as seen by this node's subscriptions to it
-        (rclpy counts the whole graph; the built-in backend knows the writers its readers
-        matched, which is what a test waiting for a connection needs).
+        """Publishers matched on ``topic_name``, as seen by this node's subscriptions to it.
+
+        rclpy counts the whole graph; the built-in backend knows the writers its readers
+        matched, which is what a test waiting for a connection needs.
         """
         name = self.resolve_topic_name(topic_name)
         return max((s.get_publisher_count() for s in self.subscriptions
@@ -635,14 +638,17 @@ class Node:
         return self._descriptors[name]
 
     def add_on_set_parameters_callback(self, callback):
-        """Call ``callback(parameters) -> SetParametersResult`` before parameters change (as
-        rclpy does); an unsuccessful result refuses the change.
+        """Call ``callback(parameters) -> SetParametersResult`` before parameters change.
+
+        As rclpy does; an unsuccessful result refuses the change.
         """
         self._on_set.append(callback)
 
     def set_parameters(self, parameters):
-        """Set declared parameters, one at a time as rclpy does: type, range and read_only
-        are checked, then the on-set callbacks; one SetParametersResult per parameter.
+        """Set declared parameters, one at a time as rclpy does.
+
+        Type, range and read_only are checked, then the on-set callbacks; one
+        SetParametersResult per parameter.
         """
         results = []
         for param in parameters:
@@ -730,6 +736,17 @@ class _Executor:
                 return True
         return False
 
+    def _wait_ns(self, deadline):
+        """How long [ns] to wait: until the deadline or the next timer, at most a while."""
+        now = time.monotonic_ns()
+        wait = _MAX_WAIT_NS
+        if deadline is not None:
+            wait = min(wait, deadline - now)
+        for timer in self.timers:
+            if not timer._canceled:
+                wait = min(wait, timer._next - now)
+        return wait
+
     def spin_once(self, timeout_sec=None):
         """Run at most one callback, waiting up to ``timeout_sec`` [s] (None: forever)."""
         if not self.context.ok():
@@ -739,13 +756,7 @@ class _Executor:
             return True
         deadline = None if timeout_sec is None else time.monotonic_ns() + int(timeout_sec * 1e9)
         while self.context.ok():
-            now = time.monotonic_ns()
-            wait = _MAX_WAIT_NS
-            if deadline is not None:
-                wait = min(wait, deadline - now)
-            for timer in self.timers:
-                if not timer._canceled:
-                    wait = min(wait, timer._next - now)
+            wait = self._wait_ns(deadline)
             if wait > 0:
                 self.waitset.wait(wait)
             self.context.guard.take()

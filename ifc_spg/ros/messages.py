@@ -37,6 +37,7 @@ def dds_type_name(ros_type):
 
 
 def _default_factory(ftype):
+    """A function making the default value of a field of type ``ftype`` (as rclpy's)."""
     base, kind, length = parse_field_type(ftype)
     if kind == 'sequence':
         code = PRIMITIVES.get(base, (None, None, None))[2]
@@ -44,15 +45,7 @@ def _default_factory(ftype):
             return lambda: array.array(code)
         return list
     if kind == 'array':
-        code = PRIMITIVES.get(base, (None, None, None))[2]
-        if code is not None:
-            return lambda: array.array(code, bytes(length * array.array(code).itemsize))
-        if base == 'string':
-            return lambda: [''] * length
-        if base in PRIMITIVES:
-            zero = _default_factory(base)
-            return lambda: [zero() for _ in range(length)]
-        return lambda: [REGISTRY[base]() for _ in range(length)]
+        return _array_factory(base, length)
     if base == 'string':
         return str
     if base == 'bool':
@@ -64,6 +57,19 @@ def _default_factory(ftype):
     if base in PRIMITIVES:
         return int
     return lambda: REGISTRY[base]()
+
+
+def _array_factory(base, length):
+    """A function making the default of a fixed-size array of ``length`` ``base`` values."""
+    code = PRIMITIVES.get(base, (None, None, None))[2]
+    if code is not None:
+        return lambda: array.array(code, bytes(length * array.array(code).itemsize))
+    if base == 'string':
+        return lambda: [''] * length
+    if base in PRIMITIVES:
+        zero = _default_factory(base)
+        return lambda: [zero() for _ in range(length)]
+    return lambda: [REGISTRY[base]() for _ in range(length)]
 
 
 def _converter(ftype):
@@ -257,8 +263,10 @@ class JointState(Message):
 # trajectory_msgs ------------------------------------------------------------------------------
 
 class JointTrajectoryPoint(Message):
-    """trajectory_msgs/msg/JointTrajectoryPoint: ``positions``, ``velocities``,
-    ``accelerations``, ``effort``, ``time_from_start`` (Duration).
+    """trajectory_msgs/msg/JointTrajectoryPoint.
+
+    Fields ``positions``, ``velocities``, ``accelerations``, ``effort``,
+    ``time_from_start`` (Duration).
     """
 
     __slots__ = ('positions', 'velocities', 'accelerations', 'effort', 'time_from_start')

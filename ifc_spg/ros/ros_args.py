@@ -249,65 +249,82 @@ def parse_ros_args(argv):
         ParameterError: naming the bad argument, for unknown flags, missing values, malformed
             rules, bad params files or values.
     """
-    user, extra, remaps, files = [], [], [], []
-    sections, log_levels, enclave = {}, {}, None
+    acc = _Collected()
     in_ros = False
     i = 0
     argv = list(argv or [])
     while i < len(argv):
         arg = argv[i]
+        i += 1
         if arg == '--ros-args':
             in_ros = True
-            i += 1
-            continue
-        if not in_ros:
-            user.append(arg)
-            i += 1
-            continue
-        if arg == '--':
+        elif not in_ros:
+            acc.user.append(arg)
+        elif arg == '--':
             in_ros = False
+        elif arg in _FLAGS_ALONE:
+            acc.extra.append(arg)
+        else:
+            _check_flag(arg, argv, i)
+            acc.add(arg, argv[i])
             i += 1
-            continue
-        if arg in _FLAGS_ALONE:
-            extra.append(arg)
-            i += 1
-            continue
-        if arg not in _FLAGS_WITH_VALUE:
-            known = _FLAGS_WITH_VALUE + _FLAGS_ALONE
-            raise ParameterError(f"unknown ROS argument '{arg}'{did_you_mean(arg, known)}; valid: "
-                                 f"{', '.join(known)} (end the ROS section with '--')")
-        if i + 1 >= len(argv) or argv[i + 1] == '--ros-args':
-            raise ParameterError(f"'{arg}' at the end of the ROS arguments needs a value, e.g. "
-                                 f"{_EXAMPLES.get(arg, arg + ' VALUE')}")
-        value = argv[i + 1]
-        i += 2
+    return RosArgs(user_args=tuple(acc.user), param_sections=acc.sections,
+                   params_files=tuple(acc.files), remaps=tuple(acc.remaps),
+                   log_levels=acc.log_levels, enclave=acc.enclave, extra_flags=tuple(acc.extra))
+
+
+def _check_flag(arg, argv, i):
+    """Raise ParameterError unless ``arg`` is a known flag with a value at ``argv[i]``."""
+    if arg not in _FLAGS_WITH_VALUE:
+        known = _FLAGS_WITH_VALUE + _FLAGS_ALONE
+        raise ParameterError(f"unknown ROS argument '{arg}'{did_you_mean(arg, known)}; valid: "
+                             f"{', '.join(known)} (end the ROS section with '--')")
+    if i >= len(argv) or argv[i] == '--ros-args':
+        raise ParameterError(f"'{arg}' at the end of the ROS arguments needs a value, e.g. "
+                             f"{_EXAMPLES.get(arg, arg + ' VALUE')}")
+
+
+class _Collected:
+    """What :func:`parse_ros_args` has read so far."""
+
+    def __init__(self):
+        self.user, self.extra, self.remaps, self.files = [], [], [], []
+        self.sections, self.log_levels, self.enclave = {}, {}, None
+
+    def add(self, arg, value):
+        """One ROS flag with its value."""
         if arg in ('-p', '--param'):
-            node, name, text = _split_rule(value, arg)
-            if not _PARAM_NAME_RE.match(name):
-                raise ParameterError(f"malformed '{arg} {value}': invalid parameter name "
-                                     f"'{name}' (letters, digits, '_', '.' separated)")
-            key = _normalise_node_key(node) if node else '/**'
-            sections.setdefault(key, {})[name] = parse_param_value(text, f'{arg} {value}')
+            self.param(arg, value)
         elif arg == '--params-file':
             for key, params in load_params_file(value).items():
-                sections.setdefault(key, {}).update(params)
-            files.append(value)
+                self.sections.setdefault(key, {}).update(params)
+            self.files.append(value)
         elif arg in ('-r', '--remap'):
-            remaps.append(_parse_remap(value))
+            self.remaps.append(_parse_remap(value))
         elif arg == '--log-level':
-            logger, _, level = value.rpartition(':=')
-            if level.lower() not in LOG_LEVELS:
-                raise ParameterError(f"invalid log level '{level}' in '--log-level {value}'"
-                                     f"{did_you_mean(level.lower(), LOG_LEVELS)}; valid: "
-                                     f"{', '.join(LOG_LEVELS)}")
-            log_levels[logger] = level.lower()
+            self.log_level(value)
         elif arg in ('-e', '--enclave'):
-            enclave = value
+            self.enclave = value
         else:
-            extra.append(f'{arg}={value}')
-    return RosArgs(user_args=tuple(user), param_sections=sections, params_files=tuple(files),
-                   remaps=tuple(remaps), log_levels=log_levels, enclave=enclave,
-                   extra_flags=tuple(extra))
+            self.extra.append(f'{arg}={value}')
+
+    def param(self, arg, value):
+        """``-p [node:]name:=value``."""
+        node, name, text = _split_rule(value, arg)
+        if not _PARAM_NAME_RE.match(name):
+            raise ParameterError(f"malformed '{arg} {value}': invalid parameter name "
+                                 f"'{name}' (letters, digits, '_', '.' separated)")
+        key = _normalise_node_key(node) if node else '/**'
+        self.sections.setdefault(key, {})[name] = parse_param_value(text, f'{arg} {value}')
+
+    def log_level(self, value):
+        """``--log-level [logger:=]level``."""
+        logger, _, level = value.rpartition(':=')
+        if level.lower() not in LOG_LEVELS:
+            raise ParameterError(f"invalid log level '{level}' in '--log-level {value}'"
+                                 f"{did_you_mean(level.lower(), LOG_LEVELS)}; valid: "
+                                 f"{', '.join(LOG_LEVELS)}")
+        self.log_levels[logger] = level.lower()
 
 
 _EXAMPLES = {

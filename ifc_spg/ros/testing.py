@@ -1,5 +1,7 @@
-"""Test helpers: a loopback-only DDS configuration for both backends, a random ROS domain,
-and child processes started (and stopped, by PID) from a test.
+"""Test helpers: loopback-only DDS, a random ROS domain, child processes.
+
+A loopback-only DDS configuration for both backends, a random ROS domain, and child
+processes started (and stopped, by PID) from a test.
 
     env = loopback_env()            # for subprocesses: CYCLONEDDS_URI, ROS_DOMAIN_ID, ...
     env = loopback_env(backend='cyclonedds')   # children on the built-in backend
