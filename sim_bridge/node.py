@@ -36,7 +36,12 @@ import time
 
 import numpy as np
 
+from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+from ifc_spg.node.config import declare_checked, robot_gains_of
+from ifc_spg.ros import msg
+from sim_bridge.pacing import DeadlinePacer
+from sim_bridge.simulation import SimConfig, Simulation
 
 __all__ = ['BridgeParams', 'SimBridge', 'main', 'parse_push_frame']
 
@@ -105,9 +110,6 @@ _DESCRIPTIONS = {
 
 def declare(node):
     """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
-    from ifc_spg import ros
-    from ifc_spg.node.config import declare_checked, robot_gains_of
-
     values = {}
     gains = None
     for name, default in BridgeParams.__dataclass_fields__.items():
@@ -203,10 +205,6 @@ class SimBridge:
     """
 
     def __init__(self, node, spin=None):
-        from ifc_spg import ros
-        from ifc_spg.ros import msg
-        from sim_bridge.simulation import SimConfig, Simulation
-
         self.node = node
         self.params = p = declare(node)
         self._msg = msg
@@ -413,8 +411,6 @@ class SimBridge:
 
     def run_realtime(self, max_ticks=None, ok=lambda: True):
         """Publish, process messages until the next absolute deadline, step; repeat."""
-        from sim_bridge.pacing import DeadlinePacer
-
         pacer = DeadlinePacer(1.0 / self.params.rate)
         pacer.start()
         every = round(self.params.rate / self.params.state_rate) if self.params.state_rate \
@@ -432,8 +428,6 @@ class SimBridge:
 
         See its description; False if they did not come within 60 s.
         """
-        import time
-
         n = self.params.wait_for_subscribers
         if n <= 0:
             return True
@@ -477,8 +471,6 @@ def main(argv=None):
     if '-h' in argv or '--help' in argv:
         print(__doc__)
         return 0
-    from ifc_spg import ros
-
     ros.init(args=argv)
     node = ros.Node('sim_bridge')
     try:

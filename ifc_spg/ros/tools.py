@@ -16,12 +16,17 @@ message classes against rosbags.
 import argparse
 import json
 import math
+import random
 import signal
 import sys
 import time
+import timeit
 
 from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError
+from ifc_spg.ros import messages
+from ifc_spg.ros import msg as msgs
+from ifc_spg.ros.msg import JointState
 
 __all__ = ['main', 'talker', 'listener', 'echo', 'bench']
 
@@ -48,8 +53,6 @@ def _descriptor(description, low=None, high=None, integer=False):
 
 def talker(argv):
     """Publish JointState messages; see the module docstring. Returns the exit code."""
-    from ifc_spg.ros.msg import JointState
-
     ros.init(args=['ifc-spg', *argv])
     _install_signal_shutdown()
     node = ros.Node('talker')
@@ -118,8 +121,6 @@ def _percentile(sorted_values, q):
 
 def listener(argv):
     """Receive JointState messages and print a JSON latency summary. Returns the exit code."""
-    from ifc_spg.ros.msg import JointState
-
     ros.init(args=['ifc-spg', *argv])
     _install_signal_shutdown()
     node = ros.Node('listener')
@@ -177,8 +178,6 @@ def echo(argv):
     parser.add_argument('type', help="message type, e.g. 'sensor_msgs/msg/JointState'")
     parser.add_argument('--count', type=int, default=0, help='exit after N messages')
     args = parser.parse_args(ros.remove_ros_args(argv))
-    from ifc_spg.ros import msg as msgs
-
     cls = getattr(msgs, args.type.rsplit('/', 1)[-1], None)
     if cls is None:
         raise IfcSpgError(f"unknown message type '{args.type}'; known: "
@@ -204,12 +203,7 @@ def echo(argv):
 
 def bench(argv):
     """Time CDR serialize/deserialize of every built-in message class, vs rosbags."""
-    import random
-    import timeit
-
-    from rosbags.typesys import Stores, get_typestore
-
-    from ifc_spg.ros import messages
+    from rosbags.typesys import Stores, get_typestore  # optional: the comparison only
 
     parser = argparse.ArgumentParser(prog='ifc-spg ros bench')
     parser.add_argument('--n', type=int, default=20000, help='repetitions per measurement')
