@@ -29,7 +29,8 @@ def test_colcon_build_installs_executables_and_ament_marker(tmp_path):
     assert (install / 'share' / 'ifc_spg' / 'config' / 'lbr_iiwa14.yaml').is_file()
     site = next((install / 'lib').glob('python3*/site-packages'))
     assert (site / 'ifc_spg' / 'model' / 'data' / 'lbr_iiwa14.xml').is_file()
-    assert list((site / 'ifc_spg' / 'kernels').glob('_native*.so')), 'the C kernels are built and installed'
+    assert list((site / 'ifc_spg' / 'kernels').glob('_native*.so')), \
+        'the C kernels are built and installed'
     # spg_node --help runs from the colcon install (what `source install/setup.bash` sets up)
     run_env = dict(os.environ, PYTHONPATH=str(site))
     out = subprocess.run([str(install / 'lib' / 'ifc_spg' / 'spg_node'), '--help'],

@@ -78,7 +78,7 @@ def test_frictionloss_cross_check(xml, draws, scale):
         ex = fs.solve(q, np.zeros(n), tau)             # gravity: -model.gravity (same as MJ)
         G = ex.G
         # same problem up to MuJoCo's regularizer: our QP with G + R reproduces MuJoCo
-        mu_reg = fs._box_qp(G + np.diag(R), ex.qdd0, f)
+        mu_reg = fs.box_qp(G + np.diag(R), ex.qdd0, f)
         np.testing.assert_allclose(mu_reg, mu_mj, atol=1e-7 * f.max())
         np.testing.assert_allclose(ex.qdd0 + G @ mu_reg, qdd_mj, atol=1e-7)
         # exact solution vs MuJoCo within the regularization bound

@@ -130,7 +130,7 @@ def live_run(tmp_path_factory):
         assert bridge.returncode == 0, procs.log('sim_bridge')
         spin_until(lambda: False, 0.5)
         assert procs.stop('spg_node') == 0, procs.log('spg_node')
-        time.sleep(0.3)
+        time.sleep(0.3)  # let time pass: the recorder writes what spg_node sent last
         assert procs.stop('recorder', signal.SIGINT, 30.0) == 0, procs.log('recorder')
     finally:
         procs.close()

@@ -98,7 +98,7 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         assert spin_until(lambda: event('resumed'), 10.0), log('spg_node')
         spin_until(lambda: False, 0.5)
         assert stop('spg_node', signal.SIGTERM) == 0, log('spg_node')  # clean exit on SIGTERM
-        time.sleep(0.3)
+        time.sleep(0.3)  # let time pass: the recorder writes what spg_node sent last
         assert stop('recorder', signal.SIGINT, 30.0) == 0, log('recorder')  # closes the bag
     finally:
         procs.close(signal.SIGKILL, STOP_TIMEOUT)

@@ -124,7 +124,7 @@ def test_wire_names_user_data_and_discovery_info(domain):
     w = writers['rt/robot/command/joint_position']
     r = readers['rt/robot/joint_states']
     assert w.type_name == r.type_name == 'sensor_msgs::msg::dds_::JointState_'
-    typehash = f'typehash={messages.JointState._HASH};'.encode()
+    typehash = f'typehash={messages.type_hash(messages.JointState)};'.encode()
     assert w.qos[Policy.Userdata].data == typehash
     assert r.qos[Policy.Userdata].data == typehash
     assert w.key.bytes == pub.gid.data and r.key.bytes == sub.gid.data

@@ -1,19 +1,18 @@
 """RIHS01 type hashes of the built-in message classes equal rosidl's (Jazzy).
 
 The table below is what rosidl_generator_type_description wrote into the Jazzy message
-packages (share/<pkg>/msg/<T>.json of ros-jazzy-*-msgs 5.3.6 incl. trajectory_msgs, builtin_interfaces 2.0.3,
-rmw_dds_common 3.1.0). Where those packages are installed the table is checked against their
-files, against the hash an rclpy publisher announces, and against the hash rclpy (Fast DDS) reads
-from a built-in backend writer's USER_DATA on the wire.
+packages (share/<pkg>/msg/<T>.json of ros-jazzy-*-msgs 5.3.6 incl. trajectory_msgs,
+builtin_interfaces 2.0.3, rmw_dds_common 3.1.0). Where those packages are installed the
+table is checked against their files, against the hash an rclpy publisher announces, and
+against the hash rclpy (Fast DDS) reads from a built-in backend writer's USER_DATA on the wire.
 """
 
 import json
 import os
 from pathlib import Path
 import sys
-import time
 
-from helpers import use_loopback
+from helpers import use_loopback, wait_for
 import pytest
 
 from ifc_spg.ros import messages
@@ -90,7 +89,7 @@ def _rclpy_class(typename):
 
 @pytest.mark.parametrize('typename', sorted(REGISTRY))
 def test_hash_is_rosidls(typename):
-    assert REGISTRY[typename]._HASH == ROSIDL_HASHES[typename]
+    assert messages.type_hash(REGISTRY[typename]) == ROSIDL_HASHES[typename]
 
 
 def test_table_covers_every_type_and_no_other():
@@ -151,14 +150,16 @@ def test_rclpy_reads_the_built_in_backends_hash_from_the_wire(monkeypatch):
         for i, typename in enumerate(data_types):
             node.create_publisher(REGISTRY[typename], f'wire_{i}', 10)
         probe = rclpy.create_node('hash_reader', context=ctx)
-        deadline = time.monotonic() + 20.0
         seen = {}
-        while len(seen) < len(data_types) and time.monotonic() < deadline:
+
+        def all_seen():
             for i, typename in enumerate(data_types):
                 info = probe.get_publishers_info_by_topic(f'/wire_{i}')
                 if info:
                     seen[typename] = (info[0].topic_type, str(info[0].topic_type_hash))
-            time.sleep(0.05)
+            return len(seen) == len(data_types)
+
+        wait_for(all_seen, 20.0)
         assert seen == {t: (t, ROSIDL_HASHES[t]) for t in data_types}
     finally:
         rclpy.try_shutdown(context=ctx)

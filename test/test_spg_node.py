@@ -351,7 +351,7 @@ def test_command_interfaces_carry_the_same_command_in_the_given_joint_order(doma
     for k in range(5):
         n = len(got)
         fake.send(list(robot.joint_names), q, qdot, k * DT_NS)
-        assert fake.spin_until(lambda: len(got) > n), 'no command'
+        assert fake.spin_until(lambda n=n: len(got) > n), 'no command'
         expected = ref.step(q, qdot, k * DT_NS * 1e-9)
         msg = got[-1]
         if interface == 'float64_multi_array':

@@ -185,7 +185,7 @@ class StaticFrictionSolver:
         G = Gfull[joints]
         G = 0.5 * (G + G.T)
         f = self.breakaway[joints]
-        mu_s = self._box_qp(G, q0, f) if k else np.zeros(0)
+        mu_s = self.box_qp(G, q0, f) if k else np.zeros(0)
         res = combine(mu_s, gauss=True)
         mu = np.zeros(self.solver.n)
         mu[joints] = mu_s
@@ -197,11 +197,21 @@ class StaticFrictionSolver:
         return FrictionResult(mu=mu, stationary=stationary, stick=stick, qdd=res.qdd,
                               result=res, qdd0=base.qdd, G=G, gauss=res.gauss)
 
-    def _box_qp(self, G, g, f):
-        """Argmin ½ μᵀ G μ + gᵀ μ  s.t.  −f ≤ μ ≤ f (G symmetric PSD), polished exactly."""
+    def box_qp(self, G, g, f):
+        """Argmin ½ μᵀ G μ + gᵀ μ  s.t.  −f ≤ μ ≤ f (G symmetric PSD), polished exactly.
+
+        Solved with this solver's ``qp_solver`` (daqp or proxsuite), then polished.
+
+        Args:
+            G: (k, k) symmetric positive semidefinite matrix.
+            g: (k,) linear term.
+            f: (k,) half-widths of the box, ≥ 0.
+        """
         return _polish(G, g, f, self._box_qp_raw(G, g, f))
 
     def _box_qp_raw(self, G, g, f):
+        """The QP solver's answer, before polishing (SolverError if it fails)."""
+        # each QP library is imported when chosen (qp_solver), as in ifc_spg.cascade
         k = g.size
         if self.qp_solver == 'daqp':
             import daqp

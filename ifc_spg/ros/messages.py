@@ -20,7 +20,7 @@ from ifc_spg.errors import ParameterError
 from ifc_spg.ros.cdr import CDR_HEADER, PRIMITIVES, compile_codec, parse_field_type
 
 __all__ = [
-    'Message', 'REGISTRY', 'serialize', 'deserialize', 'dds_type_name',
+    'Message', 'REGISTRY', 'serialize', 'deserialize', 'dds_type_name', 'type_hash',
     'Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'MultiArrayLayout',
     'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose', 'PoseStamped',
     'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus', 'DiagnosticArray',
@@ -34,6 +34,11 @@ def dds_type_name(ros_type):
     """Return the DDS type name rmw_cyclonedds uses: ``pkg/msg/T`` -> ``pkg::msg::dds_::T_``."""
     pkg, sub, name = ros_type.split('/')
     return f'{pkg}::{sub}::dds_::{name}_'
+
+
+def type_hash(cls):
+    """The RIHS01 type hash of message class ``cls`` (what rosidl generates for it)."""
+    return cls._HASH
 
 
 def _default_factory(ftype):
