@@ -423,6 +423,44 @@ def _seq_from(view, pos, n, tcode, code, size):
     return array.array(tcode, struct.unpack_from(f'<{n}{code}', view, pos))  # pragma: no cover
 
 
+def _nested_sequences(cls, registry):
+    """The message types used in sequences or arrays anywhere inside ``cls`` (own codecs)."""
+    nested = set()
+
+    def collect(c):
+        for _, ftype in c._FIELDS:
+            base, kind, _ = parse_field_type(ftype)
+            if base in PRIMITIVES or base == 'string':
+                continue
+            if base not in registry:
+                raise ParameterError(f"message type '{base}' used by '{c._TYPE}' is not "
+                                     'registered')
+            if kind != 'single':
+                nested.add(base)
+            collect(registry[base])
+
+    collect(cls)
+    return nested
+
+
+def _codec_source(env, registry, typename, top):
+    """Source lines of ``_ser_<type>`` and ``_de_<type>``; ``top``: the alignment is known."""
+    c = registry[typename]
+    ser = _SerGen(env, 1, registry)
+    if not top:
+        ser.mod, ser.res = 1, 0
+    ser.message(typename, 'm')
+    ser.flush()
+    de = _DeGen(env, 1, registry)
+    if not top:
+        de.mod, de.res = 1, 0
+    de.message(typename, '_r')
+    de.flush()
+    ident = _ident(c._TYPE)
+    return [f'def _ser_{ident}(m, b):', *(ser.lines or ['    pass']),
+            f'def _de_{ident}(v, p):', *de.lines, '    return _r, p']
+
+
 def compile_codec(cls, registry):
     """Compile ``serialize``/``deserialize`` functions for message class ``cls``.
 
@@ -447,41 +485,10 @@ def compile_codec(cls, registry):
         '_str': str,
         '_new': object.__new__,
     }
-    nested = set()
-
-    def collect(c):
-        for _, ftype in c._FIELDS:
-            base, kind, _ = parse_field_type(ftype)
-            if base in PRIMITIVES or base == 'string':
-                continue
-            if base not in registry:
-                raise ParameterError(f"message type '{base}' used by '{c._TYPE}' is not "
-                                     'registered')
-            if kind != 'single':
-                nested.add(base)
-            collect(registry[base])
-
-    collect(cls)
-    types = [cls._TYPE] + sorted(nested - {cls._TYPE})
+    types = [cls._TYPE] + sorted(_nested_sequences(cls, registry) - {cls._TYPE})
     src = []
     for typename in types:
-        c = registry[typename]
-        ser = _SerGen(env, 1, registry)
-        if typename != cls._TYPE:
-            ser.mod, ser.res = 1, 0
-        ser.message(typename, 'm')
-        ser.flush()
-        de = _DeGen(env, 1, registry)
-        if typename != cls._TYPE:
-            de.mod, de.res = 1, 0
-        de.message(typename, '_r')
-        de.flush()
-        ident = _ident(c._TYPE)
-        src.append(f'def _ser_{ident}(m, b):')
-        src.extend(ser.lines or ['    pass'])
-        src.append(f'def _de_{ident}(v, p):')
-        src.extend(de.lines)
-        src.append('    return _r, p')
+        src.extend(_codec_source(env, registry, typename, top=typename == cls._TYPE))
     code = '\n'.join(src) + '\n'
     exec(compile(code, f'<cdr codec {cls._TYPE}>', 'exec'), env)  # noqa: S102 - generated here
     ident = _ident(cls._TYPE)
