@@ -52,6 +52,7 @@ within 2 mrad of closed.
 """
 
 from dataclasses import dataclass, field
+import inspect
 
 import mujoco
 import numpy as np
@@ -394,7 +395,7 @@ def scene_names():
 
 
 def _check_options(name, builder, options):
-    import inspect
+    """Raise ParameterError for an option the scene builder does not take."""
     params = inspect.signature(builder).parameters
     allowed = [p for p in params if p not in ('spec', 'anchor')]
     if name in ('drawer_horizontal', 'drawer_vertical'):

@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from ifc_spg.errors import ModelError, ParameterError, UnknownFrame, did_you_mean
+from ifc_spg.model import RobotModel
 from sim_bridge.cartesian_admittance import CartesianAdmittanceLaw
 from sim_bridge.interface import RobotInterface, State, check_vector
 from sim_bridge.joint_impedance import JointImpedance
@@ -102,8 +103,8 @@ def _per_joint(value, n, what, names):
 
 
 def _load_model(robot):
+    """The RobotModel of a configuration name, or ``robot`` itself."""
     if isinstance(robot, str):
-        from ifc_spg.model.robot_model import RobotModel
         return RobotModel.from_config(robot)
     return robot
 

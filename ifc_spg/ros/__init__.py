@@ -23,6 +23,7 @@ executor over a set of nodes), ``spin_until`` and ``describe`` (the start-up log
 """
 
 import os
+import sys
 
 from ifc_spg.ros.qos import latched
 from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
@@ -118,8 +119,6 @@ if _rclpy_available(_choice()):
         The same parser as the built-in backend's checks them (clear errors, e.g.
         ``malformed '-p rate=5'``).
         """
-        import sys
-
         parse_ros_args(sys.argv if args is None else args)
         rclpy.init(args=args, context=context, **kwargs)
         return context or rclpy.get_default_context()

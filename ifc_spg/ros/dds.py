@@ -23,7 +23,7 @@ import sys
 import time
 import weakref
 
-from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.ros import messages
 from ifc_spg.ros.cdr import CDR_HEADER, PRIMITIVES, parse_field_type
 from ifc_spg.ros.clock import Clock
@@ -621,8 +621,6 @@ class Node:
             ParameterError: if not declared (with a did-you-mean hint).
         """
         if name not in self._parameters:
-            from ifc_spg.errors import did_you_mean
-
             raise ParameterError(f"parameter '{name}' is not declared on node '{self._name}'"
                                  f'{did_you_mean(name, self._parameters)}; declared: '
                                  f"{', '.join(sorted(self._parameters)) or 'none'}")
