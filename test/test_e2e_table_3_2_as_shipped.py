@@ -36,7 +36,8 @@ def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path)
         pub = procs.start('task_publisher',
                           str(CONFIG / 'tasks' / 'table_3_2_surface_tracking.yaml'))
         assert _wait(lambda: 'accepted' in procs.log('spg_node') or spg.poll() is not None or
-                     pub.poll() is not None, 60), procs.log('spg_node') + procs.log('task_publisher')
+                     pub.poll() is not None, 60), (procs.log('spg_node') +
+                                                   procs.log('task_publisher'))
         bridge = procs.start(
             'sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'interface:=lbr_fri',
             '-p', 'scene:=table', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}',

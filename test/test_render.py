@@ -108,7 +108,8 @@ def test_short_lockstep_bag_renders_in_its_scene(tmp_path):
 def test_mp4_without_ffmpeg_is_a_clear_error_or_works(tmp_path):
     _sweep_bag(tmp_path / 'bag')
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.cli', 'render', str(tmp_path / 'bag'),
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.cli', 'render',
+                           str(tmp_path / 'bag'),
                            '-o', str(tmp_path / 'run.mp4'), '--size', '320x240', '-q',
                            '--duration', '0.2'], capture_output=True, text=True, env=env,
                           timeout=300)

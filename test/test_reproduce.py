@@ -44,16 +44,16 @@ def test_every_thesis_scenario_loads_and_names_its_table():
 
 
 def test_stiffness_override_reaches_simulation_and_spg(tmp_path):
-    from ifc_spg.offline.runner import _robot_with_ifc
+    from ifc_spg.offline.runner import robot_with_ifc
 
     over = reproduce._surface_overrides(stiffness=40.0)
     sc = load_scenario(find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',
                        overrides=over)
-    robot = _robot_with_ifc(sc)
+    robot = robot_with_ifc(sc)
     np.testing.assert_allclose(robot.stiffness, 40.0)
     np.testing.assert_allclose(robot.damping, reproduce._LBR4_DAMPING * np.sqrt(0.2), atol=1e-4)
     with pytest.raises(ParameterError, match='sim.stiffness'):
-        _robot_with_ifc(load_scenario(
+        robot_with_ifc(load_scenario(
             find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',
             overrides={'sim': {'stiffness': [1.0, 2.0]}}))
 

@@ -652,7 +652,6 @@ def robot_with_ifc(scenario):
         where=f"scenario '{scenario.path}': sim.")
 
 
-_robot_with_ifc = robot_with_ifc  # the old name (test/test_reproduce.py)
 
 
 def _wrench(stamp, frame, w):
