@@ -28,7 +28,7 @@ import numpy as np
 
 from ifc_spg import kernels as _kernels
 from ifc_spg.cascade import SOLVERS, Cascade, level_violation, make_solver
-from ifc_spg.errors import ParameterError
+from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
@@ -402,7 +402,8 @@ class SetPointGenerator:
             self._take_pending()
         task_time = self._task_time(q, qdot, t)
         q_v = self.q_v
-        assert q_v is not None  # (reset above)
+        if q_v is None:  # reset() above sets it
+            raise IfcSpgError('internal: q_v is unset after reset')
         self.kin.update(q, qdot, q_v)
 
         limits_box = self._limits.box(q_v)
@@ -512,7 +513,8 @@ class SetPointGenerator:
         :class:`~ifc_spg.pspm.StallReport` or None.
         """
         monitor, tanks = self._stall, self.tanks
-        assert monitor is not None and tanks is not None
+        if monitor is None or tanks is None:  # only called with PSPM on
+            raise IfcSpgError('internal: the stall monitor runs only with PSPM')
         requested = None
         if monitor.wants_probe:
             requested = np.zeros(self.n)
@@ -534,7 +536,8 @@ class SetPointGenerator:
         return monitor.report
 
     def _hold(self, status: str, message: str, t_start: float) -> np.ndarray:
-        assert self.q_v is not None
+        if self.q_v is None:  # step() resets from the first measurement before any hold
+            raise IfcSpgError('internal: hold before the first measurement')
         self.qdot_v = np.zeros(self.n)
         self.info = SpgInfo(status=status, solver=self._solver.name, slacks=[], levels=[],
                             tank_energy=None if self.tanks is None else self.tanks.energy.copy(),

@@ -14,6 +14,7 @@ import numpy as np
 
 from ifc_spg import kernels as _kernels
 from ifc_spg.cascade.base import CascadeResult, CascadeSolver, level_violation
+from ifc_spg.errors import IfcSpgError
 from ifc_spg.limits.joint_limits import VelocityBox
 from ifc_spg.tasks.task import Level
 
@@ -141,7 +142,8 @@ class DaqpCascade(CascadeSolver):
             qdot, s = done
             slacks.append(s)
             start = end
-        assert qdot is not None  # (levels is not empty)
+        if qdot is None:  # solve() returns early on empty levels
+            raise IfcSpgError('internal: cascade solved no level')
         return CascadeResult(qdot, slacks, 'ok', -1)
 
     def _equality_level(self, ws: '_Workspace', i: int, start: int, end: int,

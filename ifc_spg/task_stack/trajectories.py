@@ -134,7 +134,8 @@ class Circle(_Generator):
         if self.center is not None:
             self._c = self.center.resolve(here)
         else:
-            assert self.start is not None  # set in __init__ when center is None
+            if self.start is None:  # __init__ requires center or start
+                raise IfcSpgError('internal: circle without center or start')
             self._c = self.start.resolve(here) - self.radius * np.array(
                 [np.cos(self.phase), np.sin(self.phase)])
         self._value = init_value.copy()
