@@ -71,12 +71,19 @@ class RunSpec:
 
 @dataclasses.dataclass
 class Check:
-    """The outcome of an experiment's claim: verdict, numbers and a one-line summary."""
+    """An experiment's numbers and one-line summary; the verdict is its claims'.
 
-    passed: bool
+    Attributes:
+        numbers: What the runs measured (the claims of :mod:`experiments.claims` read it).
+        summary: One line of the main numbers (no pass rule: the rules are the claims').
+        claims: The evaluated claim rows (:func:`experiments.claims.evaluate`).
+        passed: All claims hold (set with ``claims``).
+    """
+
     numbers: dict
     summary: str
     claims: list = dataclasses.field(default_factory=list)
+    passed: bool = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -342,9 +349,7 @@ def _check_3_2(runs, quick):
         txt += (f'; obstacle trial (3b): force on the obstacle max {o["max_obstacle_force_n"]:.1f}'
                 f' N, on the table max {o["max_table_force_n"]:.1f} N, peak |qdot| in the last '
                 f'2 s {o["peak_qdot_last_2s_rad_s"]:.3f} rad/s')
-    ok = (out['position_error_rms_m'] < 0.02 and out['force_error_rms_n'] < 4.0 and
-          out['contact_lost_share'] < 0.05)
-    return Check(ok, out, txt)
+    return Check(out, txt)
 
 
 def _sweep_numbers(runs, prefix, values):
@@ -368,12 +373,9 @@ def _trend(y, rising, margin=0.1):
 def _check_k_sweep(runs, quick):
     ks = K_SWEEP_QUICK if quick else K_SWEEP
     pos, ferr = _sweep_numbers(runs, 'K', ks)
-    ok = _trend(pos, rising=False)
     pairs = ', '.join(f'K={k:g}: {p * 1e3:.1f} mm / {f:.2f} N' for k, p, f in zip(ks, pos, ferr))
-    return Check(ok, {'stiffness': list(ks), 'position_error_rms_m': pos.tolist(),
-                      'force_error_rms_n': ferr.tolist()},
-                 f'position / force error RMS: {pairs} (pass: position error at the highest '
-                 'K > 10 % below the lowest K)')
+    return Check({'stiffness': list(ks), 'position_error_rms_m': pos.tolist(),
+                  'force_error_rms_n': ferr.tolist()}, f'position / force error RMS: {pairs}')
 
 
 def _check_speed_sweep(runs, quick):
@@ -382,11 +384,10 @@ def _check_speed_sweep(runs, quick):
     ok_p, ok_f = _trend(pos, rising=True), _trend(ferr, rising=True)
     pairs = ', '.join(f'{2 * math.pi * R_CIRCLE * f * 100:.1f} cm/s: {p * 1e3:.1f} mm / '
                       f'{e:.2f} N' for f, p, e in zip(fs, pos, ferr))
-    return Check(ok_p and ok_f, {'frequency_hz': list(fs),
-                                 'speed_m_s': [2 * math.pi * R_CIRCLE * f for f in fs],
-                                 'position_error_rms_m': pos.tolist(),
-                                 'force_error_rms_n': ferr.tolist(),
-                                 'position_rises': ok_p, 'force_rises': ok_f},
+    return Check({'frequency_hz': list(fs),
+                  'speed_m_s': [2 * math.pi * R_CIRCLE * f for f in fs],
+                  'position_error_rms_m': pos.tolist(), 'force_error_rms_n': ferr.tolist(),
+                  'position_rises': ok_p, 'force_rises': ok_f},
                  f'K = {K_SPEED:g} Nm/rad; position / force error RMS: {pairs}')
 
 
@@ -427,12 +428,10 @@ def _check_3_3(runs, quick):
     ferr = _rms(f + 8.0)
     lost = float(np.mean(_smooth(f, 25) > -1.0))
     pos = _rms(ep[m])
-    ok = pos < 0.03 and ferr < 4.0 and lost < 0.05
-    return Check(ok, {'position_error_rms_m': pos, 'virtual_position_error_rms_m': _rms(ev[m]),
-                      'force_error_rms_n': ferr, 'contact_lost_share': lost},
+    return Check({'position_error_rms_m': pos, 'virtual_position_error_rms_m': _rms(ev[m]),
+                  'force_error_rms_n': ferr, 'contact_lost_share': lost},
                  f'wiping error RMS {pos * 1e3:.1f} mm (virtual {_rms(ev[m]) * 1e3:.2f} mm), '
-                 f'force error RMS {ferr:.2f} N at 8 N, contact lost {100 * lost:.1f} % '
-                 '(pass: < 30 mm, < 4 N, < 5 %)')
+                 f'force error RMS {ferr:.2f} N at 8 N, contact lost {100 * lost:.1f} %')
 
 
 def _fig_3_3(runs, quick, path):
@@ -527,9 +526,7 @@ def _check_3_4(runs, quick):
                    f'qdot_v {o["max_qdot_v_jump_rad_s"]:.3f} rad/s (t = '
                    f'{_fmt(o["max_qdot_v_jump_at_s"], digits=3)} s), contact lost '
                    f'{100 * o["contact_lost_share"]:.0f} %')
-    ok = (out['full']['ticks_at_joint_limit'] > 0 and out['relaxed']['ticks_at_joint_limit'] == 0
-          and out['relaxed']['peak_qdot_norm_rad_s'] < out['full']['peak_qdot_norm_rad_s'])
-    return Check(ok, out, 'nullspace (Alg. C.1/C.2, no PSPM) ' + '; '.join(txt[:2]) +
+    return Check(out, 'nullspace (Alg. C.1/C.2, no PSPM) ' + '; '.join(txt[:2]) +
                  ('; beside it, DAQP + PSPM (ours): ' + '; '.join(txt[2:]) if txt[2:] else ''))
 
 
@@ -592,7 +589,6 @@ def _check_cup(runs, quick, chain, task, wrist=None, settle=0.5):
            'max_orientation_error_settled_deg': settled, 'settle_s': settle,
            'orientation_error_end_deg': float(ang[-1]),
            'max_virtual_orientation_error_deg': float(ang_v.max())}
-    ok = disp > 0.03 and settled < 3.0 and ang_v.max() < 0.5
     txt = (f'{chain} moved up to {disp * 100:.1f} cm by the pushes; orientation error max '
            f'{settled:.2f} deg from {settle:g} s after a push to the next, {ang[-1]:.2f} deg at '
            f'the end, {ang.max():.2f} deg while pushed (the IFC compliance), virtual '
@@ -607,12 +603,9 @@ def _check_cup(runs, quick, chain, task, wrist=None, settle=0.5):
         out.update({'max_wrist_deviation_deg': float(np.rad2deg(werr)),
                     'max_wrist_virtual_deviation_deg': float(np.rad2deg(vdev)),
                     'max_wrist_tracking_error_rad': track})
-        ok = ok and track < 1e-3 and np.rad2deg(vdev) < 0.5
         txt += (f'; stiff wrist joints: q_v within {np.rad2deg(vdev):.3f} deg of q_bar, q '
                 f'tracks q_v within {track:.1e} rad')
-    return Check(bool(ok), out, txt + f' (pass: > 3 cm moved, < 3 deg physical from {settle:g} '
-                 's after a push, < 0.5 deg virtual' +
-                 (', wrist q_v < 0.5 deg from q_bar, |q - q_v| < 1e-3 rad)' if wrist else ')'))
+    return Check(out, txt)
 
 
 #: Settling time [s] of the iCub cup-holding check: ~3 time constants of the measured return
@@ -708,10 +701,7 @@ def _check_3_7(runs, quick):
     if 'roll_yaw' in runs:
         out['roll_yaw'] = _numbers_3_7(runs['roll_yaw'])
         txt += '; torso roll and yaw clamped (the other reading): ' + _text_3_7(out['roll_yaw'])
-    ok = (out['force_error_rms_n'] < 3.5 and out['contact_lost_share'] < 0.1 and
-          out['right_hand_orientation_error_max_deg'] < 3.0 and
-          out['right_hand_displacement_max_m'] < 0.02)
-    return Check(bool(ok), out, txt)
+    return Check(out, txt)
 
 
 def _fig_3_7(runs, quick, path):
@@ -813,18 +803,8 @@ def _check_4_1(runs, quick):
         txt.append(f'{v}: max |tau_s| {tau_v:.1f} Nm, static tangential force max '
                    f'{tang_static:.1f} N, measured force on the obstacle max '
                    f'{np.max(f_y):.1f} N (25-tick mean)')
-    o = out
-    hit_all = all(o[v]['obstacle_hit_s'] is not None for v in _V41)
-    ok_1b = all(o[v]['max_abs_static_torque_nm'] <= 5.0 + 0.25 for v in ('1b_3a', '1b_3b'))
-    ok_3b = all(o[v]['max_abs_static_tangential_force_n'] <= 10.0 + 0.5 and
-                o[v]['max_abs_task_tangential_force_n'] <= 10.0 + 0.5 for v in ('1a_3b', '1b_3b'))
-    ok_1a_3a = (o['1a_3a']['max_abs_static_torque_nm'] > 5.0 + 1.0 and
-                o['1a_3a']['max_abs_static_tangential_force_n'] > 10.0 + 2.0)
-    ok = hit_all and ok_1b and ok_3b and ok_1a_3a
-    return Check(bool(ok), out, '; '.join(txt) + f' (pass, from {_T41_BAND - _T_CIRCLE:g} s '
-                 'after the switch: the tool hits the obstacle (> 3 N) in every variant, '
-                 '1b |tau_s| <= 5.25 Nm, 3b static tangential forces <= 10.5 N, 1a_3a beyond '
-                 'both: > 6 Nm and > 12 N)')
+    return Check(out, '; '.join(txt) + f' (static torque and force maxima from '
+                 f'{_T41_BAND - _T_CIRCLE:g} s after the switch)')
 
 
 def _fig_4_1(runs, quick, path):
@@ -890,11 +870,7 @@ def _check_4_2(runs, quick):
         txt.append(f'K = {k:g}: virtual tool at most {out_v.max() * 1e3:.2f} mm outside, '
                    f'physical up to {out_p.max() * 1e3:.1f} mm outside (moved '
                    f'{moved * 100:.1f} cm)')
-    ok = all(out[v]['max_virtual_outside_m'] < 1e-3 for v in out) and \
-        out['low_k']['max_physical_outside_m'] > 1.5 * out['high_k']['max_physical_outside_m'] \
-        and out['high_k']['max_physical_outside_m'] > 1e-3
-    return Check(bool(ok), out, '; '.join(txt) + ' (pass: virtual < 1 mm outside, physical '
-                 'pushed out > 1 mm, and > 1.5x further at the lower K)')
+    return Check(out, '; '.join(txt))
 
 
 def _fig_4_2(runs, quick, path):
@@ -942,16 +918,13 @@ def _check_4_3(runs, quick):
            'error_end_m': float(err[-1]),
            'time_after_push_s': float(t[-1] - _push_windows(r)[1][1]),
            'static_force_small_push_n': fmax_small, 'static_force_large_push_n': fmax_large}
-    ok = out['error_small_push_m'] < 0.005 and out['error_large_push_m'] > 0.02 and \
-        out['error_end_m'] < 0.15 * out['error_large_push_m']
-    return Check(bool(ok), out,
+    return Check(out,
                  f'position error max: {err[small].max() * 1e3:.1f} mm during the 5 N push '
                  f'(static force {fmax_small:.1f} N), {err[large].max() * 1e3:.1f} mm during '
                  f'the 25 N push (static force {fmax_large:.1f} N), '
                  f'{_fmt(None if out["error_after_m"] is None else out["error_after_m"] * 1e3)} '
                  f'mm 1.5 s after it, {err[-1] * 1e3:.2f} mm {out["time_after_push_s"]:.1f} s '
-                 'after it (the return runs along the -10 N bound) (pass: < 5 mm, > 20 mm, '
-                 'end < 15 % of the peak)')
+                 'after it (the return runs along the -10 N bound)')
 
 
 def _fig_4_3(runs, quick, path):
@@ -992,14 +965,11 @@ def _check_4_4(runs, quick):
     out = {'max_along_z_ee_m': float(np.max(np.abs(along))),
            'max_perpendicular_m': float(perp.max()),
            'after_each_push_along_perp_m': left}
-    ok = out['max_along_z_ee_m'] > 0.02 and all(abs(p) < 0.003 for _, p in left) and \
-        abs(left[0][0]) > 0.01
-    return Check(bool(ok), out,
+    return Check(out,
                  f'tool moved up to {out["max_along_z_ee_m"] * 100:.1f} cm along z_ee; '
                  f'perpendicular: {perp.max() * 1e3:.1f} mm at most while pushed, '
                  f'{max(abs(p) for _, p in left) * 1e3:.2f} mm left after the pushes; '
-                 f'{abs(left[0][0]) * 100:.1f} cm left along z_ee after the first push '
-                 '(pass: > 2 cm along, < 3 mm perpendicular left, > 1 cm kept along)')
+                 f'{abs(left[0][0]) * 100:.1f} cm left along z_ee after the first push')
 
 
 def _fig_4_4(runs, quick, path):
@@ -1091,13 +1061,10 @@ def _check_4_5(runs, quick):
         if r.metrics.get('tank_energy_min_j') is not None:
             out[v]['tank_energy_min_j'] = r.metrics['tank_energy_min_j']
     off, on = out['no_pspm'], out['pspm']
-    falling = off['energy_in_end_j'] < off['energy_in_mid_j'] - 0.5 * c2
-    ok = (off['energy_in_end_j'] < -2 * c2 and falling and on['energy_in_min_j'] >= -c2 - 1e-4
-          and on['error_amplitude_last_1s_rad'] < 0.5 * off['error_amplitude_last_1s_rad'])
     out['c2_j'] = c2
     out['linear_loop'] = lin = _stability_analysis(runs['pspm'])
     rad = ', '.join(f'{k} {v:.3f}' for k, v in lin['radius'].items())
-    return Check(bool(ok), out,
+    return Check(out,
                  f'-int tau_5 qdot_5 dt at the end: {off["energy_in_end_j"] * 1e3:.1f} mJ '
                  f'without PSPM (still falling: {off["energy_in_mid_j"] * 1e3:.1f} mJ at half '
                  f'time), {on["energy_in_end_j"] * 1e3:.2f} mJ with PSPM (min '
@@ -1238,7 +1205,6 @@ def _table_5_1(out_dir, quick, figures=True):
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     (Path(out_dir) / 'table_5_1.json').write_text(json.dumps(res, indent=1, default=float))
     fx, sma = res['fixed_direction'], res['sma_estimator']
-    ok = fx['reduction_percent'] >= 70.0 and sma['reduction_percent'] >= 80.0
 
     def times(r, s):
         return [row[s]['time_to_open'] for row in r['runs']]
@@ -1270,7 +1236,7 @@ def _table_5_1(out_dir, quick, figures=True):
                 f'{sjc:.2f} -> {sts:.2f} N; lifted {r["opened"]["joint_compliance"]} / '
                 f'{r["opened"]["task_specification"]} of {len(r["runs"])} in {_span(tj)} / '
                 f'{_span(tt)})')
-    return Check(bool(ok), nums,
+    return Check(nums,
                  f'overall RMS |f_perp| (measured) joint compliance -> task specification '
                  f'({grid}, 0.29 m lift, runs up to {kw["duration"]:g} s): fixed direction '
                  f'{text(fx)}; SMA estimator from {T51_SMA_ERROR_DEG:g} deg {text(sma)}; '
@@ -1307,7 +1273,7 @@ def _report_6(out_dir, quick, figures=True):
            f"scenario 1 mu* = {kd['s1_mu']:.2f} Nm, qdd = {kd['s1_qdd']:.3g}; scenario 2 mu* = "
            f"{kd['s2_mu']:.2f} Nm, qdd = {kd['s2_qdd']:.3f} rad/s^2. Report: 5 Nm / 0; 10 Nm / "
            '-0.44 rad/s^2')
-    return Check(True, out, txt)
+    return Check(out, txt)
 
 
 #: Sec. 5.4.3: (5.9) ("the new approach", ``joint_compliance``) against the trajectory-
@@ -1432,7 +1398,7 @@ def _fig_5_11(out_dir, quick, figures=True):
                     f'{v["rms_fs_perp_second_half_n"]:.2f} N, lifted '
                     f'{v["travel_m"] * 100:.0f} cm in {_fmt(v["time_to_open_s"])} s, force '
                     f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items())
-    return Check(True, out, 'K = 40 Nm/rad, kappa = 9 N/s, nu = 0.05 m/s; ' + txt)
+    return Check(out, 'K = 40 Nm/rad, kappa = 9 N/s, nu = 0.05 m/s; ' + txt)
 
 
 def _fig_5_12(out_dir, quick, figures=True):
@@ -1457,7 +1423,7 @@ def _fig_5_12(out_dir, quick, figures=True):
            f'pulled in {_fmt(h["joint_compliance"]["time_to_open_s"])} / '
            f'{_fmt(h["admittance"]["time_to_open_s"])} s); vertical drawer ratio '
            f'{out["vertical_ratio"]:.3f}')
-    return Check(True, out, txt)
+    return Check(out, txt)
 
 
 def _fig_5_13(out_dir, quick, figures=True):
@@ -1490,7 +1456,7 @@ def _fig_5_13(out_dir, quick, figures=True):
                     f'turned in {_fmt(r["time_to_open_s"])} s, RMS estimate error '
                     f'{_fmt(r["rms_error_angle_deg"])} deg, RMS |f_perp| '
                     f'{r["rms_f_perp_n"]:.2f} N' for r in rows)
-    return Check(True, out, 'quarter turns, (5.9), 45 deg initial error: ' + txt)
+    return Check(out, 'quarter turns, (5.9), 45 deg initial error: ' + txt)
 
 
 FIG_5_11 = Experiment('fig_5_11', 'Fig. 5.11', 'Vertical drawer (1.2 kg) with initial '
@@ -1510,7 +1476,7 @@ def _sec_5_3(out_dir, quick, figures=True):
     from experiments.sec_5_3 import run_sec_5_3
 
     numbers, text = run_sec_5_3(out_dir, quick, figures=figures)
-    return Check(True, numbers, text)
+    return Check(numbers, text)
 
 
 SEC_5_3 = Experiment('sec_5_3', 'Sec. 5.3.4', 'ACCREA (Cartesian admittance): cupboard door, '
