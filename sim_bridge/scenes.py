@@ -16,8 +16,10 @@ scene                     what
                           obstacle box on it, ``obstacle_offset`` (x, y) [m] from the
                           tool start, half sizes ``obstacle_size`` [m]
 ``obstacle``              a box ``offset`` [m] (world frame) from the tool
-``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel
-``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel
+``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel;
+                          optional break-away latch ``breakaway`` [N] (default 0: none)
+``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel;
+                          ``breakaway`` as above
 ``crank``                 crank, radius 0.17 m, axis along u, handle at the tool
 ``cupboard_door``         vertical hinge, 20 N break-away latch at the handle
 ``microwave_door``        vertical hinge on the other side, 15 N break-away latch
@@ -48,7 +50,9 @@ penetration at 8 N.
 Break-away doors use a *latch*: a joint equality holding the door closed until the torque
 it carries reaches ``force × lever``; then it releases and the door swings with only a
 small hinge friction. It re-engages once the door was opened past 0.05 rad and comes back
-within 2 mrad of closed.
+within 2 mrad of closed. Drawers with ``breakaway`` > 0 get the same latch on their slide
+joint (lever 1, so the constraint force is compared with ``breakaway`` in [N]; re-engaged
+after 5 cm out and back within 2 mm).
 """
 
 from dataclasses import dataclass, field
@@ -305,7 +309,20 @@ def _obstacle(spec, anchor, offset=(0.0, 0.15, 0.0), half_size=(0.04, 0.04, 0.1)
     return {}
 
 
-def _drawer(spec, anchor, vertical, mass=1.2, travel=0.3, damping=1.0, grasp='weld'):
+def _latch(spec, joint, force, lever):
+    """A joint equality ``latch`` holding ``joint`` at 0 (see the module doc); its Latch."""
+    eq = spec.add_equality(name='latch', type=mujoco.mjtEq.mjEQ_JOINT, name1=joint,
+                           objtype=mujoco.mjtObj.mjOBJ_JOINT)
+    eq.solref = [0.004, 1.0]
+    return Latch(joint=joint, equality='latch', force=float(force), lever=float(lever))
+
+
+def _drawer(spec, anchor, vertical, mass=1.2, travel=0.3, damping=1.0, grasp='weld',
+            breakaway=0.0):
+    if not (isinstance(breakaway, (int, float)) and np.isfinite(breakaway)
+            and breakaway >= 0):
+        raise ParameterError(f'drawer breakaway must be a force >= 0 N (0: no latch), got '
+                             f'{breakaway!r}')
     u, _, _ = anchor.frame()
     body = _mechanism_body(spec, anchor, 'drawer', anchor.tool_pos + STANDOFF * u)
     body.add_joint(name='drawer', type=mujoco.mjtJoint.mjJNT_SLIDE,
@@ -317,7 +334,12 @@ def _drawer(spec, anchor, vertical, mass=1.2, travel=0.3, damping=1.0, grasp='we
     _box(body, [0.02 + depth / 2, 0, -0.02], [depth / 2, 0.18, 0.05], mass=0.6 * box_mass,
          name='drawer_box', rgba=(0.5, 0.4, 0.3, 1))
     grasp_eq = _add_handle(spec, body, anchor, grasp, [0, 1, 0])
-    return {'env_joints': ('drawer',), 'handle_site': 'handle', 'grasp': grasp_eq}
+    latches = ()
+    if breakaway > 0:
+        # Slide joint: the constraint carries a force, lever 1 makes torque == force.
+        latches = (_latch(spec, 'drawer', breakaway, 1.0),)
+    return {'env_joints': ('drawer',), 'handle_site': 'handle', 'grasp': grasp_eq,
+            'latches': latches}
 
 
 def _drawer_horizontal(spec, anchor, **kw):
@@ -357,13 +379,7 @@ def _door(spec, anchor, side, force, lever, mass, damping=0.05, friction=0.05, g
     _box(body, [0.01, -side * width / 2, 0], [0.01, width / 2, 0.25], mass=mass,
          name='door_panel', rgba=(0.7, 0.7, 0.75, 1))
     grasp_eq = _add_handle(spec, body, anchor, grasp, [0, 0, 1])
-    latches = ()
-    if latch:
-        eq = spec.add_equality(name='latch', type=mujoco.mjtEq.mjEQ_JOINT, name1='door',
-                               objtype=mujoco.mjtObj.mjOBJ_JOINT)
-        eq.solref = [0.004, 1.0]
-        latches = (Latch(joint='door', equality='latch', force=float(force),
-                         lever=float(lever)),)
+    latches = (_latch(spec, 'door', force, lever),) if latch else ()
     return {'env_joints': ('door',), 'handle_site': 'handle', 'grasp': grasp_eq,
             'latches': latches}
 

@@ -347,3 +347,57 @@ def test_joint_compliance_orientation_term_is_the_conflicting_subtask():
                               duration=20.0).metrics
         assert m[orientation]['success'], m
     assert m['free']['rms_fs_perp'] < 0.5 * m['fixed']['rms_fs_perp'], m
+
+
+def test_admittance_without_projection_keeps_the_perpendicular_deflection(accrea):
+    """``projection=False`` skips (5.6): the perpendicular part of p_v - p is never reduced
+    (the projection=True step on the same inputs reduces it), exploration is the same."""
+    rng = np.random.default_rng(5)
+    d = np.array([0.3, 0.5, -0.8])
+    d /= np.linalg.norm(d)
+    q = accrea.q_home.copy()
+    e = rng.normal(scale=0.01, size=3)
+    perp = {}
+    along = {}
+    for projection in (True, False):
+        ctrl, p = _admittance_at(accrea, q, d, projection=projection)
+        assert ctrl.projection is projection
+        ctrl.p_v = p + e
+        norms = []
+        for i in range(20):
+            ctrl.step(q, np.zeros(accrea.n), 0.002 * i)
+            x = ctrl.p_v - p
+            norms.append(np.linalg.norm(x - (d @ x) * d))
+        perp[projection] = np.array(norms)
+        along[projection] = d @ (ctrl.p_v - p)
+    e_perp = np.linalg.norm(e - (d @ e) * d)
+    np.testing.assert_allclose(perp[False], e_perp, rtol=1e-12)
+    assert np.all(perp[True] < e_perp) and np.all(np.diff(perp[True]) < 0)
+    assert along[False] == pytest.approx(along[True], abs=1e-15)
+    for bad in (0, 'no', None):
+        with pytest.raises(ParameterError, match='projection must be True or False'):
+            _admittance_at(accrea, q, d, projection=bad)
+    from ifc_spg.offline.constrained import make_strategy
+    ctrl = make_strategy('admittance', accrea, options={'projection': False})
+    assert ctrl.projection is False
+
+
+def test_error_axis_as_a_scene_frame_vector():
+    """error_axis (u, v, z) equals the named axis it points along; bad vectors are rejected."""
+    def d0(axis):
+        log = run(Scenario(strategy='admittance', robot='accrea_dual_arm',
+                           scene='drawer_horizontal', duration=0.002, error_axis=axis))
+        return log.estimate[0], log.true_direction[0]
+
+    named, true = d0('scene_v')
+    np.testing.assert_allclose(d0((0.0, 2.0, 0.0))[0], named, atol=1e-12)
+    # a component along the true direction is removed before the rotation
+    np.testing.assert_allclose(d0((-1.0, 1.0, 0.0))[0], named, atol=1e-12)
+    est, _ = d0((0.0, 1.0, 1.0))
+    assert math.degrees(math.acos(est @ true)) == pytest.approx(45.0)
+    with pytest.raises(ParameterError, match='3-vector of finite scene-frame components'):
+        d0((0.0, math.nan, 1.0))
+    with pytest.raises(ParameterError, match='3-vector of finite scene-frame components'):
+        d0((1.0, 0.0))
+    with pytest.raises(ParameterError, match='parallel to the true direction'):
+        d0((1.0, 0.0, 0.0))  # the horizontal drawer moves along -u

@@ -173,3 +173,26 @@ def test_icub_table_placement_of_table_3_7_touches_only_the_left_hand():
     assert abs(near.pop('l_wipe_pad') - 0.002) < 5e-4
     assert all(dist > 0.01 for dist in near.values()), near
     assert m.geom_bodyid[pad] == m.site('l_contact').bodyid[0]  # on the chain's last link
+
+
+def test_drawer_breakaway_latch_holds_below_and_releases_above_its_force():
+    """``breakaway=20``: a steady 10 N pull does not move the drawer, 30 N does."""
+    def pulled(f, seconds=1.0):
+        sim = Simulation(robot='lbr_iiwa14', scene='drawer_horizontal',
+                         scene_options={'grasp': 'none', 'breakaway': 20.0})
+        assert [la.force for la in sim.scene.latches] == [20.0]
+        sim.apply_wrench('handle', [-f, 0, 0, 0, 0, 0])
+        s = _hold(sim, seconds)
+        assert sim.warnings() == {}
+        return s.env_q[0]
+
+    assert abs(pulled(10.0)) < 1e-3
+    assert pulled(30.0) > 0.05
+    # no latch by default: 10 N moves it
+    sim = Simulation(robot='lbr_iiwa14', scene='drawer_horizontal',
+                     scene_options={'grasp': 'none'})
+    assert sim.scene.latches == ()
+    sim.apply_wrench('handle', [-10.0, 0, 0, 0, 0, 0])
+    assert _hold(sim, 1.0).env_q[0] > 0.05
+    with pytest.raises(ParameterError, match='breakaway must be a force >= 0 N'):
+        Simulation(robot='lbr4', scene='drawer_vertical', scene_options={'breakaway': -1.0})

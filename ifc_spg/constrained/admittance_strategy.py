@@ -34,6 +34,11 @@ K_x (the admittance's own time constant, 0.6 s for the ACCREA) gives ζ >= 0.5 f
 environment stiffer than K_x. On a joint-impedance robot (no admittance state) τ = 0,
 the thesis' instantaneous projection.
 
+**Without the projection.** ``projection=False`` skips the cancel step (5.6) (the
+perpendicular relaxation above), keeping the exploration and the ``max_force`` cap: the
+strategy as in thesis Fig. 5.6, where erroneous forces accumulated before the estimate
+converged persist.
+
 **Bounded set-point.** With ``max_force`` finite, the deflection along d_hat is capped at
 max_force / K_x: exploration stops advancing p_v at the cap (it does not re-anchor p_v on
 p, which would again integrate Δx), and a deflection above the cap relaxes back with τ.
@@ -196,6 +201,8 @@ class CartesianAdmittanceStrategy:
             D_x / K_x of the chain's admittance (translation; rotation for ``free``), 0 on a
             robot without one (the instantaneous projection 5.6).
         limit_margin: Distance [rad] the IK keeps from the joint position limits.
+        projection: Cancel erroneous forces (5.6) (True, default); False: exploration and
+            the ``max_force`` cap only, the perpendicular part of p_v - p is kept.
 
     Attributes:
         estimator: The direction estimator.
@@ -207,7 +214,11 @@ class CartesianAdmittanceStrategy:
     name = 'admittance'
 
     def __init__(self, robot, params=None, *, frame=None, estimator=None, ik_iterations=3,
-                 relax_time=None, limit_margin=LIMIT_MARGIN):
+                 relax_time=None, limit_margin=LIMIT_MARGIN, projection=True):
+        if not isinstance(projection, bool):
+            raise ParameterError(f'projection must be True or False (cancel erroneous forces, '
+                                 f'5.6), got {projection!r}')
+        self.projection = projection
         self.robot = robot
         self.params = params or StrategyParams()
         if frame is None:
@@ -274,7 +285,8 @@ class CartesianAdmittanceStrategy:
         # Cancelling erroneous forces (5.6), relaxed on an admittance robot (module doc).
         e = p_v - p
         along = float(d @ e)
-        p_v = p_v - self._relax_p * (e - along * d)
+        if self.projection:
+            p_v = p_v - self._relax_p * (e - along * d)
         if along > self.max_deflection:
             p_v = p_v - self._relax_p * (along - self.max_deflection) * d
         self.p_v = p_v

@@ -103,7 +103,8 @@ def make_strategy(name, robot, params=None, *, frame=None, direction=None, optio
         params: :class:`~ifc_spg.constrained.params.StrategyParams`.
         frame: Chain id (default: ``tool``, or the first admittance chain).
         direction: A fixed d_hat instead of the estimator, or None.
-        options: Extra keyword options of the strategy class (e.g. ``relax_time`` of
+        options: Extra keyword options of the strategy class (``ik_iterations``,
+            ``relax_time``, ``limit_margin``, ``projection`` of
             :class:`~ifc_spg.constrained.admittance_strategy.CartesianAdmittanceStrategy`).
     """
     params = params or StrategyParams()
@@ -119,7 +120,7 @@ def make_strategy(name, robot, params=None, *, frame=None, direction=None, optio
     if name == 'joint_compliance':
         return JointComplianceStrategy(robot, params, frame=frame, estimator=estimator)
     if name == 'admittance':
-        allowed = ('ik_iterations', 'relax_time', 'limit_margin')
+        allowed = ('ik_iterations', 'relax_time', 'limit_margin', 'projection')
         for key in options:
             if key not in allowed:
                 raise ParameterError(f"admittance strategy has no option '{key}'"
@@ -143,9 +144,10 @@ class Scenario:
         initial_error_deg: Angle of d_p0 from the true initial direction in [deg]; d_p0 is
             the true direction turned by this angle about ``error_axis`` (ignored when
             ``params.estimator.initial_direction`` is to be used: set None).
-        error_axis: 'scene_v' / 'scene_u' / 'scene_z': the rotation axis of the error in the
-            scene frame (u forward, v left, z up); None: the one most orthogonal to the
-            true direction.
+        error_axis: 'scene_v' / 'scene_u' / 'scene_z', or a 3-vector of scene-frame
+            components (u, v, z): the rotation axis of the error in the scene frame (u
+            forward, v left, z up), made orthogonal to the true direction; None: the scene
+            axis most orthogonal to the true direction.
         fixed_direction: Use the true initial direction as a constant d_hat (Sec. 5.5.3).
         duration: Run length in [s] (the run stops ``settle`` s after opening).
         target: Travel that counts as open (m or rad).
@@ -257,17 +259,31 @@ class _HandleDirection:
         return v / max(np.linalg.norm(v), 1e-12)
 
 
-def _initial_direction(sim, true_dir, scenario):
+def _error_axis(sim, true_dir, error_axis):
+    """The rotation axis of the initial error (world frame, not yet orthogonalized)."""
     u, v, z = sim_frame(sim)
     axes = {'scene_v': v, 'scene_u': u, 'scene_z': z}
-    if scenario.error_axis is None:
+    if error_axis is None:
         # The scene axis most orthogonal to the true direction (v first).
-        axis = min(axes.values(), key=lambda a: abs(float(a @ true_dir)) - 1e-3 * (a is v))
-    elif scenario.error_axis in axes:
-        axis = axes[scenario.error_axis]
-    else:
-        raise ParameterError(f'error_axis must be None, scene_u, scene_v or scene_z, got '
-                             f'{scenario.error_axis!r}')
+        return min(axes.values(), key=lambda a: abs(float(a @ true_dir)) - 1e-3 * (a is v))
+    if isinstance(error_axis, str):
+        if error_axis not in axes:
+            raise ParameterError(f'error_axis must be None, scene_u, scene_v, scene_z or a '
+                                 f'3-vector (u, v, z), got {error_axis!r}')
+        return axes[error_axis]
+    try:
+        c = np.asarray(error_axis, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        c = np.zeros(0)
+    if c.shape != (3,) or not np.all(np.isfinite(c)) or np.linalg.norm(c) < 1e-9:
+        raise ParameterError(f'error_axis must be None, scene_u, scene_v, scene_z or a '
+                             f'3-vector of finite scene-frame components (u, v, z), not all '
+                             f'zero, got {error_axis!r}')
+    return (c[0] * u + c[1] * v + c[2] * z) / np.linalg.norm(c)
+
+
+def _initial_direction(sim, true_dir, scenario):
+    axis = _error_axis(sim, true_dir, scenario.error_axis)
     a = math.radians(scenario.initial_error_deg)
     # Rodrigues rotation of true_dir about axis (axis made orthogonal to it).
     axis = axis - (axis @ true_dir) * true_dir
