@@ -1,0 +1,332 @@
+"""Thesis Sec. 5.3.4: the original strategy (5.3) on the admittance-controlled ACCREA.
+
+    python -m experiments.sec_5_3 [--quick] [-o DIR]
+
+Two parts, both with the Cartesian-admittance strategy
+(:class:`~ifc_spg.constrained.admittance_strategy.CartesianAdmittanceStrategy`) on the
+ACCREA emulation in the lockstep simulator (:func:`ifc_spg.offline.constrained.run`):
+
+- **Trials** (Sec. 5.3.4, Fig. 5.8): cupboard door (0.6 rad), horizontal drawer (no
+  break-away, 0.25 m), microwave door (0.6 rad), doors grasped with ``connect`` (a ball
+  joint: the fixed tool orientation does not fight the door's rotation); :data:`TRIALS`
+  per device (2 with ``quick``). Per trial, drawn from a numpy Generator seeded with
+  :data:`SEED`: nu ~ U[0.01, 0.05] m/s, SMA time window ~ U[0.3, 1.0] s (N = window /
+  :data:`DT`, the thesis' N in [300, 1000] at 1 kHz), initial error ~ U[40, 50] deg about
+  a random axis orthogonal to the true direction. Each trial runs twice with the same
+  parameters, the projection (5.6) on and off. A trial succeeds when the target travel is
+  reached with |f| <= :data:`FORCE_LIMIT` (metrics ``success``).
+- **Break-away drawer** (Figs. 5.6/5.7): the horizontal drawer with a 20 N break-away
+  latch, 45 deg initial error tilted downwards (d_p0 has a -z component, so f_perp builds
+  up along z as in the thesis), nu = 0.03 m/s, 0.5 s SMA window, without and with the
+  projection.
+
+"Final" values are means over the last second: the 1 s before the target travel is
+reached, or the last 1 s of the run if it never is. |f_perp| is the measured force minus
+its component along the true motion direction.
+
+Set-point period: :data:`DT` = 2 ms (500 Hz), not the thesis' 1 kHz: the 1 kHz command
+period runs (the emulation supports it) but doubles the wall time of the 120 runs beyond
+the budget; the SMA order N is scaled so the time window is the thesis' 0.3-1 s.
+"""
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor, as_completed
+import json
+import math
+import os
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+
+from ifc_spg.constrained.metrics import error_angles
+from ifc_spg.constrained.params import EstimatorParams, StrategyParams
+from ifc_spg.offline.constrained import Scenario, run
+
+__all__ = ['BREAKAWAY', 'DEVICES', 'DT', 'FORCE_LIMIT', 'SEED', 'TRIALS', 'draw_trials',
+           'final_window', 'main', 'run_sec_5_3']
+
+#: Seed of the trial parameters.
+SEED = 5304
+#: Trials per device (full run; 2 with ``quick``).
+TRIALS = 20
+QUICK_TRIALS = 2
+#: Set-point period [s] (see the module doc).
+DT = 0.002
+#: Success needs |f| <= FORCE_LIMIT [N] (ours; the thesis names no bound).
+FORCE_LIMIT = 60.0
+#: (device, target travel [rad or m], scene options).
+DEVICES = (('cupboard_door', 0.6, {'grasp': 'connect'}),
+           ('drawer_horizontal', 0.25, {}),
+           ('microwave_door', 0.6, {'grasp': 'connect'}))
+NU_RANGE = (0.01, 0.05)
+WINDOW_RANGE_S = (0.3, 1.0)
+ERROR_RANGE_DEG = (40.0, 50.0)
+#: Longest handle path [m] of the devices (drawer 0.25 m; doors 0.6 rad x 0.35/0.30 m).
+PATH = 0.25
+#: The Fig. 5.6/5.7 run: break-away force [N], nu [m/s], SMA window [s], initial error
+#: [deg], its axis (scene-frame u, v, z: about -v turns the -u pull downwards), target [m].
+BREAKAWAY = {'force': 20.0, 'nu': 0.03, 'window_s': 0.5, 'error_deg': 45.0,
+             'error_axis': (0.0, -1.0, 0.0), 'target': 0.25, 'duration': 30.0}
+_MODES = ('projection', 'no_projection')
+
+
+def draw_trials(n_per_device, seed=SEED):
+    """The trial parameters: per device the first ``n_per_device`` of :data:`TRIALS`.
+
+    All :data:`TRIALS` are drawn in a fixed order, so the quick trials are the first ones
+    of the full run.
+    """
+    rng = np.random.default_rng(seed)
+    rows = []
+    for device, target, options in DEVICES:
+        for k in range(TRIALS):
+            nu = float(rng.uniform(*NU_RANGE))
+            window_s = float(rng.uniform(*WINDOW_RANGE_S))
+            error_deg = float(rng.uniform(*ERROR_RANGE_DEG))
+            phi = float(rng.uniform(0.0, 2.0 * math.pi))
+            if k >= n_per_device:
+                continue
+            # Every device starts moving along -u: an axis in the (v, z) plane is
+            # orthogonal to it (run() orthogonalizes against the exact direction).
+            rows.append({'device': device, 'trial': k, 'target': target,
+                         'scene_options': dict(options), 'nu': nu, 'window_s': window_s,
+                         'window_n': max(1, round(window_s / DT)), 'error_deg': error_deg,
+                         'error_axis': [0.0, math.cos(phi), math.sin(phi)],
+                         # Slowest handle speed ~ nu (door arcs are shorter than PATH),
+                         # plus the force build-up and a margin.
+                         'duration': round(1.25 * PATH / nu + 5.0, 1)})
+    return rows
+
+
+def final_window(log, target):
+    """Index slice of the last second: before the target is reached, else the run's end."""
+    t = log.t
+    t_open = log.metrics.get('time_to_open')
+    t_end = t[-1] if t_open is None else t[0] + t_open
+    end = int(np.searchsorted(t, t_end, side='right'))
+    start = int(np.searchsorted(t, t_end - 1.0, side='left'))
+    return slice(start, max(end, start + 1))
+
+
+def _parallel_perp(log):
+    """(|f_par|, |f_perp|) per sample in [N] along / across the true direction."""
+    d = log.true_direction / np.maximum(np.linalg.norm(log.true_direction, axis=1,
+                                                       keepdims=True), 1e-12)
+    par = np.sum(log.force * d, axis=1)
+    perp = np.linalg.norm(log.force - par[:, None] * d, axis=1)
+    return np.abs(par), perp
+
+
+def _summary(log, target, series=False):
+    """The per-run result row (and decimated time series with ``series``)."""
+    f_par, f_perp = _parallel_perp(log)
+    err = np.degrees(error_angles(log.estimate, log.true_direction))
+    sl = final_window(log, target)
+    m = log.metrics
+    out = {'success': bool(m['success']), 'time_to_open': m['time_to_open'],
+           'max_force': float(m['max_force']), 'travel': float(m['travel']),
+           'rms_f_perp': float(m['rms_f_perp']),
+           'final_f_perp_n': float(np.mean(f_perp[sl])),
+           'final_error_deg': float(np.mean(err[sl])),
+           'initial_error_deg': float(err[0])}
+    if series:
+        step = max(1, round(0.02 / DT))
+        out['series'] = {'t': (log.t[::step] - log.t[0]).tolist(),
+                         'f_par': f_par[::step].tolist(), 'f_perp': f_perp[::step].tolist(),
+                         'error_deg': err[::step].tolist(),
+                         'travel': (log.env_q[::step] - log.env_q[0]).tolist()}
+    return out
+
+
+def _run_one(job):
+    """One run (a worker task): the trial or break-away ``job`` with projection on/off."""
+    params = StrategyParams(dt=DT, nu=job['nu'],
+                            estimator=EstimatorParams(window=job['window_n']))
+    log = run(Scenario(strategy='admittance', robot='accrea_dual_arm', scene=job['device'],
+                       params=params, initial_error_deg=job['error_deg'],
+                       error_axis=tuple(job['error_axis']), duration=job['duration'],
+                       target=job['target'], settle=0.0, force_limit=FORCE_LIMIT,
+                       scene_options=job['scene_options'],
+                       strategy_options={'projection': job['mode'] == 'projection'}))
+    return _summary(log, job['target'], series=job.get('series', False))
+
+
+def _breakaway_jobs():
+    b = BREAKAWAY
+    base = {'device': 'drawer_horizontal', 'trial': 'breakaway', 'target': b['target'],
+            'scene_options': {'breakaway': b['force']}, 'nu': b['nu'],
+            'window_s': b['window_s'], 'window_n': round(b['window_s'] / DT),
+            'error_deg': b['error_deg'], 'error_axis': list(b['error_axis']),
+            'duration': b['duration'], 'series': True}
+    return [dict(base, mode=mode) for mode in _MODES]
+
+
+def _execute(jobs, workers, stream):
+    """Run ``jobs`` (in ``workers`` processes); results in job order."""
+    results = [None] * len(jobs)
+
+    def done(i, res):
+        results[i] = res
+        if stream is not None:
+            j = jobs[i]
+            print(f"sec_5_3: {j['device']} #{j['trial']} {j['mode']}: "
+                  f"{'ok' if res['success'] else 'FAIL'} max |f| {res['max_force']:.1f} N, "
+                  f"final |f_perp| {res['final_f_perp_n']:.2f} N", file=stream, flush=True)
+
+    if workers <= 1:
+        for i, job in enumerate(jobs):
+            done(i, _run_one(job))
+        return results
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        # Longest runs first (the slowest nu), so that the workers finish together.
+        order = sorted(range(len(jobs)), key=lambda i: -jobs[i]['duration'])
+        futures = {pool.submit(_run_one, jobs[i]): i for i in order}
+        for fut in as_completed(futures):
+            done(futures[fut], fut.result())
+    return results
+
+
+def _numbers(trials, res, brk, n_per_device, wall):
+    """The numbers dict (see :func:`run_sec_5_3`)."""
+    rows, ratios = [], []
+    per_device = {d: {'projection': 0, 'no_projection': 0, 'trials': 0} for d, *_ in DEVICES}
+    for k, trial in enumerate(trials):
+        row = {key: trial[key] for key in ('device', 'trial', 'target', 'nu', 'window_s',
+                                           'window_n', 'error_deg', 'error_axis',
+                                           'duration')}
+        for j, mode in enumerate(_MODES):
+            row[mode] = res[2 * k + j]
+            per_device[trial['device']][mode] += int(res[2 * k + j]['success'])
+        per_device[trial['device']]['trials'] += 1
+        off = row['no_projection']['final_f_perp_n']
+        row['final_ratio'] = row['projection']['final_f_perp_n'] / off if off > 0 else math.inf
+        ratios.append(row['final_ratio'])
+        rows.append(row)
+    n = len(trials)
+    share = {mode: sum(r[mode]['success'] for r in rows) / n for mode in _MODES}
+    breakaway = {mode: {key: brk[i][key] for key in ('final_f_perp_n', 'final_error_deg',
+                                                     'success', 'time_to_open', 'max_force',
+                                                     'initial_error_deg')}
+                 for i, mode in enumerate(_MODES)}
+    return {'success_share': share, 'median_final_ratio': float(np.median(ratios)),
+            'breakaway': breakaway, 'per_device': per_device, 'trials': rows,
+            'n_trials': n, 'trials_per_device': n_per_device, 'seed': SEED, 'dt': DT,
+            'force_limit_n': FORCE_LIMIT, 'breakaway_setup': dict(BREAKAWAY),
+            'wall_s': wall}
+
+
+def _text(num):
+    """One-paragraph result summary."""
+    s, b = num['success_share'], num['breakaway']
+    dev = '; '.join(f"{d}: {c['projection']}/{c['trials']} with, {c['no_projection']}/"
+                    f"{c['trials']} without" for d, c in num['per_device'].items())
+    return (f"Sec. 5.3.4 on the ACCREA emulation, {num['n_trials']} trials (seed "
+            f"{num['seed']}, nu ~ U[0.01, 0.05] m/s, SMA window ~ U[0.3, 1] s, initial "
+            f"error ~ U[40, 50] deg, {1 / num['dt']:.0f} Hz): with the projection (5.6) "
+            f"{100 * s['projection']:.0f} % open the mechanism with |f| <= "
+            f"{num['force_limit_n']:.0f} N, without it {100 * s['no_projection']:.0f} % "
+            f"({dev}). Median final |f_perp| with / without the projection: "
+            f"{num['median_final_ratio']:.3f}. Break-away drawer (20 N, 45 deg downwards, "
+            f"nu = 0.03 m/s): final |f_perp| {b['no_projection']['final_f_perp_n']:.1f} N "
+            f"without the projection (estimate error "
+            f"{b['no_projection']['final_error_deg']:.1f} deg), "
+            f"{b['projection']['final_f_perp_n']:.2f} N with it (error "
+            f"{b['projection']['final_error_deg']:.1f} deg).")
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _figure(num, brk, path):
+    """Figs. 5.6/5.7 (left two panels) and the per-trial final |f_perp| (right)."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    for ax, res, title in ((axes[0], brk[1], 'Fig. 5.6: without projection'),
+                           (axes[1], brk[0], 'Fig. 5.7: with projection')):
+        s = res['series']
+        ax.plot(s['t'], s['f_par'], label='|f_par|')
+        ax.plot(s['t'], s['f_perp'], label='|f_perp|')
+        ax.set_xlabel('t [s]')
+        ax.set_ylabel('force [N]')
+        ax.set_title(title)
+        tw = ax.twinx()
+        tw.plot(s['t'], s['error_deg'], 'k--', lw=0.8, label='estimate error')
+        tw.set_ylabel('estimate error [deg]')
+        tw.set_ylim(0, 60)
+        ax.legend(loc='upper right')
+    ax = axes[2]
+    for device, *_ in DEVICES:
+        rows = [r for r in num['trials'] if r['device'] == device]
+        x = [max(r['no_projection']['final_f_perp_n'], 1e-3) for r in rows]
+        y = [max(r['projection']['final_f_perp_n'], 1e-3) for r in rows]
+        ax.scatter(x, y, label=device, s=18)
+    lim = [1e-2, 2e2]
+    ax.plot(lim, lim, 'k:', lw=0.8, label='equal')
+    ax.set_xscale('log')
+    ax.set_yscale('log')
+    ax.set_xlabel('final |f_perp| without projection [N]')
+    ax.set_ylabel('final |f_perp| with projection [N]')
+    ax.set_title(f"{num['n_trials']} trial pairs (last second)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None):
+    """Run the Sec. 5.3.4 trials and the Fig. 5.6/5.7 break-away runs.
+
+    Args:
+        out_dir: Output directory (``figures/sec_5_3.png`` and ``sec_5_3.json`` there).
+        quick: :data:`QUICK_TRIALS` per device instead of :data:`TRIALS`.
+        figures: Draw the figure.
+        stream: A text stream for one progress line per run (None: silent).
+        workers: Worker processes (default: the CPU count, at most 4; 1: in-process).
+
+    Returns:
+        ``(numbers, text)``: the JSON-serialisable numbers (``success_share``,
+        ``median_final_ratio``, ``breakaway``, ``per_device``, ``trials``, ``n_trials``,
+        ``seed``, ...) and a one-paragraph summary.
+    """
+    t0 = time.perf_counter()
+    n = QUICK_TRIALS if quick else TRIALS
+    trials = draw_trials(n)
+    jobs = [dict(trial, mode=mode) for trial in trials for mode in _MODES]
+    jobs += _breakaway_jobs()
+    if workers is None:
+        workers = max(1, min(4, os.cpu_count() or 1))
+    res = _execute(jobs, workers, stream)
+    brk = res[-2:]
+    num = _numbers(trials, res[:-2], brk, n, 0.0)
+    out = Path(out_dir)
+    if figures:
+        _figure(num, brk, out / 'figures' / 'sec_5_3.png')
+    num['wall_s'] = round(time.perf_counter() - t0, 1)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / 'sec_5_3.json').write_text(json.dumps(num, indent=1) + '\n', encoding='utf-8')
+    return num, _text(num)
+
+
+def main(argv=None):
+    """Command line entry: run, print the summary and the headline numbers."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--quick', action='store_true')
+    ap.add_argument('-o', '--out', default='results_sec_5_3')
+    ap.add_argument('--workers', type=int, default=None)
+    args = ap.parse_args(argv)
+    num, text = run_sec_5_3(args.out, args.quick, stream=sys.stderr, workers=args.workers)
+    print(text)
+    print(json.dumps({k: num[k] for k in ('success_share', 'median_final_ratio', 'breakaway',
+                                          'per_device', 'wall_s')}, indent=1))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
