@@ -161,12 +161,21 @@ def test_table_3_3_wiping(quick):
 
 def test_table_3_4_relaxed_rotation_avoids_the_joint_limit(quick):
     """Nullspace baseline (Ch. 3): full orientation clamps A7 at dl_crit of its limit, and
-    the clamp is a jump of qdot_v; relaxed avoids the limit and the jump. DAQP beside it."""
+    the clamp is a jump of qdot_v; relaxed avoids the limit and the jump. DAQP beside it.
+    (With the SNS baseline the relaxed variant's peak |qdot| is not smaller and the clamp
+    is no jump: both claims fail in the report; the verdicts are those of the numbers.)"""
     n = quick('table_3_4').numbers
     assert n['full']['ticks_at_joint_limit'] > 100
     assert n['relaxed']['ticks_at_joint_limit'] == 0
-    assert n['relaxed']['peak_qdot_norm_rad_s'] < 0.95 * n['full']['peak_qdot_norm_rad_s']
-    assert n['full']['max_qdot_v_jump_rad_s'] > 5 * n['relaxed']['max_qdot_v_jump_rad_s']
+    # every per-tick change of qdot_v stays within the acceleration box (a_max dT per
+    # joint), the clamp's included
+    from ifc_spg.model import RobotModel
+    bound = float(np.linalg.norm(RobotModel.from_config('lbr4').a_max * 0.002))
+    for v in ('full', 'relaxed'):
+        assert n[v]['max_qdot_v_jump_rad_s'] <= bound + 1e-9, (v, n[v], bound)
+    got = {c['id']: c['passed'] for c in quick('table_3_4').claims}
+    assert got['table_3_4.peak_qdot'] == (n['relaxed']['peak_qdot_norm_rad_s'] <
+                                          n['full']['peak_qdot_norm_rad_s'])
     assert n['full_daqp']['ticks_at_joint_limit'] > 0  # the Ch. 4 cascade shown beside
 
 
@@ -174,9 +183,9 @@ def test_table_3_5_cup_holding_keeps_the_orientation_while_pushed(quick):
     n = quick('table_3_5').numbers
     assert n['max_displacement_m'] > 0.03  # pushed around
     assert n['max_orientation_error_settled_deg'] < 1.0
-    # the nullspace baseline lets the virtual orientation drift under the pushes (0.13 deg
-    # in the quick run's push; > 0.5 deg over the full run's, where the claim fails)
-    assert n['max_virtual_orientation_error_deg'] < 0.5
+    # with the box saturated inside the hierarchy (SNS) the virtual orientation, the first
+    # level, is held (it drifted by 1.1 deg when the baseline clipped per joint)
+    assert n['max_virtual_orientation_error_deg'] < 0.05
 
 
 def test_table_3_6_icub_cup_holding_with_stiff_wrists(quick):

@@ -161,7 +161,8 @@ def test_nullspace_baseline_matches_cascade_for_equality_stacks():
         ns_solver = NullspaceCascade(7, q_min=IIWA.q_min, q_max=IIWA.q_max, damping=1e-7)
         ns, clamped = ns_solver.mapping(levels, np.zeros(7))
         assert clamped.size == 0
-        np.testing.assert_array_equal(ns_solver.solve(levels, box, np.zeros(7)).qdot_v, ns)
+        np.testing.assert_allclose(ns_solver.solve(levels, box, np.zeros(7)).qdot_v, ns,
+                                   rtol=0, atol=1e-12)
         hqp = DaqpCascade(7, rho=1e-12).solve(levels, box).qdot_v
         np.testing.assert_allclose(ns, hqp, rtol=1e-4, atol=1e-6)
     spg = SetPointGenerator(IIWA, [JointPositionTask(IIWA, equal='init')], solver='nullspace',
@@ -171,6 +172,60 @@ def test_nullspace_baseline_matches_cascade_for_equality_stacks():
     with pytest.raises(ParameterError, match='equality tasks only'):
         SetPointGenerator(IIWA, [JointPositionTask(IIWA, lower=IIWA.q_min, gain=1.0)],
                           solver='nullspace', torque_limits=False)
+
+
+def test_nullspace_saturates_the_box_within_the_hierarchy():
+    """SNS: a joint that would leave the velocity box is saturated at its bound and the
+    level is solved again with the others, so the level keeps its solution, where clipping
+    the result per joint (the baseline before issue 21) breaks it; when the remaining
+    joints cannot, the level is scaled down and stays inside the box."""
+    lev = Level('L1', np.array([[2.0, 1.0, 1.0]]), np.array([3.0]), np.array([3.0]), True)
+    box = VelocityBox(np.array([-0.5, -1.5, -1.5]), np.array([0.5, 1.5, 1.5]))
+    ns = NullspaceCascade(3, damping=1e-9)
+    free, _ = ns.mapping([lev], None)
+    np.testing.assert_allclose(free, [1.0, 0.5, 0.5], atol=1e-8)  # min-norm, outside the box
+    clipped = np.clip(free, box.lower, box.upper)
+    assert abs(lev.A @ clipped - 3.0)[0] > 0.9
+    qdot = ns.solve([lev], box).qdot_v
+    np.testing.assert_allclose(qdot, [0.5, 1.0, 1.0], atol=1e-8)
+    # infeasible: 2 qdot1 + qdot2 + qdot3 = 6 needs more than the box gives (max 4):
+    # scaled by 4/6 with every joint on its bound
+    big = Level('L1', lev.A, np.array([6.0]), np.array([6.0]), True)
+    qdot = ns.solve([big], box).qdot_v
+    np.testing.assert_allclose(qdot, [0.5, 1.5, 1.5], atol=1e-8)
+
+
+def test_nullspace_box_saturation_keeps_the_higher_levels():
+    """Seeded random two-level hierarchies with a binding box: the mapping stays in the box
+    (without the last-guard clip);
+    when the free mapping is inside the box after each level it is the result unchanged
+    (SNS keeps every level's partial solution in the box); whenever the first
+    level alone is solved unscaled, adding the second level does not change its residual
+    (the saturations of level 2 go through level 1's null space)."""
+    rng = np.random.default_rng(21)
+    ns = NullspaceCascade(7, damping=1e-9)
+    inside = kept = 0
+    for _ in range(200):
+        levels = []
+        for i, m in enumerate((int(rng.integers(1, 4)), int(rng.integers(1, 3)))):
+            b = rng.normal(size=m)
+            levels.append(Level(f'L{i}', rng.normal(size=(m, 7)), b, b, True))
+        half = rng.uniform(0.2, 2.0, size=7)
+        box = VelocityBox(-half, half)
+        free, _ = ns.mapping(levels, None)
+        partial, _ = ns.mapping(levels[:1], None)
+        qdot, _ = ns.mapping(levels, None, box)  # before the last-guard clip of solve()
+        assert np.all(qdot >= box.lower - 1e-9) and np.all(qdot <= box.upper + 1e-9)
+        if np.all(np.abs(free) <= half) and np.all(np.abs(partial) <= half):
+            inside += 1
+            np.testing.assert_allclose(qdot, free, atol=1e-9)
+            continue
+        first = ns.solve(levels[:1], box).qdot_v
+        A1, b1 = levels[0].A, levels[0].lower
+        if np.allclose(A1 @ first, b1, atol=1e-8):  # level 1 alone: exact, unscaled
+            np.testing.assert_allclose(A1 @ qdot, b1, atol=1e-6)
+            kept += 1
+    assert inside > 20 and kept > 40, (inside, kept)
 
 
 def test_nullspace_with_torque_limits_is_refused_naming_the_fix():

@@ -8,9 +8,21 @@ Kept for comparisons, not the default. Equality tasks only::
                     qdot <- qdot + A^{+lambda} b;  N <- N - A^+ A
 
 checklimits (C.2) clamps joints within dl_crit of a limit that move towards it; the loop
-repeats with the union of clamped joints until no new joint is clamped. The result is
-clipped into the velocity box afterwards (the box is no constraint of the mapping), so the
-implicit torque-limit level, whose lock the cascades take as hard bounds, is not available.
+repeats with the union of clamped joints until no new joint is clamped.
+
+**The velocity box.** The thesis' Ch. 3 mapping knows the position limits only (C.2); the
+SPG's velocity box (joint limits 4.31-4.33, PSPM) enters each level by the saturation in
+the null space (SNS) of Flacco, De Luca and Khatib (IROS 2012, Alg. 3): per level, the most
+critical joint that leaves the box is saturated at its bound, the increment that takes it
+there is realised in the null space of the levels above (they keep their solution), the
+level is solved again with the remaining joints, and when they cannot solve it any more
+the level is scaled down (its correction x - A qdot_above times s in [0, 1], the largest
+s seen that keeps every joint inside; SNS scales the task velocity, which is the same for
+the first level, and s = 0 leaves the levels above as they are, inside the box). Clipping
+the result per joint afterwards (the baseline before issue 21) instead changes every
+level's solution, the first one's included. The result is still clipped into the box as a
+last guard. The implicit torque-limit level, whose lock the cascades take as hard bounds,
+is not available.
 """
 
 from collections.abc import Sequence
@@ -26,8 +38,46 @@ from ifc_spg.tasks.task import Level
 __all__ = ['NullspaceCascade']
 
 
-def _damped_pinv(A: np.ndarray, damping: float) -> np.ndarray:
-    return A.T @ np.linalg.inv(A @ A.T + damping ** 2 * np.eye(A.shape[0]))
+def _damped_pinv(A: np.ndarray, damping: float, rcond: float) -> np.ndarray:
+    """The damped inverse of :func:`_damped_pinv_rank` alone."""
+    return _damped_pinv_rank(A, damping, rcond)[0]
+
+
+def _damped_pinv_rank(A: np.ndarray, damping: float, rcond: float
+                      ) -> tuple[np.ndarray, int]:
+    """A^T (A A^T + lambda^2 I)^-1 by the SVD, singular values below rcond s_max dropped.
+
+    Where saturated or clamped joints leave a level without the columns to span it, its
+    singular values sit at rounding level (1e-17), which the damped gain s / (s^2 +
+    lambda^2) would amplify by up to 1 / (2 lambda); they count as zero, as in the
+    undamped inverse of the projectors.
+    """
+    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    keep = sv > rcond * (sv[0] if sv.size else 0.0)
+    return ((Vt.T * np.where(keep, sv / (sv ** 2 + damping ** 2), 0.0)) @ U.T,
+            int(np.count_nonzero(keep)))
+
+
+def _scaling(a: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+             free: np.ndarray) -> tuple[float, int]:
+    """SNS Alg. 2: the largest s in [0, 1] with lower <= s a + b <= upper.
+
+    Over the ``free`` joints (the saturated ones do not move with s). Returns s and the
+    joint that limits it, or (0, -1) when no s in [0, 1] fits.
+    """
+    moving = free & (np.abs(a) > 1e-12 * max(float(np.max(np.abs(a))), 1e-300))
+    still = free & ~moving
+    if np.any(still & ((b < lower - 1e-12) | (b > upper + 1e-12))):
+        return 0.0, -1  # a joint no s moves is outside already
+    with np.errstate(divide='ignore', invalid='ignore'):
+        lo = np.where(moving, (lower - b) / a, -np.inf)
+        hi = np.where(moving, (upper - b) / a, np.inf)
+    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    j = int(np.argmin(hi))
+    s_max, s_min = float(hi[j]), float(np.max(lo))
+    if s_min > s_max or s_max < 0.0 or s_min > 1.0:
+        return 0.0, -1
+    return min(s_max, 1.0), j
 
 
 class NullspaceCascade:
@@ -65,26 +115,24 @@ class NullspaceCascade:
 
     def solve(self, levels: Sequence[Level], box: VelocityBox,
               q_v: np.ndarray | None = None) -> CascadeResult:
-        """Solve the levels by the nullspace mapping, clipped into the box.
+        """Solve the levels by the nullspace mapping with the box saturated in it (SNS).
 
-        The mapping at the virtual configuration ``q_v`` (None: no joint is clamped),
-        clipped into ``box``; a non-finite solution holds (zero velocity clipped into the
-        box, status 'hold').
+        The mapping at the virtual configuration ``q_v`` (None: no joint is clamped); a
+        non-finite solution holds (zero velocity clipped into the box, status 'hold').
         """
-        qdot, _ = self.mapping(levels, q_v)
+        qdot, _ = self.mapping(levels, q_v, box)
         status = 'ok'
         if not math.isfinite(qdot @ self._zeros):
             qdot, status = np.zeros(self.n), 'hold'
         return CascadeResult(np.clip(qdot, box.lower, box.upper), [], status, -1)
 
-    def mapping(self, levels: Sequence[Level], q_v: np.ndarray | None
-                ) -> tuple[np.ndarray, np.ndarray]:
-        """The nullspace mapping with joint clamping.
+    def mapping(self, levels: Sequence[Level], q_v: np.ndarray | None,
+                box: VelocityBox | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The nullspace mapping with joint clamping (C.2) and, with ``box``, SNS.
 
         Return ``(qdot_v, clamped_joints)`` for equality ``levels`` at virtual q_v (None:
         no joint is clamped).
         """
-        q_min, q_max = self.q_min, self.q_max
         for lev in levels:
             if not lev.equality:
                 raise SolverError(f"the nullspace baseline handles equality tasks only; task "
@@ -96,16 +144,73 @@ class NullspaceCascade:
             N = np.eye(n)
             for lev in levels:
                 A = lev.A * ~clamped
-                b = lev.lower - A @ qdot
                 AN = A @ N
-                qdot = qdot + _damped_pinv(AN, self.damping) @ b
+                if box is None:
+                    qdot = qdot + _damped_pinv(AN, self.damping, self.rcond) @ (
+                        lev.lower - A @ qdot)
+                else:
+                    qdot = self._sns_level(A, lev.lower, qdot, N, box)
                 N = N - np.linalg.pinv(AN, rcond=self.rcond) @ AN
             if q_v is None:
                 break
-            near_hi = (q_max - q_v < self.critical_distance) & (qdot > 0)
-            near_lo = (q_v - q_min < self.critical_distance) & (qdot < 0)
+            near_hi = (self.q_max - q_v < self.critical_distance) & (qdot > 0)
+            near_lo = (q_v - self.q_min < self.critical_distance) & (qdot < 0)
             new = (near_hi | near_lo) & ~clamped
             if not np.any(new):
                 break
             clamped |= new
         return qdot, np.flatnonzero(clamped)
+
+    def _sns_level(self, A: np.ndarray, x: np.ndarray, qdot_prev: np.ndarray, P: np.ndarray,
+                   box: VelocityBox) -> np.ndarray:
+        """One level of SNS (Alg. 3): qdot inside ``box`` solving the level, scaled if need be.
+
+        ``qdot_prev`` is the solution of the levels above and ``P`` the projector onto
+        their null space; the increments that take saturated joints to their bounds go
+        through P, so those levels keep their solution.
+        """
+        lower, upper, tol = box.lower, box.upper, self.lock_tolerance
+        free = np.ones(self.n, dtype=bool)
+        qdot_n = np.zeros(self.n)  # increments that take the saturated joints to their bounds
+        a, b, rank0 = self._sns_terms(A, x, qdot_prev, P, free, qdot_n)
+        best = (0.0, free.copy(), qdot_n.copy())  # (s, free, qdot_n): best scaled so far
+        for _ in range(self.n):
+            qdot = a + b
+            out = free & ((qdot < lower - tol) | (qdot > upper + tol))
+            if not np.any(out):
+                return qdot
+            scale, j = _scaling(a, b, lower, upper, free)
+            if scale > best[0]:
+                best = (scale, free.copy(), qdot_n.copy())
+            if j < 0:  # no scale fits: saturate the joint farthest outside
+                j = int(np.argmax(np.where(free, np.maximum(qdot - upper, lower - qdot),
+                                           -np.inf)))
+            free[j] = False
+            qdot_n[j] = (upper[j] if qdot[j] > upper[j] else lower[j]) - qdot_prev[j]
+            a, b, rank = self._sns_terms(A, x, qdot_prev, P, free, qdot_n)
+            reached = np.abs(b - qdot_prev - qdot_n)[~free] <= 1e-9 * (1.0 + np.abs(qdot_n[~free]))
+            if rank < rank0 or not np.any(free) or not np.all(reached):
+                # The free joints cannot solve the level, or the levels above leave no
+                # motion that takes the saturated joints to their bounds: the best scaled
+                # solution so far.
+                break
+        s, free, qdot_n = best
+        a, b, _ = self._sns_terms(A, x, qdot_prev, P, free, qdot_n)
+        return s * a + b
+
+    def _sns_terms(self, A: np.ndarray, x: np.ndarray, qdot_prev: np.ndarray, P: np.ndarray,
+                   free: np.ndarray, qdot_n: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, int]:
+        """(a, b, rank of A P_bar) of SNS: the level's solution is s a + b.
+
+        s scales the level's correction x - A qdot_prev (for the first level, x itself as
+        in SNS): s = 0 leaves the levels above as they are, inside the box.
+        """
+        if free.all():  # nothing saturated: the plain step of Alg. C.1
+            P_bar, sat = P, np.zeros(self.n)
+        else:
+            S_pinv = np.linalg.pinv(P * ~free[:, None], rcond=self.rcond)  # ((I - W) P)^+
+            P_bar = P - S_pinv @ P
+            sat = S_pinv @ qdot_n
+        JP_pinv, rank = _damped_pinv_rank(A @ P_bar, self.damping, self.rcond)
+        return JP_pinv @ (x - A @ qdot_prev), qdot_prev + sat - JP_pinv @ (A @ sat), rank
