@@ -26,6 +26,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 import shutil
 import sys
@@ -1199,6 +1200,7 @@ def _table_5_1(out_dir, quick, figures=True):
     from ifc_spg.offline.constrained_evaluate import QUICK_COMPARISON, comparison
 
     kw = dict(QUICK_COMPARISON) if quick else {'duration': T51_DURATION}
+    kw['workers'] = max(1, min(4, os.cpu_count() or 1))  # the runs are independent
     res = comparison(cases=('fixed_direction',), **kw)
     res.update(comparison(cases=('sma_estimator',), sma_initial_error_deg=T51_SMA_ERROR_DEG,
                           **kw))

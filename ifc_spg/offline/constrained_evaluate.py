@@ -23,8 +23,10 @@ Examples::
 """
 
 import argparse
+from concurrent.futures import ProcessPoolExecutor
 import json
 import math
+from multiprocessing import get_context
 import sys
 
 from ifc_spg.constrained.metrics import pooled_rms
@@ -59,24 +61,41 @@ _KEEP = ('rms_f_perp', 'rms_fs_perp', 'max_f_perp', 'travel', 'time_to_open',
          'rms_error_angle_deg', 'samples')
 
 
-def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration):
-    """Both strategies once per (K, kappa) on the vertical drawer: one row each."""
+def _grid_run(job):
+    """One run of the grid (a worker task): the metrics of :data:`_KEEP`."""
+    strategy, k, kappa, fixed, initial_error_deg, travel, duration = job
+    log = run(Scenario(strategy=strategy, scene='drawer_vertical',
+                       params=StrategyParams(stiffness=k, kappa=kappa),
+                       fixed_direction=fixed, initial_error_deg=initial_error_deg,
+                       target=travel, duration=duration))
+    return {key: log.metrics.get(key) for key in _KEEP}
+
+
+def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, workers=1):
+    """Both strategies once per (K, kappa) on the vertical drawer: one row each.
+
+    With ``workers`` > 1 the runs go to as many spawned processes (each run is
+    deterministic, so the rows are the same).
+    """
+    jobs = [(strategy, float(k), float(kappa), fixed, initial_error_deg, travel, duration)
+            for k in stiffnesses for kappa in kappas
+            for strategy in ('joint_compliance', 'task_specification')]
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn')) as pool:
+            results = list(pool.map(_grid_run, jobs))
+    else:
+        results = [_grid_run(job) for job in jobs]
     rows = []
-    for k in stiffnesses:
-        for kappa in kappas:
-            row = {'stiffness': float(k), 'kappa': float(kappa)}
-            for strategy in ('joint_compliance', 'task_specification'):
-                log = run(Scenario(strategy=strategy, scene='drawer_vertical',
-                                   params=StrategyParams(stiffness=k, kappa=kappa),
-                                   fixed_direction=fixed, initial_error_deg=initial_error_deg,
-                                   target=travel, duration=duration))
-                row[strategy] = {key: log.metrics.get(key) for key in _KEEP}
-            rows.append(row)
+    for i in range(0, len(jobs), 2):
+        _, k, kappa, *_ = jobs[i]
+        rows.append({'stiffness': k, 'kappa': kappa, 'joint_compliance': results[i],
+                     'task_specification': results[i + 1]})
     return rows
 
 
 def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.0,
-               sma_initial_error_deg=0.0, cases=('fixed_direction', 'sma_estimator')):
+               sma_initial_error_deg=0.0, cases=('fixed_direction', 'sma_estimator'),
+               workers=1):
     """The thesis comparison (5.5.3) on the 1.2 kg vertical drawer; a dict of metrics.
 
     Both strategies lift the drawer ``travel`` (the thesis: 0.3 m) once per (K, kappa) of the
@@ -94,6 +113,8 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
         duration: Longest run [s] (the task-specification strategy is slow at high K).
         sma_initial_error_deg: Initial error of the SMA estimator [deg].
         cases: Subset of ``('fixed_direction', 'sma_estimator')``.
+        workers: Processes for the runs (1: in this process; the results do not depend
+            on it).
 
     Returns:
         Per case: ``runs`` (one row per (K, kappa): both strategies' metrics),
@@ -109,7 +130,8 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
                                  f"{did_you_mean(label, THESIS_5_5_3)}; cases: "
                                  f"{', '.join(THESIS_5_5_3)}")
         fixed = label == 'fixed_direction'
-        rows = _grid_runs(stiffnesses, kappas, fixed, sma_initial_error_deg, travel, duration)
+        rows = _grid_runs(stiffnesses, kappas, fixed, sma_initial_error_deg, travel, duration,
+                          workers)
         res = {'runs': rows, 'travel_target': travel, 'duration': duration}
         if not fixed:
             res['initial_error_deg'] = sma_initial_error_deg
