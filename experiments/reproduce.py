@@ -23,9 +23,11 @@ error; ``--strict`` makes a failing claim exit 1.
 """
 
 import argparse
+from concurrent.futures import ProcessPoolExecutor, as_completed
 import dataclasses
 import json
 import math
+from multiprocessing import get_context
 import os
 from pathlib import Path
 import shutil
@@ -1562,12 +1564,59 @@ def _scenario_path(name):
     return find_config_dir() / 'scenarios' / name
 
 
-def run_experiments(out_dir, quick=False, only=None, figures=True, stream=None, doc=None):
+_WORKER_CACHE: dict = {}
+
+
+def _experiment_in_worker(name, out_dir, quick, figures):
+    """Worker task: one scenario experiment by name (runs cached per worker process)."""
+    exp = {e.name: e for e in ALL_EXPERIMENTS}[name]
+    return run_experiment(exp, out_dir, quick=quick, figures=figures, cache=_WORKER_CACHE)
+
+
+def _run_selected(selected, out_dir, quick, figures, stream, workers):
+    """Run ``selected``; return {name: (check, figure, wall)}.
+
+    The scenario experiments go to ``workers`` spawned processes (longest first) when
+    ``workers`` > 1; the others (Table 5.1, Ch. 5, report Ch. 6) run here afterwards and
+    use processes of their own. Every run is deterministic: the results do not depend on
+    ``workers``.
+    """
+    done = {}
+
+    def report(name, res):
+        done[name] = res
+        check, _, wall = res
+        print(f"[reproduce] {name}: {'PASS' if check.passed else 'FAIL'} ({wall:.1f} s) "
+              f'{check.summary}', file=stream, flush=True)
+
+    pooled = [e for e in selected if e.name not in _DIRECT] if workers > 1 else []
+    if len(pooled) > 1:
+        order = sorted(pooled, key=lambda e: -sum(r.duration or 10.0 for r in e.runs))
+        print(f'[reproduce] {len(pooled)} scenario experiments in {workers} processes ...',
+              file=stream, flush=True)
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn')) as pool:
+            futures = {pool.submit(_experiment_in_worker, e.name, out_dir, quick, figures):
+                       e.name for e in order}
+            for fut in as_completed(futures):
+                report(futures[fut], fut.result())
+    cache = {}
+    for exp in selected:
+        if exp.name not in done:
+            print(f'[reproduce] {exp.name} ...', file=stream, flush=True)
+            report(exp.name, run_experiment(exp, out_dir, quick=quick, figures=figures,
+                                            cache=cache))
+    return done
+
+
+def run_experiments(out_dir, quick=False, only=None, figures=True, stream=None, doc=None,
+                    workers=None):
     """Run the selected experiments; write ``REPORT.md`` and ``results.json``; return rows.
 
     With ``doc`` (a directory, e.g. ``docs``) the report is also written as
     ``doc/REPRODUCTION.md`` with the figures in ``doc/figures/`` (only for a full run of
-    every experiment: the committed report is a fresh full run's output).
+    every experiment: the committed report is a fresh full run's output). ``workers``:
+    processes for the scenario experiments (default: 1 with ``quick``, else the CPU count,
+    at most 4).
     """
     stream = stream or sys.stdout
     t_start = time.perf_counter()
@@ -1579,17 +1628,15 @@ def run_experiments(out_dir, quick=False, only=None, figures=True, stream=None, 
         if name not in names:
             raise ParameterError(f"unknown experiment '{name}'{did_you_mean(name, names)}; "
                                  f"experiments: {', '.join(names)}")
+    if workers is None:
+        workers = 1 if quick else max(1, min(4, os.cpu_count() or 1))
     selected = [e for e in ALL_EXPERIMENTS if not only or e.name in only]
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    rows, cache = [], {}
+    done = _run_selected(selected, out_dir, quick, figures, stream, workers)
+    rows = []
     for exp in selected:
-        print(f'[reproduce] {exp.name} ...', file=stream, flush=True)
-        check, fig, wall = run_experiment(exp, out_dir, quick=quick, figures=figures,
-                                          cache=cache)
-        verdict = 'PASS' if check.passed else 'FAIL'
-        print(f'[reproduce] {exp.name}: {verdict} ({wall:.1f} s) {check.summary}', file=stream,
-              flush=True)
+        check, fig, wall = done[exp.name]
         rows.append({'name': exp.name, 'table': exp.table, 'claim': exp.claim,
                      'passed': check.passed, 'summary': check.summary,
                      'numbers': check.numbers, 'claims': check.claims,
@@ -1812,6 +1859,9 @@ def main(argv=None):
     ap.add_argument('--list', action='store_true', help='list the experiments and exit')
     ap.add_argument('--no-figures', action='store_true', help='skip the figures')
     ap.add_argument('--strict', action='store_true', help='exit 1 if a claim fails')
+    ap.add_argument('--workers', type=int, default=None, metavar='N',
+                    help='processes for the scenario experiments (default: 1 with --quick, '
+                    'else the CPU count, at most 4; the results do not depend on it)')
     ap.add_argument('--doc', default=None, metavar='DIR',
                     help='also write DIR/REPRODUCTION.md and DIR/figures/ (full runs only; '
                     'the repository report: --doc docs)')
@@ -1822,7 +1872,8 @@ def main(argv=None):
         return 0
     try:
         rows = run_experiments(args.output, quick=args.quick, only=args.only,
-                               figures=not args.no_figures, doc=args.doc)
+                               figures=not args.no_figures, doc=args.doc,
+                               workers=args.workers)
     except IfcSpgError as exc:
         print(f'reproduce: {exc}', file=sys.stderr)
         return 2
