@@ -70,7 +70,11 @@ def _same(rc, rn, where):
     if np.isnan(rn.gauss):
         assert np.isnan(rc.gauss)
     else:
-        assert abs(rc.gauss - rn.gauss) <= 1e-10 * factor * (1.0 + abs(rn.gauss)), where
+        # Gauss' function carries nu too: with a rank-deficient coupling matrix its round-off
+        # (n=4 chain 2 state 1: 1.4e-10 relative, eigenvalue 2.5e-17; the BLAS kernels of
+        # another CPU round differently), so the same 1e-7 as the residual there
+        rel = 1e-7 if rn.singular else 1e-10 * factor
+        assert abs(rc.gauss - rn.gauss) <= rel * (1.0 + abs(rn.gauss)), where
 
 
 def _random_inputs(rng, model):
