@@ -37,6 +37,7 @@ import time
 import numpy as np
 
 from experiments import claims
+from ifc_spg.constrained.metrics import error_angles, perpendicular_force
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 
 __all__ = ['ALL_EXPERIMENTS', 'EXPERIMENTS', 'Check', 'Experiment', 'RunSpec', 'main',
@@ -1297,25 +1298,6 @@ F513_RUNS = ((0.10, 9.0), (0.17, 9.0), (0.25, 9.0), (0.17, 5.0), (0.17, 15.0))
 _S543_CACHE = {}
 
 
-def _f_perp_series(log):
-    f = np.asarray(log.force, dtype=float)
-    d = np.asarray(log.true_direction, dtype=float)
-    return np.linalg.norm(f - np.sum(f * d, axis=1)[:, None] * d, axis=1)
-
-
-def _fs_perp_series(log):
-    f = np.asarray(log.static_force, dtype=float)
-    d = np.asarray(log.true_direction, dtype=float)
-    return np.linalg.norm(f - np.sum(f * d, axis=1)[:, None] * d, axis=1)
-
-
-def _error_angle_deg(log):
-    a, b = np.asarray(log.estimate, dtype=float), np.asarray(log.true_direction, dtype=float)
-    c = np.sum(a * b, axis=1) / np.maximum(
-        np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-12)
-    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-
-
 def _force_slope(log, moved=1e-3, t0=0.1):
     """Least-squares slope [N/s] of |f| from ``t0`` until the mechanism moved ``moved``."""
     t = np.asarray(log.t, dtype=float)
@@ -1343,7 +1325,8 @@ def _s543_run(strategy, scene, err, target, **kw):
 
 def _lift_numbers(log):
     """Per-run numbers of Figs. 5.11/5.12: |f_perp| over both halves of the travel etc."""
-    fp, fs = _f_perp_series(log), _fs_perp_series(log)
+    fp = perpendicular_force(log.force, log.true_direction)
+    fs = perpendicular_force(log.static_force, log.true_direction)
     x = np.abs(np.asarray(log.env_q, dtype=float) - float(log.env_q[0]))
     half = x >= 0.5 * max(float(np.max(x)), 1e-9)
     return {'rms_f_perp_first_half_n': _rms(fp[~half]),
@@ -1363,10 +1346,12 @@ def _lift_numbers(log):
 def _s543_panel(ax, log, title):
     """Thesis style of Sec. 5.4.3: error angle (black), |f_s perp| (red), |f_perp| dashed."""
     t = np.asarray(log.t)
-    ax.plot(t, _fs_perp_series(log), color='tab:red', lw=1, label='|f_s perp| [N]')
-    ax.plot(t, _f_perp_series(log), '--', color='m', lw=1, label='|f_perp| measured [N]')
+    ax.plot(t, perpendicular_force(log.static_force, log.true_direction), color='tab:red',
+            lw=1, label='|f_s perp| [N]')
+    ax.plot(t, perpendicular_force(log.force, log.true_direction), '--', color='m', lw=1,
+            label='|f_perp| measured [N]')
     ax2 = ax.twinx()
-    ax2.plot(t, _error_angle_deg(log), color='k', lw=1)
+    ax2.plot(t, np.degrees(error_angles(log.estimate, log.true_direction)), color='k', lw=1)
     ax2.set_ylabel('error angle [deg]')
     ax.set_title(title, fontsize=8)
     ax.set_xlabel('time [s]')

@@ -41,7 +41,7 @@ import time
 
 import numpy as np
 
-from ifc_spg.constrained.metrics import error_angles
+from ifc_spg.constrained.metrics import error_angles, perpendicular_force
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
 from ifc_spg.offline.constrained import Scenario, run
 
@@ -116,8 +116,7 @@ def _parallel_perp(log):
     d = log.true_direction / np.maximum(np.linalg.norm(log.true_direction, axis=1,
                                                        keepdims=True), 1e-12)
     par = np.sum(log.force * d, axis=1)
-    perp = np.linalg.norm(log.force - par[:, None] * d, axis=1)
-    return np.abs(par), perp
+    return np.abs(par), perpendicular_force(log.force, log.true_direction)
 
 
 def _summary(log, target, series=False):

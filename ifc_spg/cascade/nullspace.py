@@ -38,11 +38,6 @@ from ifc_spg.tasks.task import Level
 __all__ = ['NullspaceCascade']
 
 
-def _damped_pinv(A: np.ndarray, damping: float, rcond: float) -> np.ndarray:
-    """The damped inverse of :func:`_damped_pinv_rank` alone."""
-    return _damped_pinv_rank(A, damping, rcond)[0]
-
-
 def _damped_pinv_rank(A: np.ndarray, damping: float, rcond: float
                       ) -> tuple[np.ndarray, int]:
     """A^T (A A^T + lambda^2 I)^-1 by the SVD, singular values below rcond s_max dropped.
@@ -138,18 +133,16 @@ class NullspaceCascade:
                 raise SolverError(f"the nullspace baseline handles equality tasks only; task "
                                   f"'{lev.name}' is an inequality (use solver 'daqp')")
         n = self.n
+        if box is None:  # no joint leaves an unbounded box: the plain steps of Alg. C.1
+            box = VelocityBox(np.full(n, -np.inf), np.full(n, np.inf))
         clamped = np.zeros(n, dtype=bool)
         for _ in range(n + 1):
             qdot = np.zeros(n)
             N = np.eye(n)
             for lev in levels:
                 A = lev.A * ~clamped
+                qdot = self._sns_level(A, lev.lower, qdot, N, box)
                 AN = A @ N
-                if box is None:
-                    qdot = qdot + _damped_pinv(AN, self.damping, self.rcond) @ (
-                        lev.lower - A @ qdot)
-                else:
-                    qdot = self._sns_level(A, lev.lower, qdot, N, box)
                 N = N - np.linalg.pinv(AN, rcond=self.rcond) @ AN
             if q_v is None:
                 break
