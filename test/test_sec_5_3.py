@@ -8,7 +8,8 @@ from experiments.sec_5_3 import QUICK_TRIALS, run_sec_5_3
 
 
 def test_sec_5_3_quick(tmp_path):
-    num, text = run_sec_5_3(tmp_path, quick=True, figures=False)
+    # one process: the suite already runs tests in parallel worker processes
+    num, text = run_sec_5_3(tmp_path, quick=True, figures=False, workers=1)
     assert isinstance(text, str) and 'Sec. 5.3.4' in text
     json.dumps(num)  # JSON-serialisable
     assert json.loads((tmp_path / 'sec_5_3.json').read_text())['n_trials'] == num['n_trials']

@@ -38,8 +38,17 @@ LOOPBACK_KEYS = ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND',
 
 
 def random_domain_id(rng=None):
-    """A ROS domain id in [1, 101] (0 is everybody's default), from ``rng`` or os.urandom."""
+    """A ROS domain id in [1, 101] (0 is everybody's default), from ``rng`` or os.urandom.
+
+    Under pytest-xdist (``PYTEST_XDIST_WORKER`` gwK of ``PYTEST_XDIST_WORKER_COUNT`` N) only
+    ids with ``id % N == K``: tests running at the same time never share a domain.
+    """
     rng = rng or random.Random(os.urandom(8))
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    count = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1') or 1)
+    if worker.startswith('gw') and worker[2:].isdigit() and count > 1:
+        k = int(worker[2:]) % count
+        return rng.choice([d for d in range(1, 102) if d % count == k])
     return rng.randint(1, 101)
 
 
