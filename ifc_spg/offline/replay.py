@@ -259,6 +259,11 @@ def _activation_times(stack_msgs, statuses, accepted):
     return out
 
 
+def _snapshot_stamp(vec):
+    """The stamp [ns] of the tick a recorded ``spg/state`` vector follows."""
+    return int(vec[1]) * 1_000_000_000 + int(vec[2])
+
+
 def _resume_point(snapshots, state_stamps):
     """The recorded ``spg/state`` to start from.
 
@@ -273,7 +278,7 @@ def _resume_point(snapshots, state_stamps):
         by_tick.setdefault(int(vec[0]), vec)
     for tick in sorted(by_tick):
         nxt = by_tick.get(tick + 1)
-        if nxt is not None and int(nxt[1]) * 1_000_000_000 + int(nxt[2]) in state_stamps:
+        if nxt is not None and _snapshot_stamp(nxt) in state_stamps:
             return by_tick[tick]
     return None
 
@@ -363,7 +368,7 @@ class _Plan:
 
 def _resume_plan(spg, rec, start, trips, path):
     """Restore ``spg`` from the recorded state ``start``; later stacks from spg/config."""
-    start_s = (int(start[1]) * 1_000_000_000 + int(start[2])) * 1e-9
+    start_s = _snapshot_stamp(start) * 1e-9
     doc = _config_at(rec.configs, start_s)
     if doc is None:
         raise ParameterError(f"bag '{path}' has spg/state but no spg/config in force at "
@@ -497,7 +502,7 @@ def _run_ticks(spg, states, plan, tally, rec):
     pending, trips = plan.pending, plan.trips
     snapshots = {}
     for vec in rec.snapshots:
-        snapshots.setdefault(int(vec[1]) * 1_000_000_000 + int(vec[2]), vec)
+        snapshots.setdefault(_snapshot_stamp(vec), vec)
     warnings = []
     for stamp, msg in states:
         if stamp in tally.seen:  # a lockstep bridge re-publishes a state it got no answer for
