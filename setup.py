@@ -60,10 +60,10 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'spg_node = ifc_spg.node.spg_node:main',
-            'sim_bridge = sim_bridge.node:main',
-            'task_publisher = ifc_spg.node.task_publisher:main',
-            'ifc-spg = ifc_spg.tools.cli:main',
+            'spg_node = ifc_spg.entry:spg_node',
+            'sim_bridge = ifc_spg.entry:sim_bridge',
+            'task_publisher = ifc_spg.entry:task_publisher',
+            'ifc-spg = ifc_spg.entry:ifc_spg',
         ],
     },
 )

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import gc
 import json
 import math
+import signal
 import sys
 import time
 
@@ -479,17 +480,26 @@ def main(argv=None):
         print(f'sim_bridge: {exc}', file=sys.stderr)
         ros.shutdown()
         return 2
-    gc.collect()  # the model and scene live as long as the node: out of the cyclic collector
-    gc.freeze()
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
+        gc.collect()  # the model and scene live as long as the node: out of the cyclic collector
+        gc.freeze()
         bridge.run(ok=ros.ok)
     except KeyboardInterrupt:
-        pass
+        node.get_logger().info(f'sim_bridge: stopped by a signal after {bridge.ticks} periods '
+                               f'({bridge.sim.read_time():.3f} s simulated)')
     finally:
+        for sig in previous:  # stopping: a second signal must not interrupt the clean-up
+            signal.signal(sig, signal.SIG_IGN)
         bridge.close()
         node.destroy_node()
         if ros.ok():
             ros.shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return 0
 
 

@@ -460,23 +460,26 @@ def main(argv=None):
     def stop(signum, frame):
         raise KeyboardInterrupt
 
-    previous = signal.signal(signal.SIGTERM, stop)
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     # everything built so far (models, solvers, ROS entities) lives as long as the node: keep
     # it out of the cyclic collector, whose full passes over it stalled ticks by 10-30 ms
-    gc.collect()
-    gc.freeze()
     try:
+        gc.collect()
+        gc.freeze()
         ros.spin(node)
     except KeyboardInterrupt:
         pass
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig in previous:  # stopping: a second signal must not interrupt the clean-up
+            signal.signal(sig, signal.SIG_IGN)
         node.get_logger().info(f'spg_node: {spg.runner.ticks} ticks, {spg.commands_sent} '
                                f'commands, rejected {spg.runner.rejected}, '
                                f'{spg.runner.watchdog_trips} watchdog trip(s)')
         node.destroy_node()
         if ros.ok():
             ros.shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return 0
 
 

@@ -87,6 +87,7 @@ if _rclpy_available(_choice()):
         ReliabilityPolicy,
         qos_profile_sensor_data,
     )
+    from rclpy.signals import SignalHandlerOptions
 
     def _rmw():
         from rclpy.utilities import get_rmw_implementation_identifier
@@ -120,6 +121,10 @@ if _rclpy_available(_choice()):
         ``malformed '-p rate=5'``).
         """
         parse_ros_args(sys.argv if args is None else args)
+        # rclpy's own handlers shut the context down from a signal thread, under a loop that
+        # may be publishing ('publisher's context is invalid'); the programs handle SIGINT and
+        # SIGTERM in Python instead (ifc_spg.entry), as the built-in backend does
+        kwargs.setdefault('signal_handler_options', SignalHandlerOptions.NO)
         rclpy.init(args=args, context=context, **kwargs)
         return context or rclpy.get_default_context()
 

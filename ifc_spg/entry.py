@@ -1,0 +1,68 @@
+"""The console entry points: signal handling first, then the heavy imports.
+
+``spg_node``, ``sim_bridge``, ``task_publisher`` and ``ifc-spg`` start here. Before anything
+else is imported (pinocchio, MuJoCo, DDS take 1-3 s on a small machine), SIGINT and SIGTERM
+are made to interrupt the program: a process started in the background by a non-interactive
+shell inherits SIGINT *ignored*, and Python keeps it ignored, so without this a Ctrl-C or
+``kill -INT`` during start-up was lost and the node went on to command the robot. A signal
+during start-up ends the process with a one-line message and exit status 0, before it
+publishes anything; later, each program's own handling takes over (the nodes stop their loop
+and print their summary line). What no program can catch: the interpreter's own start
+(0.05-0.3 s, before this module runs), where SIGTERM ends the process by its default action
+(status 143, before anything is published) and an inherited-ignored SIGINT is lost.
+"""
+
+from collections.abc import Callable
+import importlib
+import os
+import signal
+import sys
+
+__all__ = ['ifc_spg', 'sim_bridge', 'spg_node', 'task_publisher']
+
+
+def _run(name: str, target: str, status: int | None = 0) -> int:
+    """Run ``target`` ('module:function'), ending at once on a signal until it takes over.
+
+    Until the program installs its own handlers (the nodes do when their loop starts, the
+    recorder when it records), SIGINT and SIGTERM print one line and end the process with
+    ``status`` (None: 128 + the signal number, the shell's convention for an interrupted
+    command) by ``os._exit``: an exception raised from a handler in the middle of an import
+    can surface as an unrelated ImportError (numpy's C modules turn it into one), and there
+    is nothing to clean up yet.
+    """
+    def stop(signum: int, frame: object) -> None:
+        sig = signal.Signals(signum)
+        os.write(2, f'{name}: stopped by {sig.name} during start-up\n'.encode())
+        os._exit(128 + signum if status is None else status)
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, stop)
+    module, func = target.split(':')
+    main: Callable[[], int | None] = getattr(importlib.import_module(module), func)
+    return int(main() or 0)
+
+
+def spg_node() -> int:
+    """``spg_node``: :func:`ifc_spg.node.spg_node.main`."""
+    return _run('spg_node', 'ifc_spg.node.spg_node:main')
+
+
+def sim_bridge() -> int:
+    """``sim_bridge``: :func:`sim_bridge.node.main`."""
+    return _run('sim_bridge', 'sim_bridge.node:main')
+
+
+def task_publisher() -> int:
+    """``task_publisher``: :func:`ifc_spg.node.task_publisher.main`."""
+    return _run('task_publisher', 'ifc_spg.node.task_publisher:main')
+
+
+def ifc_spg() -> int:
+    """``ifc-spg``: :func:`ifc_spg.tools.cli.main`.
+
+    ``ifc-spg bag`` (record, play) ends with status 0 on a signal like the nodes; the other
+    verbs, interrupted before they install handlers of their own, with 128 + the signal.
+    """
+    long_running = len(sys.argv) > 1 and sys.argv[1] == 'bag'
+    return _run('ifc-spg', 'ifc_spg.tools.cli:main', 0 if long_running else None)
