@@ -3,9 +3,10 @@
 Each program is started as a non-interactive shell starts its background jobs: with SIGINT
 *ignored* (what made a Ctrl-C during the first second of ``spg_node`` get lost). The signal
 goes out at several points: as soon as the program's entry point has installed its handlers
-(read from ``/proc/PID/status``, so the test does not guess a time), a moment later
-(imports, model build, DDS start-up), and after its start-up line. Every run must end by itself with exit status 0, print no traceback, and say
-why it stopped (a start-up message or the program's summary line).
+(read from ``/proc/PID/status``, so the test does not guess a time), a moment later (imports,
+model build, DDS start-up), and after its start-up line. Every run must end by itself with exit
+status 0, print no traceback, and say why it stopped (a start-up message or the program's
+summary line).
 """
 
 from pathlib import Path
