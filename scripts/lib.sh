@@ -10,7 +10,8 @@ die() { echo "$(basename "$0"): $*" >&2; exit 1; }
 say() { echo "$(basename "$0"): $*" >&2; }
 
 # setup_env: the .venv's console scripts first on PATH; loopback DDS unless the caller set
-# CYCLONEDDS_URI (built-in backend) or ROS_AUTOMATIC_DISCOVERY_RANGE (rclpy / Fast DDS); a
+# CYCLONEDDS_URI (built-in backend) or ROS_AUTOMATIC_DISCOVERY_RANGE and
+# FASTDDS_DEFAULT_PROFILES_FILE (rclpy / Fast DDS: config/fastdds_loopback.xml); a
 # random ROS_DOMAIN_ID in [1, 101] unless set (so parallel runs on one machine do not talk to
 # each other). The backend is rclpy where it imports, else the built-in one
 # (IFC_SPG_ROS_BACKEND=cyclonedds forces it).
@@ -20,6 +21,9 @@ setup_env() {
   fi
   export CYCLONEDDS_URI="${CYCLONEDDS_URI:-file://$IFC_SPG_ROOT/config/cyclonedds_loopback.xml}"
   export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+  # Fast DDS: UDP on 127.0.0.1 without shared memory, quick discovery (the file says why)
+  export FASTDDS_DEFAULT_PROFILES_FILE="${FASTDDS_DEFAULT_PROFILES_FILE:-$IFC_SPG_ROOT/config/fastdds_loopback.xml}"
+  export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$FASTDDS_DEFAULT_PROFILES_FILE}"
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( RANDOM % 101 + 1 ))}"
   local exe
   for exe in "$@"; do

@@ -101,6 +101,49 @@ def _command_order(config, joint_names):
     return [list(joint_names).index(n) for n in names]
 
 
+class PeriodCounter:
+    """Periods of a timer that fired late or not at all (``tick: timer``).
+
+    A timer driven by the executor cannot fire while the process has no CPU: on a loaded
+    machine some periods pass without a callback. Each callback books the periods since the
+    previous one; ``missed`` counts those that had no callback of their own.
+
+    Args:
+        period: The timer's period [s].
+    """
+
+    def __init__(self, period: float):
+        self.period = float(period)
+        self.first: float | None = None
+        self.last: float | None = None
+        self.calls = 0
+        self.missed = 0
+
+    def book(self, now: float) -> int:
+        """Book a callback at ``now`` [s, monotonic]; the periods it missed since the last."""
+        missed = 0
+        if self.last is None:
+            self.first = now
+        else:
+            missed = max(0, round((now - self.last) / self.period) - 1)
+        self.last = now
+        self.calls += 1
+        self.missed += missed
+        return missed
+
+    def summary(self) -> dict:
+        """The periods, callbacks, missed periods and the callback rate.
+
+        Returns:
+            ``{'periods', 'calls', 'missed', 'rate'}``: periods since the first call, the
+            callbacks, the periods without one, and the callback rate [Hz] (0 before two).
+        """
+        span = 0.0 if self.first is None or self.last is None else self.last - self.first
+        periods = round(span / self.period) + (1 if self.calls else 0)
+        return {'periods': periods, 'calls': self.calls, 'missed': self.missed,
+                'rate': (self.calls - 1) / span if span > 0 else 0.0}
+
+
 class SpgNode:
     """Wires an :class:`~ifc_spg.node.core.SpgRunner` to a node of the active ROS backend.
 
@@ -141,6 +184,7 @@ class SpgNode:
         self._watchdog_timer = self._diag_timer = None
         self._latest, self._last_tick_ns = None, -1   # tick: timer
         self._ages = deque(maxlen=1000)                # [s] state age at each timer tick
+        self.timer_periods = PeriodCounter(c.dt)       # tick: timer, late or missed periods
         if c.tick == 'timer':
             node.create_timer(c.dt, self.on_timer_tick)
         self._start_timers()
@@ -267,10 +311,12 @@ class SpgNode:
         extrapolated). A state older than watchdog.timeout stops commanding, as a stopped
         stream does.
         """
+        now = time.monotonic()
+        self.timer_periods.book(now)
         if self._latest is None:
             return
         message, arrived = self._latest
-        age = time.monotonic() - arrived
+        age = now - arrived
         timeout = self.config.watchdog_timeout
         if timeout and age > timeout:
             if self.config.enable and self.runner.started and not self.runner.stale:
@@ -390,12 +436,15 @@ class SpgNode:
         """Publish the runner's status JSON on the status topic.
 
         With ``tick: timer``, also the joint states' age at the ticks: ``state_age``
-        p50/p99/max [s].
+        p50/p99/max [s], and the timer's periods: ``timer`` {periods, calls, missed, rate}
+        (:class:`PeriodCounter`).
 
         Args:
             event: Optional (type, message) of an event, see :meth:`SpgRunner.status`.
         """
         status = self.runner.status(event)
+        if self.config.tick == 'timer':
+            status['timer'] = self.timer_periods.summary()
         if self._ages:
             ages = np.sort(np.array(self._ages))
             status['state_age'] = {'p50': float(np.percentile(ages, 50)),

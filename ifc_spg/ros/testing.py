@@ -34,7 +34,22 @@ LOOPBACK_CONFIG = (
     '</Domain></CycloneDDS>')
 # the environment variables :func:`loopback_env` sets
 LOOPBACK_KEYS = ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND',
-                 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS')
+                 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS',
+                 'FASTDDS_DEFAULT_PROFILES_FILE', 'FASTRTPS_DEFAULT_PROFILES_FILE')
+
+
+def _fastdds_profile():
+    """config/fastdds_loopback.xml of the checkout, else of the installed share/ifc_spg."""
+    for root in (Path(__file__).resolve().parents[2], Path(sys.prefix) / 'share' / 'ifc_spg'):
+        path = root / 'config' / 'fastdds_loopback.xml'
+        if path.is_file():
+            return str(path)
+    return ''
+
+
+# Fast DDS on loopback: UDP on 127.0.0.1, no shared memory, 32 participant indices, quick
+# announcements (the file says why)
+FASTDDS_PROFILE = _fastdds_profile()
 
 
 def random_domain_id(rng=None):
@@ -72,6 +87,8 @@ def loopback_env(domain_id=None, base=None, backend=None):
     env['IFC_SPG_ROS_BACKEND'] = backend
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env['ROS_STATIC_PEERS'] = ''
+    env['FASTDDS_DEFAULT_PROFILES_FILE'] = FASTDDS_PROFILE
+    env['FASTRTPS_DEFAULT_PROFILES_FILE'] = FASTDDS_PROFILE   # the Fast DDS 2.x name
     return env
 
 
