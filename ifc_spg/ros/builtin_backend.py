@@ -1,0 +1,72 @@
+"""The built-in flavour of :mod:`ifc_spg.ros`: ROS 2 over Cyclone DDS (:mod:`ifc_spg.ros.dds`).
+
+Imported by :mod:`ifc_spg.ros` when rclpy is not used; use that module, not this one.
+"""
+
+from ifc_spg.ros.dds import Context as _Context
+from ifc_spg.ros.dds import Node, init, ok, spin, spin_once, spin_until
+from ifc_spg.ros.dds import shutdown as _shutdown
+from ifc_spg.ros.parameters import (
+    FloatingPointRange,
+    IntegerRange,
+    Parameter,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from ifc_spg.ros.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    latched,
+    qos_profile_sensor_data,
+)
+
+__all__ = [
+    'BACKEND',
+    'DurabilityPolicy',
+    'FloatingPointRange',
+    'HistoryPolicy',
+    'IntegerRange',
+    'Node',
+    'Parameter',
+    'ParameterDescriptor',
+    'QoSProfile',
+    'RMW',
+    'ReliabilityPolicy',
+    'SetParametersResult',
+    'executor',
+    'init',
+    'latched',
+    'new_context',
+    'ok',
+    'qos_profile_sensor_data',
+    'shutdown',
+    'spin',
+    'spin_once',
+    'spin_until',
+    'wait_for_acks',
+]
+
+BACKEND = 'cyclonedds'
+RMW = 'cyclonedds (built-in, rmw_cyclonedds_cpp wire format)'
+
+def shutdown(*, context=None):
+    """Shut the default (or given) context down; a no-op when it is not initialised."""
+    _shutdown(context=context)
+
+def new_context(args=None):
+    """A second, initialised context (for a node that must not share the default one)."""
+    return _Context(args)
+
+def executor(nodes):
+    """The (cached) executor of ``nodes``: ``executor(nodes).spin_once(timeout_sec)``."""
+    nodes = (nodes,) if isinstance(nodes, Node) else tuple(nodes)
+    return nodes[0].context.executor(nodes)
+
+def wait_for_acks(publisher, timeout_sec=1.0):
+    """Wait until every matched reliable reader acknowledged what ``publisher`` sent.
+
+    True if they did within ``timeout_sec`` [s].
+    """
+    return publisher.wait_for_acks(timeout_sec)

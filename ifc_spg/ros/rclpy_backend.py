@@ -1,0 +1,204 @@
+"""The rclpy flavour of :mod:`ifc_spg.ros`.
+
+rclpy's own classes, and the few helpers both backends offer alike (``executor``,
+``spin_until``, ``new_context``, ``wait_for_acks``). Imported by :mod:`ifc_spg.ros` only when
+rclpy imports; use that module, not this one.
+"""
+
+import os
+import sys
+import time as _time
+import weakref as _weakref
+
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+import rclpy
+from rclpy import ok
+from rclpy.context import Context as _Context
+from rclpy.executors import ExternalShutdownException as _ExternalShutdown
+from rclpy.executors import SingleThreadedExecutor as _Executor
+from rclpy.node import Node as _RclpyNode
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from rclpy.signals import SignalHandlerOptions
+
+from ifc_spg.ros.ros_args import parse_ros_args
+
+__all__ = [
+    'BACKEND',
+    'DurabilityPolicy',
+    'FloatingPointRange',
+    'HistoryPolicy',
+    'IntegerRange',
+    'Node',
+    'Parameter',
+    'ParameterDescriptor',
+    'QoSProfile',
+    'RMW',
+    'ReliabilityPolicy',
+    'SetParametersResult',
+    'executor',
+    'init',
+    'latched',
+    'new_context',
+    'ok',
+    'qos_profile_sensor_data',
+    'shutdown',
+    'spin',
+    'spin_once',
+    'spin_until',
+    'wait_for_acks',
+]
+
+BACKEND = 'rclpy'
+
+def _rmw():
+    from rclpy.utilities import get_rmw_implementation_identifier
+    try:
+        return get_rmw_implementation_identifier()
+    except Exception:  # noqa: BLE001 - only for the start-up log line
+        return os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+
+RMW = _rmw()
+_nodes = _weakref.WeakSet()
+
+class Node(_RclpyNode):
+    """rclpy's Node, destroyed with its context.
+
+    :func:`shutdown` destroys the nodes of the context it shuts down (as the built-in
+    backend does), so that a node does not outlive its context on the graph.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _nodes.add(self)
+
+def latched(depth=1):
+    """Reliable, transient-local, keep-last ``depth`` profile."""
+    return QoSProfile(depth=depth, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+def init(args=None, *, context=None, **kwargs):
+    """rclpy.init, after the ``--ros-args`` are checked; returns the context.
+
+    The same parser as the built-in backend's checks them (clear errors, e.g.
+    ``malformed '-p rate=5'``).
+    """
+    parse_ros_args(sys.argv if args is None else args)
+    # rclpy's own handlers shut the context down from a signal thread, under a loop that
+    # may be publishing ('publisher's context is invalid'); the programs handle SIGINT and
+    # SIGTERM in Python instead (ifc_spg.entry), as the built-in backend does
+    kwargs.setdefault('signal_handler_options', SignalHandlerOptions.NO)
+    rclpy.init(args=args, context=context, **kwargs)
+    return context or rclpy.get_default_context()
+
+def shutdown(*, context=None):
+    """Destroy the nodes of the default (or given) context and shut it down.
+
+    A no-op when it is not initialised.
+    """
+    ctx = context or rclpy.get_default_context()
+    for node in list(_nodes):
+        if node.context is ctx:
+            _nodes.discard(node)
+            try:
+                node.destroy_node()
+            except Exception:  # noqa: BLE001,S110 - already destroyed with its handle
+                pass
+    rclpy.try_shutdown(context=context)
+
+def new_context(args=None):
+    """A second, initialised context (for a node that must not share the default one)."""
+    ctx = _Context()
+    init(args=args, context=ctx)
+    return ctx
+
+_executors = _weakref.WeakValueDictionary()
+
+class _NodesExecutor:
+    """A SingleThreadedExecutor over a fixed set of nodes.
+
+    A node taken over by another executor in between is added back before each spin.
+    """
+
+    def __init__(self, nodes):
+        self.nodes = [_weakref.ref(n) for n in nodes]
+        if os.environ.get('IFC_SPG_RCLPY_EXECUTOR') == 'events':
+            from rclpy.experimental import EventsExecutor
+            self.executor = EventsExecutor(context=nodes[0].context)
+        else:
+            self.executor = _Executor(context=nodes[0].context)
+
+    def spin_once(self, timeout_sec=None):
+        for ref in self.nodes:
+            node = ref()
+            if node is not None and node.executor is not self.executor:
+                self.executor.add_node(node)
+        if not self.executor.context.ok():
+            return
+        try:
+            self.executor.spin_once(timeout_sec=timeout_sec)
+        except _ExternalShutdown:  # a signal shut the context down: callers check ok()
+            pass
+        except Exception:  # the same, between the check above and the wait set's creation
+            if self.executor.context.ok():
+                raise
+
+def wait_for_acks(publisher, timeout_sec=1.0):
+    """Wait until every matched reliable reader acknowledged what ``publisher`` sent.
+
+    True if they did within ``timeout_sec`` [s].
+    """
+    from rclpy.duration import Duration
+
+    return publisher.wait_for_all_acked(Duration(seconds=timeout_sec))
+
+def spin(node, executor=None):
+    """Run callbacks of ``node`` until its context shuts down.
+
+    A signal ends it quietly, as with the built-in backend.
+    """
+    ex = globals()['executor']((node,)) if executor is None else executor
+    while node.context.ok():
+        ex.spin_once(timeout_sec=0.1)
+
+def executor(nodes):
+    """The (cached) executor of ``nodes``: ``executor(nodes).spin_once(timeout_sec)``."""
+    nodes = (nodes,) if isinstance(nodes, Node) else tuple(nodes)
+    key = tuple(id(n) for n in nodes)
+    ex = _executors.get(key)
+    if ex is None:
+        ex = _executors[key] = _NodesExecutor(nodes)
+        # the cache holds it weakly: the nodes keep it alive
+        for node in nodes:
+            node.__dict__.setdefault('_ifc_spg_executors', []).append(ex)
+    return ex
+
+def spin_once(node, *, executor=None, timeout_sec=None):  # noqa: F811
+    """Run at most one callback of ``node`` (waiting up to ``timeout_sec`` [s])."""
+    if executor is not None:
+        return rclpy.spin_once(node, executor=executor, timeout_sec=timeout_sec)
+    return globals()['executor']((node,)).spin_once(timeout_sec)
+
+def spin_until(condition, timeout_sec=5.0, nodes=None):
+    """Spin ``nodes`` until ``condition()`` or ``timeout_sec`` [s]; True if it held."""
+    if nodes is None:
+        raise ValueError('spin_until needs the nodes to spin with rclpy')
+    ex = executor(nodes)
+    context = ex.executor.context
+    deadline = _time.monotonic() + timeout_sec
+    while not condition():
+        remaining = deadline - _time.monotonic()
+        if remaining <= 0 or not context.ok():
+            return bool(condition())
+        ex.spin_once(timeout_sec=min(remaining, 0.1))
+    return True
