@@ -223,7 +223,8 @@ class DaqpCascade(CascadeSolver):
             # widened to contain the current solution
             self.cold_retries += 1
             _widen(ws, qdot, start)
-            model.update(blower=bl[:n + start], sense=ws.cold_sense[:n + start])
+            warm[:] = 0
+            model.update(blower=bl[:n + start], sense=warm)
             x, _, flag, info = self.solve_model(model)
         _keep_working_set(warm, flag, info)
         # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
@@ -385,16 +386,24 @@ def _solve_model(model):
 
 
 def _keep_working_set(warm, flag, info):
-    """Set ``warm`` to the working set a solve ended with (cold after a failure).
+    """Set ``warm`` to the working set a solve that started from it ended with.
 
-    A constraint is in the working set if its multiplier is not zero, at its lower bound if
-    the multiplier is negative (DAQP's sign convention).
+    Cold (all 0) after a failure. A solve of one iteration found its starting set optimal
+    and kept it (the usual tick: nothing to do). Otherwise a constraint is in the working
+    set if its multiplier is not zero, at its lower bound if the multiplier is negative
+    (DAQP's sign convention).
     """
-    lam = info.get('lam') if flag == 1 and isinstance(info, dict) else None
+    if flag != 1 or not isinstance(info, dict):
+        warm[:] = 0
+        return
+    if info.get('iterations') == 1:
+        return
+    lam = info.get('lam')
     if lam is None or np.shape(lam) != warm.shape:
         warm[:] = 0
         return
-    np.add((lam != 0.0) * _ACTIVE, (lam < 0.0) * _LOWER, out=warm, casting='unsafe')
+    np.not_equal(lam, 0.0, out=warm, casting='unsafe')  # _ACTIVE
+    np.putmask(warm, lam < 0.0, _ACTIVE | _LOWER)
 
 
 def _slack_model(n, start, end, rho, settings):
