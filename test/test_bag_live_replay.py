@@ -243,11 +243,13 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
                              'interface:=lbr_fri', '-p', 'scene:=table', '-p',
                              'mode:=realtime', '-p', 'duration:=120.0', '-p',
                              'wait_for_subscribers:=2')
-        # once the SPG reports a stall: record the stalled stack for 2.5 s
+        # once the stack runs: record until the SPG has reported a stall and a second more
+        # (the tanks refill from the damping, so a stall comes and goes)
+        run_for(0.5)
+        record(bags[0])
         assert spin_until(lambda: stalled() or bridge.poll() is not None, 120.0) and \
             bridge.poll() is None, (procs.log('sim_bridge'), status[-1:])
-        record(bags[0])
-        run_for(2.5)
+        run_for(1.0)
         assert procs.stop(bags[0].name, signal.SIGINT, 30.0) == 0, procs.log(bags[0].name)
         # then a bag during which the second stack replaces it
         record(bags[1])
@@ -263,8 +265,8 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
     with BagReader(bags[0]) as reader:
         energies = [min(m.data[3 + 3 * 7:3 + 4 * 7]) for _, _, m in
                     reader.messages(['/spg/state'])]
-    assert sum(e <= 1e-9 for e in energies) > 100, ('no stall in the recording',
-                                                    sorted(energies)[:5])
+    assert sum(e <= 1e-9 for e in energies) > 20, ('no stall in the recording',
+                                                   sorted(energies)[:5])
     for bag, stacks in zip(bags, (0, 1)):
         res = replay(bag)
         assert res.resumed and res.missing == 0 and res.stacks == stacks, res
