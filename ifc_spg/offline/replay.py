@@ -8,8 +8,9 @@ starts from the first recorded state, with that configuration and running stack 
 ``init`` values captured where the live run captured them, the cascade warm-started from the
 working sets the live one had), and recomputes every later q_v exactly (max |dq_v| 0 in the
 tests; bags recorded before ``spg/state`` carried the working sets start cold, which the
-default tolerance of 1e-9 rad does not always cover on a stalled stack). Joint states recorded before it and states whose command the
-recorder stopped before receiving are the recording's edges and do not fail the replay.
+default tolerance of 1e-9 rad does not always cover on a stalled stack). Joint states
+recorded before it and states whose command the recorder stopped before receiving are the
+recording's edges and do not fail the replay.
 Joint states the recorder missed mid-run (a reliable KEEP_LAST writer drops a sample a slow
 reader missed once its history is full) show in ``spg/state``'s tick count: the replay
 resynchronises from the recorded state after them and reports them (``lost``), with the
