@@ -47,12 +47,16 @@ class SpgState(NamedTuple):
         qdot_v: The last tick's virtual joint velocity [rad/s] (the acceleration limit).
         tank_energy: PSPM tank energies [J] (None without PSPM).
         shuffled: Energy shuffled into each tank so far [J] (None without PSPM).
+        warm_start: The cascade's working sets the next solve starts from (the solver's
+            ``warm_start`` vector for the running stack; empty for a solver without one,
+            None: unknown, the next solve starts cold).
     """
 
     q_v: np.ndarray | None
     qdot_v: np.ndarray
     tank_energy: np.ndarray | None
     shuffled: np.ndarray | None
+    warm_start: np.ndarray | None = None
 
 
 class Activation(NamedTuple):
@@ -322,6 +326,7 @@ class SetPointGenerator:
         if self.tanks is not None and self._stall is not None:
             self.tanks.reset(q)
             self._stall.reset()
+        self._forget_warm_start()
         self._t0 = None
         for task in self.tasks:
             task.deactivate()
@@ -331,7 +336,28 @@ class SetPointGenerator:
         tanks = self.tanks
         return SpgState(None if self.q_v is None else self.q_v.copy(), self.qdot_v.copy(),
                         None if tanks is None else tanks.energy.copy(),
-                        None if tanks is None else tanks.shuffled.copy())
+                        None if tanks is None else tanks.shuffled.copy(),
+                        self._warm_start())
+
+    def _levels_shape(self) -> tuple[list, list]:
+        """Sizes and kinds (equality or not) of the running stack's cascade levels."""
+        return [task.dim for task in self.tasks], [task.equality for task in self.tasks]
+
+    def _warm_start(self) -> np.ndarray:
+        """The cascade's working sets for the running stack (empty: the solver has none)."""
+        warm_start = getattr(self._solver, 'warm_start', None)
+        return np.zeros(0) if warm_start is None else \
+            np.asarray(warm_start(*self._levels_shape()), dtype=float)
+
+    def _forget_warm_start(self) -> None:
+        """Start the cascade cold at the next tick (a new stack or a restart).
+
+        Its models may hold the working sets of a stack run long before; a replay that
+        starts mid-run cannot know them.
+        """
+        forget = getattr(self._solver, 'forget_warm_start', None)
+        if forget is not None:
+            forget()
 
     def restore(self, state: SpgState, q: np.ndarray,
                 activations: Sequence[Activation] = ()) -> None:
@@ -346,6 +372,10 @@ class SetPointGenerator:
             activations: The running stack's ``[first, latest]`` :class:`Activation` (set the
                 stack with :meth:`set_stack` first): its tasks are activated at them, and task
                 time counts from the latest one's stamp.
+
+        The cascade continues from ``state.warm_start``; without one (None, or a vector
+        that does not fit the stack's levels) it starts cold, and a degenerate level may
+        then be solved at another point of its optimal set than the live run's.
         """
         self._take_pending()
         self.q_v = np.array(state.q_v, dtype=float)
@@ -366,6 +396,9 @@ class SetPointGenerator:
                 task.activate(self.kin)
             self._t0 = float(act.t)
         self.activations = list(activations)[:1] + list(activations)[1:][-1:]
+        set_warm_start = getattr(self._solver, 'set_warm_start', None)
+        if state.warm_start is not None and set_warm_start is not None:
+            set_warm_start(*self._levels_shape(), state.warm_start)
 
     def _take_pending(self) -> None:
         if self._pending is not None:
@@ -373,6 +406,7 @@ class SetPointGenerator:
             self._pending = None
             self._t0 = None
             self.activations = []
+            self._forget_warm_start()
             if self.tanks is not None and self._stall is not None:
                 self.tanks.set_power(budget)
                 self._stall.reset()

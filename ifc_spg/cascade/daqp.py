@@ -3,7 +3,10 @@
 The level QPs are those of :mod:`ifc_spg.cascade.base`; this solver stacks the rows of all
 levels once per tick, keeps one warm-started DAQP model per level index, skips the QP of
 an inequality level the current solution satisfies, and solves equality levels without
-slack variables (see :class:`DaqpCascade`).
+slack variables (see :class:`DaqpCascade`). The warm start is explicit state: each model's
+working set is kept as sense flags, given to DAQP with every solve, and can be read and
+restored (:meth:`DaqpCascade.warm_start`), so a replay that starts mid-run solves exactly
+as the live run did.
 """
 
 from collections.abc import Sequence
@@ -22,6 +25,7 @@ __all__ = ['CascadeResult', 'DaqpCascade', 'level_violation']
 
 _BIG = 1e30  # what the solvers take as infinity
 _EQ = 5  # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
+_ACTIVE, _LOWER = 1, 2  # DAQP sense flags: in the working set; at its lower bound
 
 
 class DaqpCascade(CascadeSolver):
@@ -37,9 +41,15 @@ class DaqpCascade(CascadeSolver):
     its slacks, (4.45)-(4.48) as written.
 
     Each level index has its own DAQP model over views of the stacked workspace (the box
-    and the higher levels' rows, scaled to unit norm); DAQP keeps a model's working set
-    between solves, so every level starts from its own active set of the last tick. A
-    failed solve retries cold with the locked bands widened to contain the current
+    and the higher levels' rows, scaled to unit norm); every level starts from its own
+    active set of the last tick (a warm start). That working set is explicit state, not
+    DAQP's: after each solve it is read from the multipliers (a constraint is in it if its
+    multiplier is not zero, at its lower bound if negative) and handed back as the sense
+    flags of the next solve, so a solve depends only on its data and that working set, and
+    :meth:`warm_start` / :meth:`set_warm_start` carry it to another solver (a replay that
+    starts mid-run: with a different working set DAQP may stop at a different point of a
+    degenerate level's optimal set within its tolerance, 1.5e-2 rad/s apart on a stalled
+    stack). A failed solve retries cold with the locked bands widened to contain the current
     solution, then in the slack form, then with the bands widened by the solver's
     tolerance (degenerate vertices), before the level is given up.
 
@@ -82,18 +92,60 @@ class DaqpCascade(CascadeSolver):
         does no setup (issue: a first or stack-switch tick of 1-1.8 ms against a 0.1 ms
         median).
         """
+        self._warm_sets(dims, equalities)
+
+    def _warm_sets(self, dims: Sequence[int], equalities: Sequence[bool]) -> list:
+        """The working sets (sense arrays) of a stack's level models, built if new."""
         R = int(sum(dims))
         if not R:
-            return
+            return []
         ws = self._workspace(R)
-        start = 0
+        start, sets = 0, []
         for i, (m, equality) in enumerate(zip(dims, equalities)):
             end = start + int(m)
             if equality and self._normal_form:
                 ws.level(i, start)
+                sets.append(ws.warm[(i, start)])
             elif not equality:
                 ws.slack_level(i, start, end, self.rho)
+                sets.append(ws.warm[('slack', i, start, end)])
             start = end
+        return sets
+
+    def warm_start(self, dims: Sequence[int], equalities: Sequence[bool]) -> np.ndarray:
+        """The working sets a stack's next solve starts from, as one float vector.
+
+        For the stack with level sizes ``dims`` and kinds ``equalities``: per level model
+        (equality levels in their normal form, inequality levels with slacks), in level
+        order, DAQP's sense flag of each constraint (0 free, 1 active at its upper bound, 3
+        at its lower bound). :meth:`set_warm_start` of another solver of the same size and
+        rho continues from it exactly.
+        """
+        sets = self._warm_sets(dims, equalities)
+        return np.concatenate(sets).astype(float) if sets else np.zeros(0)
+
+    def set_warm_start(self, dims: Sequence[int], equalities: Sequence[bool],
+                       values: np.ndarray) -> bool:
+        """Start the next solves from a :meth:`warm_start` vector.
+
+        Returns False (and leaves the working sets as they are) when ``values`` does not
+        fit the stack: a wrong size, or entries that are not sense flags 0, 1 or 3.
+        """
+        sets = self._warm_sets(dims, equalities)
+        values = np.asarray(values, dtype=float).reshape(-1)
+        if values.size != sum(s.size for s in sets) or not np.isin(values, (0, 1, 3)).all():
+            return False
+        start = 0
+        for s in sets:
+            s[:] = values[start:start + s.size]
+            start += s.size
+        return True
+
+    def forget_warm_start(self) -> None:
+        """Start every level model cold at its next solve (a new stack, a restart)."""
+        for ws in self._ws.values():
+            for warm in ws.warm.values():
+                warm[:] = 0
 
     def _workspace(self, R: int) -> '_Workspace':
         ws = self._ws.get(R)
@@ -156,22 +208,25 @@ class DaqpCascade(CascadeSolver):
         n, sl = self.n, slice(start, end)
         A_i, beta, bl = ws.A[sl], ws.orig_lo[sl], ws.bl
         H, f, model = ws.level(i, start)
+        warm = ws.warm[(i, start)]
         self._kernels.normal_form(A_i, beta, self.rho, H, f)
-        # Each level index has its own DAQP model, which keeps its working set: the solve
-        # starts from this level's active bounds and rows of the last tick.
+        # Each level index has its own DAQP model and working set: the solve starts from
+        # this level's active bounds and rows of the last tick (the sense flags ``warm``).
         if start:
-            model.update(H=H, f=f, A=ws.A_unit[:start], blower=bl[:n + start])
+            model.update(H=H, f=f, A=ws.A_unit[:start], blower=bl[:n + start], sense=warm)
         else:  # the first level: the box only
-            model.update(H=H, f=f, blower=bl[:n])
-        x, _, flag, _ = self.solve_model(model)
+            model.update(H=H, f=f, blower=bl[:n], sense=warm)
+        x, _, flag, info = self.solve_model(model)
         if flag != 1:
             # a warm start can end in a false 'infeasible' on degenerate levels (a higher
             # level locked at a vertex of the box); retry cold, with the locked bands
             # widened to contain the current solution
             self.cold_retries += 1
             _widen(ws, qdot, start)
-            model.update(blower=bl[:n + start], sense=ws.cold_sense[:n + start])
-            x, _, flag, _ = self.solve_model(model)
+            warm[:] = 0
+            model.update(blower=bl[:n + start], sense=warm)
+            x, _, flag, info = self.solve_model(model)
+        _keep_working_set(warm, flag, info)
         # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
         if flag == 1 and math.isfinite(x @ f):
             # lock (4.60)-(4.62) at A_i qdot_v +- band; the last level needs no lock
@@ -238,13 +293,13 @@ class DaqpCascade(CascadeSolver):
         """
         if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
             return self._solve_with_slacks(ws, start, end)  # equal rows: flagged, cold
-        C, bu, bl, cold, model = ws.slack_level(i, start, end, self.rho)
+        C, bu, bl, _, model = ws.slack_level(i, start, end, self.rho)
+        warm = ws.warm[('slack', i, start, end)]
         self._kernels.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo,
                                   ws.orig_hi, C, bl, bu)
-        model.update(A=C, blower=bl)
-        x, _, flag, _ = self.solve_model(model)
-        if flag != 1:
-            model.update(sense=cold)  # forget the working set
+        model.update(A=C, blower=bl, sense=warm)
+        x, _, flag, info = self.solve_model(model)
+        _keep_working_set(warm, flag, info)  # a failed solve forgets it
         return x, flag
 
     def _solve_with_slacks(self, ws: '_Workspace', start: int, end: int
@@ -290,6 +345,7 @@ class _Workspace:
         self.zeros_w = np.zeros(n + R)
         self.settings = settings
         self.models: dict = {}  # the per-level arrays and DAQP models, by level key
+        self.warm: dict = {}  # each model's working set (DAQP sense flags), by level key
 
     def slack_level(self, i: int, start: int, end: int, rho: float) -> tuple:
         """The arrays and model of an inequality level with slacks.
@@ -303,6 +359,7 @@ class _Workspace:
         hit = self.models.get(key)
         if hit is None:
             hit = self.models[key] = _slack_model(self.n, start, end, rho, self.settings)
+            self.warm[key] = np.zeros(self.n + 2 * end - start, dtype=np.int32)
         return hit
 
     def level(self, i: int, start: int) -> tuple:
@@ -319,12 +376,34 @@ class _Workspace:
             model = _daqp_model(H, f, self.A_unit[:start], self.bu[:n + start],
                                 self.bl[:n + start], self.settings)
             hit = self.models[key] = (H, f, model)
+            self.warm[key] = np.zeros(n + start, dtype=np.int32)
         return hit
 
 
 def _solve_model(model):
     """Solve a DAQP model (``model.solve()``)."""
     return model.solve()
+
+
+def _keep_working_set(warm, flag, info):
+    """Set ``warm`` to the working set a solve that started from it ended with.
+
+    Cold (all 0) after a failure. A solve of one iteration found its starting set optimal
+    and kept it (the usual tick: nothing to do). Otherwise a constraint is in the working
+    set if its multiplier is not zero, at its lower bound if the multiplier is negative
+    (DAQP's sign convention).
+    """
+    if flag != 1 or not isinstance(info, dict):
+        warm[:] = 0
+        return
+    if info.get('iterations') == 1:
+        return
+    lam = info.get('lam')
+    if lam is None or np.shape(lam) != warm.shape:
+        warm[:] = 0
+        return
+    np.not_equal(lam, 0.0, out=warm, casting='unsafe')  # _ACTIVE
+    np.putmask(warm, lam < 0.0, _ACTIVE | _LOWER)
 
 
 def _slack_model(n, start, end, rho, settings):

@@ -177,6 +177,12 @@ def robot_gains(robot, config):
                             damping=list(config.damping) or None, where='parameter impedance.')
 
 
+def _base_layout(n):
+    """The ``spg/state`` fields before the cascade's warm start, [(name, length)]."""
+    return (('tick', 1), ('stamp_sec', 1), ('stamp_nanosec', 1), ('q', n), ('q_v', n),
+            ('qdot_v', n), ('tank_energy', n), ('shuffled', n))
+
+
 def _levels_status(info):
     """The ``levels`` entry of the status: per level its name, residual and slack."""
     levels = []
@@ -525,7 +531,8 @@ class SpgRunner:
         stack (None, or {id, name, text (the document as received), since [s] (stamp of its
         first tick), activations: [first, latest] ticks at which its tasks captured their
         ``init`` values, each {q, qdot, q_v [rad, rad/s], t [s]}}), state_layout (the fields
-        of ``spg/state``: [name, length] in order).
+        of ``spg/state``: [name, length] in order; ``warm_start``'s length depends on the
+        running stack, so a new stack publishes a new document).
         """
         def floats(x):
             return [float(v) for v in np.ravel(x)]
@@ -543,15 +550,15 @@ class SpgRunner:
 
     def _state_layout(self):
         n = self._n
-        return (('tick', 1), ('stamp_sec', 1), ('stamp_nanosec', 1), ('q', n), ('q_v', n),
-                ('qdot_v', n), ('tank_energy', n), ('shuffled', n))
+        return _base_layout(n) + (('warm_start', self.spg.snapshot().warm_start.size),)
 
     def state_vector(self):
         """The ``spg/state`` data after the last tick.
 
         Floats in the layout ``state_layout`` of :meth:`config_doc` (NaN where there are no
         tanks): the tick count, its stamp, the measured q and the SPG's state the next tick
-        starts from.
+        starts from, with the cascade's working sets (``warm_start``: DAQP's sense flag per
+        constraint of each level model of the running stack).
         """
         snap = self.spg.snapshot()
         nan = np.full(self._n, np.nan)
@@ -559,7 +566,40 @@ class SpgRunner:
         return np.concatenate((
             [float(self.ticks), float(sec), float(nsec)], self._last_q, snap.q_v, snap.qdot_v,
             nan if snap.tank_energy is None else snap.tank_energy,
-            nan if snap.shuffled is None else snap.shuffled))
+            nan if snap.shuffled is None else snap.shuffled, snap.warm_start))
+
+    def _state_parts(self, vector, doc):
+        """Split an ``spg/state`` vector by the ``state_layout`` of its ``spg/config``.
+
+        Documents without a layout, or without ``warm_start`` (bags recorded before it was
+        published), have the fields before it; their replay starts the cascade cold.
+        """
+        layout = doc.get('state_layout')
+        if layout is None:
+            layout = _base_layout(self._n)
+        try:
+            layout = [(str(name), int(size)) for name, size in layout]
+        except (TypeError, ValueError):
+            raise ParameterError(f'spg/config: state_layout must list [name, length] pairs, '
+                                 f'got {layout!r}') from None
+        fixed = dict(_base_layout(self._n))
+        names = [name for name, _ in layout]
+        wrong = [f'{name} ({size})' for name, size in layout
+                 if name in fixed and size != fixed[name]]
+        if wrong or not set(fixed) <= set(names) or len(set(names)) != len(names):
+            raise ParameterError(f'spg/config: state_layout {layout} does not describe the '
+                                 f'{self._n} joints of {self.robot.name!r} (expected the fields '
+                                 f'{list(fixed)} with lengths {list(fixed.values())})')
+        total = sum(size for _, size in layout)
+        if vector.size != total:
+            raise ParameterError(f'spg/state has {vector.size} values, expected {total} '
+                                 f'(state_layout of spg/config) for the {self._n} joints of '
+                                 f'{self.robot.name!r}')
+        parts, i = {}, 0
+        for name, size in layout:
+            parts[name] = vector[i:i + size]
+            i += size
+        return parts
 
     def restore(self, vector, doc):
         """Continue from a recorded ``spg/state`` ``vector`` and ``spg/config`` ``doc``.
@@ -577,13 +617,7 @@ class SpgRunner:
             ParameterError: A vector or document that does not fit this robot.
         """
         vector = np.asarray(vector, dtype=float)
-        parts, i = {}, 0
-        for name, size in self._state_layout():
-            parts[name] = vector[i:i + size]
-            i += size
-        if vector.size != i:
-            raise ParameterError(f'spg/state has {vector.size} values, expected {i} for the '
-                                 f'{self._n} joints of {self.robot.name!r}')
+        parts = self._state_parts(vector, doc)
         stack = doc.get('stack')
         acts = []
         if stack:
@@ -595,7 +629,8 @@ class SpgRunner:
                                float(a['t'])) for a in stack['activations']]
         tanks = None if np.isnan(parts['tank_energy']).any() else parts['tank_energy']
         self.spg.restore(SpgState(parts['q_v'], parts['qdot_v'], tanks,
-                                  None if tanks is None else parts['shuffled']),
+                                  None if tanks is None else parts['shuffled'],
+                                  parts.get('warm_start')),
                          parts['q'], acts)
         stamp = int(parts['stamp_sec'][0]) * 1_000_000_000 + int(parts['stamp_nanosec'][0])
         if stack:

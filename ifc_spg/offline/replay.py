@@ -5,14 +5,20 @@
 A live bag (``ifc-spg bag record`` or ``ros2 bag record`` of the product topics, started at
 any time) holds the SPG's latched ``spg/config`` and its per-tick ``spg/state``: the replay
 starts from the first recorded state, with that configuration and running stack (its
-``init`` values captured where the live run captured them), and recomputes every later q_v
-exactly (max |dq_v| 0 in the test; the default tolerance 1e-9 rad covers a differently
-warm-started solver). Joint states recorded before it and states whose command the
-recorder stopped before receiving are the recording's edges and do not fail the replay.
+``init`` values captured where the live run captured them, the cascade warm-started from the
+working sets the live one had), and recomputes every later q_v exactly (max |dq_v| 0 in the
+tests; bags recorded before ``spg/state`` carried the working sets start cold, which the
+default tolerance of 1e-9 rad does not always cover on a stalled stack). Joint states
+recorded before it and states whose command the recorder stopped before receiving are the
+recording's edges and do not fail the replay.
 Joint states the recorder missed mid-run (a reliable KEEP_LAST writer drops a sample a slow
 reader missed once its history is full) show in ``spg/state``'s tick count: the replay
 resynchronises from the recorded state after them and reports them (``lost``), with the
-commands it could not compare (``unverified``).
+commands it could not compare (``unverified``). Joint states the live SPG itself never
+ticked on (a realtime bridge outpacing a loaded SPG: its subscription's queue drops the
+oldest) show there too, as recorded states between two consecutive ticks' stamps: the
+replay does not tick on them either (``not_ticked``); where ``spg/state`` samples are
+missing too, a recorded state showing fewer ticks than the replay ran resynchronises.
 
 Otherwise the replay starts from the first tick. The SPG configuration comes from the bag
 (metadata ``custom_data['ifc_spg.node.config']``, else ``spg/config``, else the first
@@ -36,6 +42,7 @@ tolerance, 1 when it is not (or commands are missing), 2 on an unreadable bag.
 """
 
 import argparse
+import bisect
 import dataclasses
 import json
 import sys
@@ -83,6 +90,9 @@ class ReplayResult:
         unverified: Ticks not compared: computed across lost ticks before a
             resynchronisation, or whose command the bag lacks although ``spg/state`` shows
             the live SPG ran them.
+        not_ticked: Recorded joint states the live SPG did not tick on (its ``spg/state``
+            shows two consecutive ticks at the stamps around them: its subscription dropped
+            them while it was busy): not replayed.
     """
 
     max_abs_diff: float
@@ -102,6 +112,7 @@ class ReplayResult:
     lost: int = 0
     resyncs: int = 0
     unverified: int = 0
+    not_ticked: int = 0
 
 
 def read_spg_config(bag, statuses, robot=None, configs=()):
@@ -416,7 +427,8 @@ class _Tally:
         self.last_command = max(commands, default=None)
         self.worst, self.worst_stamp, self.worst_joint = 0.0, None, ''
         self.compared = self.missing = self.handed = self.skipped = self.unanswered = 0
-        self.lost = self.resyncs = self.unverified = 0
+        self.lost = self.resyncs = self.unverified = self.not_ticked = 0
+        self.live_tick = None  # the tick count of the last recorded spg/state met
         self.seen = set()
         self._provisional = []  # (stamp [ns], |dq_v| max, joint) or (stamp, None, '')
 
@@ -464,6 +476,33 @@ class _Tally:
         self._provisional.clear()
 
 
+def _not_ticked(snapshots, stamps, commands):
+    """Stamps [ns] of recorded joint states the live SPG did not tick on.
+
+    Two consecutive recorded ``spg/state`` samples of ticks j and j + 1 (in the order they
+    were recorded: a restarted SPG counts from 1 again) at stamps s_j < s_j+1: the live
+    SPG ticked on no state stamped between them (its subscription dropped them, or it
+    rejected them, which a replay would do too). Where samples are missing (the recorder
+    missed them, or stopped taking them first), a state with neither an ``spg/state`` nor a
+    command of its stamp, before the last recorded command, is taken as not ticked too; if
+    the live SPG did tick on it, the next recorded state shows one tick more than the
+    replay ran, and the replay resynchronises there.
+    """
+    if not snapshots:
+        return set()
+    stamps = sorted(stamps)
+    out = set()
+    for a, b in zip(snapshots, snapshots[1:]):
+        lo, hi = _snapshot_stamp(a), _snapshot_stamp(b)
+        if int(b[0]) == int(a[0]) + 1 and hi > lo:
+            out.update(stamps[bisect.bisect_right(stamps, lo):bisect.bisect_left(stamps, hi)])
+    last = max(commands, default=None)
+    ticked = {_snapshot_stamp(vec) for vec in snapshots}
+    out.update(s for s in stamps if last is not None and s < last and s not in commands and
+               s not in ticked)
+    return out
+
+
 def _resync(spg, tally, plan, rec, stamp, snapshot):
     """Check the replay against the live ``snapshot`` (``spg/state`` of the tick at ``stamp``).
 
@@ -472,9 +511,14 @@ def _resync(spg, tally, plan, rec, stamp, snapshot):
         None.
     """
     live = int(snapshot[0])
+    previous, tally.live_tick = tally.live_tick, live
     n = len(spg.joint_names)
     mine = spg.state_vector()
-    if live <= spg.ticks or not np.array_equal(mine[1:3 + n], snapshot[1:3 + n]):
+    # the replay ticked on states the live SPG did not (where the spg/state samples that
+    # show it are missing too): the live count went on, by less than the replay's
+    over = live < spg.ticks and previous is not None and previous < live
+    if (live <= spg.ticks and not over) or not np.array_equal(mine[1:3 + n],
+                                                              snapshot[1:3 + n]):
         # the same tick (or a restarted live SPG counting from 0 again, or a restarted
         # bridge's stamp the recorded state does not belong to: its measured q differs)
         tally.confirm()
@@ -485,12 +529,31 @@ def _resync(spg, tally, plan, rec, stamp, snapshot):
         return (f'the bag lacks {live - spg.ticks} tick(s) the live SPG ran before '
                 f't = {stamp * 1e-9:.3f} s and has no spg/config to resynchronise from; later '
                 'commands may differ')
-    tally.discard(live - spg.ticks)
+    if over:
+        tally.resyncs += 1
+        tally.unverified += len(tally._provisional)
+        tally._provisional.clear()
+    else:
+        tally.discard(live - spg.ticks)
     spg.restore(snapshot, doc)
     # the stacks and watchdog trips up to here are in the restored state already
     plan.pending[:] = [p for p in plan.pending if p[0] > stamp * 1e-9 + 1e-10]
     plan.trips[:] = [t for t in plan.trips if t > spg.ticks]
     return None
+
+
+def _passed_over(stamp, tally, plan, not_ticked):
+    """True (and counted) if the state at ``stamp`` [ns] is not one to replay."""
+    if stamp in tally.seen:  # a lockstep bridge re-publishes a state it got no answer for
+        return True
+    tally.seen.add(stamp)
+    if plan.after is not None and stamp <= plan.after:
+        tally.skipped += 1  # before the first recorded SPG state: not reproducible
+        return True
+    if stamp in not_ticked:
+        tally.not_ticked += 1  # the live SPG did not tick on it (spg/state shows it)
+        return True
+    return False
 
 
 def _run_ticks(spg, states, plan, tally, rec):
@@ -503,13 +566,10 @@ def _run_ticks(spg, states, plan, tally, rec):
     snapshots = {}
     for vec in rec.snapshots:
         snapshots.setdefault(_snapshot_stamp(vec), vec)
+    not_ticked = _not_ticked(rec.snapshots, [stamp for stamp, _ in states], rec.commands)
     warnings = []
     for stamp, msg in states:
-        if stamp in tally.seen:  # a lockstep bridge re-publishes a state it got no answer for
-            continue
-        tally.seen.add(stamp)
-        if plan.after is not None and stamp <= plan.after:
-            tally.skipped += 1  # before the first recorded SPG state: not reproducible
+        if _passed_over(stamp, tally, plan, not_ticked):
             continue
         while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
             _, i = pending.pop(0)
@@ -556,11 +616,12 @@ def replay(path, robot=None):
     tally = _Tally(rec.commands)
     warnings += _run_ticks(spg, rec.states, plan, tally, rec)
     return ReplayResult(tally.worst if tally.compared else float('inf'), tally.worst_stamp,
-                        tally.worst_joint, len(tally.seen) - tally.skipped, tally.compared,
+                        tally.worst_joint, len(tally.seen) - tally.skipped - tally.not_ticked,
+                        tally.compared,
                         tally.missing, tally.handed, dataclasses.asdict(config),
                         robot_params(model), gains_recorded, warnings, tally.skipped,
                         tally.unanswered, start is not None, tally.lost, tally.resyncs,
-                        tally.unverified)
+                        tally.unverified, tally.not_ticked)
 
 
 def _in_order(msg, names):
@@ -595,6 +656,9 @@ def main(argv=None):
         if res.resumed:
             edges += (f'; from the first recorded spg/state ({res.skipped} earlier joint '
                       'state(s) not replayed)')
+        if res.not_ticked:
+            edges += (f'; {res.not_ticked} joint state(s) the live SPG did not tick on '
+                      '(spg/state shows it; not replayed)')
         if res.unanswered:
             edges += (f'; {res.unanswered} joint state(s) after the last recorded command '
                       '(recording ended)')
