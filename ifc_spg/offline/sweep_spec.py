@@ -484,15 +484,20 @@ def _keep_bags(d, data):
 
 
 def _check_first_point(d, spec):
-    """The first point must make a valid scenario (else every point would fail alike)."""
-    grid = [a for a in spec.axes if not a.random]
-    params = {a.path: a.spec[0] for a in grid}
+    """The first point must make a valid scenario (else every point would fail alike).
+
+    Each axis is tried alone first (its first value on the base scenario), so an error
+    names the axis that causes it.
+    """
+    params = {a.path: a.spec[0] for a in spec.axes if not a.random}
     params.update(_draw([a for a in spec.axes if a.random], spec.seed, 0))
     params = {a.path: params[a.path] for a in spec.axes}
-    try:
-        data = scenario_for(spec.base, params, spec.scenario_dir)
-        scenario_from_dict(data, where=spec.scenario_path, base=Path(spec.scenario_dir))
-    except (IfcSpgError, ValueError, TypeError) as exc:
-        shown = ', '.join(f'{k}={v!r}' for k, v in params.items())
-        raise d.error(('axes',), f'the first point ({shown}) is not a valid scenario: {exc}; '
-                      'fix the axis values or the path') from None
+    for where, values in [(('axes', p), {p: v}) for p, v in params.items()] + [
+            (('axes',), params)]:
+        try:
+            data = scenario_for(spec.base, values, spec.scenario_dir)
+            scenario_from_dict(data, where=spec.scenario_path, base=Path(spec.scenario_dir))
+        except (IfcSpgError, ValueError, TypeError) as exc:
+            shown = ', '.join(f'{k}={v!r}' for k, v in values.items())
+            raise d.error(where, f'{shown} does not make a valid scenario: {exc}; fix the '
+                          'path or the values') from None

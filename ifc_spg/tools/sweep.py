@@ -170,7 +170,7 @@ def main(argv=None):
     out_dir = Path(opts.output)
     try:
         summary = run_sweep(spec, out_dir, workers=opts.workers, scheduler=opts.scheduler,
-                            resume=opts.resume)
+                            resume=opts.resume, stream=sys.stderr)
     except IfcSpgError as exc:
         print(f'ifc-spg sweep: {exc}', file=sys.stderr)
         return 2
