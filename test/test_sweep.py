@@ -171,6 +171,8 @@ metrics: [tank_energy_min_j]
      'index 2 is out of range: the list has 1 entries'),
     (BASE.replace('sim.stiffness', 'sim.stifness'), 3, 'axes.sim.stifness',
      "did you mean 'stiffness'"),
+    (BASE.replace('sim.stiffness', 'q0_deg.3'), 3, 'axes.q0_deg.3',
+     "vary the whole value ('q0_deg')"),
     (BASE.replace('sim.stiffness', 'stiffness'), 3, 'axes.stiffness', 'is not a scenario key'),
     (BASE.replace('[tank_energy_min_j]', '[tank_energy_min]'), 4, 'metrics[0]',
      "did you mean 'tank_energy_min_j'"),

@@ -191,6 +191,30 @@ def _walk_error(path, i, reason):
     return ValueError(f"'{'.'.join(path[:i + 1])}': {reason}")
 
 
+def _step(node, parts, i):
+    """The key or index of ``parts[i]`` in ``node`` (a missing mapping on the way is made)."""
+    part, last = parts[i], i == len(parts) - 1
+    if isinstance(node, list):
+        if not part.isdigit():
+            raise _walk_error(parts, i, f'is a list here ({len(node)} entries); use an '
+                              f'index 0..{len(node) - 1}')
+        if int(part) >= len(node):
+            raise _walk_error(parts, i, f'index {part} is out of range: the list has '
+                              f'{len(node)} entries (0..{len(node) - 1})')
+        return int(part)
+    if not isinstance(node, dict):
+        raise _walk_error(parts, i - 1, f'is a {type(node).__name__} ({node!r}), not a '
+                          'mapping or list; shorten the path')
+    if not last and node.get(part) is None:
+        if parts[i + 1].isdigit():
+            whole = '.'.join(parts[:i + 1])
+            raise _walk_error(parts, i, f'is not in the scenario, so it has no entry '
+                              f"{parts[i + 1]}; vary the whole value ('{whole}') or give it "
+                              'in the scenario (or in set:)')
+        node[part] = {}
+    return part
+
+
 def set_path(data, path, value):
     """Set ``value`` at the dotted ``path`` of the scenario mapping ``data`` (in place).
 
@@ -208,24 +232,9 @@ def set_path(data, path, value):
         raise ValueError(f"'{parts[0]}' is not a scenario key{hint}; keys: "
                          f"{', '.join(_SCENARIO_KEYS)}")
     node = data
-    for i, part in enumerate(parts):
-        last = i == len(parts) - 1
-        if isinstance(node, list):
-            if not part.isdigit():
-                raise _walk_error(parts, i, f'is a list here ({len(node)} entries); use an '
-                                  f'index 0..{len(node) - 1}')
-            k = int(part)
-            if k >= len(node):
-                raise _walk_error(parts, i, f'index {k} is out of range: the list has '
-                                  f'{len(node)} entries (0..{len(node) - 1})')
-        elif isinstance(node, dict):
-            k = part
-            if not last and (k not in node or node[k] is None):
-                node[k] = [] if parts[i + 1].isdigit() else {}
-        else:
-            raise _walk_error(parts, i - 1, f'is a {type(node).__name__} ({node!r}), not a '
-                              'mapping or list; shorten the path')
-        if last:
+    for i in range(len(parts)):
+        k = _step(node, parts, i)
+        if i == len(parts) - 1:
             node[k] = copy.deepcopy(value)
         else:
             node = node[k]
