@@ -23,6 +23,7 @@ another worker (``distributed.scheduler.allowed-failures`` times, default 3); a 
 killed that many workers is a row with status ``error``.
 """
 
+import contextlib
 import csv
 import json
 import math
@@ -36,8 +37,8 @@ import time
 from ifc_spg.errors import ParameterError
 from ifc_spg.offline.sweep_spec import code_version
 
-__all__ = ['FIXED_COLUMNS', 'metric_value', 'read_records', 'run_point', 'run_sweep',
-           'write_table']
+__all__ = ['FIXED_COLUMNS', 'map_unordered', 'metric_value', 'read_records', 'run_point',
+           'run_sweep', 'write_table']
 
 FIXED_COLUMNS = ('point', 'key', 'status', 'error', 'seed', 'sample', 'wall_time_s')
 RESULTS = 'results.csv'
@@ -136,35 +137,63 @@ def _local_cluster(workers):
                         host='127.0.0.1', dashboard_address=None)
 
 
-def _run_dask(tasks, by_key, emit, workers, scheduler, client):
-    """Run ``tasks`` on Dask; ``emit(point, record)`` for each as it finishes."""
-    from distributed import Client, as_completed
+def map_unordered(fn, items, workers=None, scheduler=None, client=None, catch=False):
+    """Yield ``(i, fn(items[i]))`` as each call finishes, on the engine the options choose.
 
-    own_cluster = own_client = None
-    try:
-        if client is None:
-            if scheduler:
-                client = own_client = Client(scheduler)
-            else:
-                own_cluster = _local_cluster(workers or os.cpu_count() or 1)
-                client = own_client = Client(own_cluster)
-        futures = client.map(run_point, tasks, key=[f"ifc-spg-sweep-{t['key']}" for t in tasks],
-                             pure=False)
-        key_of = {f.key: t['key'] for f, t in zip(futures, tasks)}
+    The engine of :func:`run_sweep`, for any picklable module-level ``fn`` (the thesis
+    reproduction and Sec. 5.3 run their jobs through it): ``workers=1`` calls ``fn`` here,
+    in order; else Dask runs the calls (``client``, or an existing ``scheduler``, or a
+    local cluster of ``workers`` processes, default one per core, started and closed
+    here). Dask starts the calls in the order of ``items`` (put the longest first).
+
+    Args:
+        fn: The function (imported by name on the workers).
+        items: Its arguments, one call each.
+        workers: 1: serial; N: a local Dask cluster of N worker processes.
+        scheduler: Address of an existing Dask scheduler.
+        client: A ``distributed.Client`` to use.
+        catch: Yield an exception a Dask call ended with (e.g. ``KilledWorker`` after a
+            worker died running it ``allowed-failures`` times) as its result instead of
+            raising it.
+    """
+    items = list(items)
+    if client is None and scheduler is None and workers == 1:
+        for i, item in enumerate(items):
+            yield i, fn(item)
+        return
+    if not items:
+        return
+    from distributed import as_completed
+
+    with _dask_client(workers, scheduler, client) as dask:
+        futures = dask.map(fn, items, pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
         for future in as_completed(futures):
             try:
-                record = future.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: the row says so
-                record = {'key': key_of[future.key], 'status': 'error',
-                          'error': f'{type(exc).__name__}: {exc}', 'metrics': None,
-                          'wall_time_s': None}
-            emit(by_key[record['key']], record)
+                result = future.result()
+            except Exception as exc:
+                if not catch:
+                    raise
+                result = exc
+            yield index[future.key], result
             future.release()
+
+
+@contextlib.contextmanager
+def _dask_client(workers, scheduler, client):
+    """``client``, or one of ``scheduler``, or of a new local cluster (closed at the end)."""
+    if client is not None:
+        yield client
+        return
+    from distributed import Client
+
+    cluster = None if scheduler else _local_cluster(workers or os.cpu_count() or 1)
+    try:
+        with Client(scheduler or cluster) as own:
+            yield own
     finally:
-        if own_client is not None:
-            own_client.close()
-        if own_cluster is not None:
-            own_cluster.close()
+        if cluster is not None:
+            cluster.close()
 
 
 def run_sweep(spec, out_dir, workers=None, scheduler=None, resume=False, stream=sys.stderr,
@@ -208,12 +237,16 @@ def run_sweep(spec, out_dir, workers=None, scheduler=None, resume=False, stream=
         if on_record is not None:
             on_record(record)
 
+    tasks = _tasks(spec, todo, out_dir)
     try:
-        if client is None and scheduler is None and workers == 1:
-            for task in _tasks(spec, todo, out_dir):
-                emit(by_key[task['key']], run_point(task))
-        elif todo:
-            _run_dask(_tasks(spec, todo, out_dir), by_key, emit, workers, scheduler, client)
+        with contextlib.closing(map_unordered(run_point, tasks, workers, scheduler, client,
+                                              catch=True)) as results:
+            for i, record in results:
+                if isinstance(record, Exception):  # e.g. KilledWorker: the row says so
+                    record = {'key': tasks[i]['key'], 'status': 'error', 'metrics': None,
+                              'error': f'{type(record).__name__}: {record}',
+                              'wall_time_s': None}
+                emit(by_key[tasks[i]['key']], record)
     finally:
         table = write_table(spec, out_dir, points)
     return {'points': len(points), 'ran': len(todo), 'skipped': len(points) - len(todo),
