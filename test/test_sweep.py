@@ -8,7 +8,8 @@ import textwrap
 import pytest
 
 from ifc_spg.errors import ParameterError
-from ifc_spg.offline.sweep import FIXED_COLUMNS, run_sweep
+from ifc_spg.offline.runner import find_config_dir
+from ifc_spg.offline.sweep import FIXED_COLUMNS, run_point, run_sweep
 from ifc_spg.offline.sweep_spec import SweepError, load_sweep
 from ifc_spg.tools import sweep as sweep_cli
 
@@ -202,8 +203,21 @@ def test_cli_reports_a_bad_file_with_exit_2(tmp_path, capsys):
     assert not (tmp_path / 'o').exists()
 
 
-def test_shipped_example_sweep_is_valid():
-    from ifc_spg.offline.runner import find_config_dir
+@pytest.mark.parametrize('name, count', [('free_push_gains.yaml', 12),
+                                         ('free_push_monte_carlo.yaml', 40)])
+def test_shipped_sweeps_are_valid(name, count):
+    spec = load_sweep(find_config_dir() / 'sweeps' / name)
+    points = spec.points()
+    assert spec.count() == len(points) == count
+    assert len({p.key for p in points}) == count
 
-    spec = load_sweep(find_config_dir() / 'sweeps' / 'free_push_gains.yaml')
-    assert spec.count() == len(spec.points()) == 12
+
+def test_a_worker_with_other_code_runs_nothing(serial):
+    spec = load_sweep(serial[0].parent / 'missing.yaml', text=SWEEP.replace(
+        'free_push.yaml', str(find_config_dir() / 'scenarios' / 'free_push.yaml')))
+    point = spec.points()[0]
+    task = {'key': point.key, 'index': 0, 'scenario': point.scenario, 'where': 'w',
+            'base_dir': spec.scenario_dir, 'bag_dir': None, 'code_version': '0.0.0+gother'}
+    record = run_point(task)
+    assert record['status'] == 'error' and record['metrics'] is None
+    assert '0.0.0+gother' in record['error'] and 'same ifc_spg' in record['error']

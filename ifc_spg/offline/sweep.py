@@ -48,8 +48,10 @@ def run_point(task):
     """Run one point (on a worker or in this process); its record (a plain dict).
 
     Args:
-        task: ``{'key', 'index', 'scenario' (mapping), 'where', 'base_dir', 'bag_dir'}``;
-            ``bag_dir`` None: the bag goes to a temporary directory, removed afterwards.
+        task: ``{'key', 'index', 'scenario' (mapping), 'where', 'base_dir', 'bag_dir',
+            'code_version'}``; ``bag_dir`` None: the bag goes to a temporary directory,
+            removed afterwards; a worker whose :func:`code_version` differs from
+            ``code_version`` runs nothing and returns an error record.
     """
     from ifc_spg.offline.runner import run_scenario, scenario_from_dict
 
@@ -58,6 +60,11 @@ def run_point(task):
               'metrics': None}
     tmp = None
     try:
+        here = code_version()
+        if task.get('code_version') not in (None, here):
+            raise ParameterError(f'this worker runs ifc_spg {here}, the sweep '
+                                 f"{task['code_version']}; give every worker the same ifc_spg "
+                                 '(checkout and commit)')
         scenario = scenario_from_dict(task['scenario'], where=task['where'],
                                       base=Path(task['base_dir']))
         out = task['bag_dir'] or tempfile.mkdtemp(prefix='ifc_spg_sweep_')
@@ -112,10 +119,10 @@ class _Progress:
         print(('\r' if self.tty else '') + line, end=end, file=self.stream, flush=True)
 
 
-def _tasks(spec, points, out_dir):
+def _tasks(spec, points, out_dir, version):
     where = spec.scenario_path
     return [{'key': p.key, 'index': p.index, 'scenario': p.scenario, 'where': where,
-             'base_dir': spec.scenario_dir,
+             'base_dir': spec.scenario_dir, 'code_version': version,
              'bag_dir': str(out_dir / 'runs' / p.key) if spec.keep_bags else None}
             for p in points]
 
@@ -237,7 +244,7 @@ def run_sweep(spec, out_dir, workers=None, scheduler=None, resume=False, stream=
         if on_record is not None:
             on_record(record)
 
-    tasks = _tasks(spec, todo, out_dir)
+    tasks = _tasks(spec, todo, out_dir, version)
     try:
         with contextlib.closing(map_unordered(run_point, tasks, workers, scheduler, client,
                                               catch=True)) as results:

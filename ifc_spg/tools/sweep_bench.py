@@ -18,11 +18,12 @@ Before timing, this process and every worker run a 0.02 s scenario once (imports
 loading), so both engines are measured warm.
 
 Reported: throughput [runs/min] per engine and their ratio; the runs' own wall time
-(median, p99, max [s], measured inside run_point); Dask's overhead per run, two ways:
-(workers x sweep wall - sum of run walls) / runs, i.e. the worker time not spent running,
-and the round trip of a no-op task (200 of them through ``client.map``, median [ms]); and
-whether the two tables are identical row by row (all columns but wall_time_s). The load
-average before and after says how busy the (possibly shared) machine was.
+(median, p99, max [s], measured inside run_point); Dask's overhead per run, three ways:
+(workers x sweep wall - sum of run walls) / runs, i.e. the worker time not spent running;
+the CPU time of this process (client and scheduler) per run; the round trip of a no-op
+task (4 x 50 through ``client.map``, median [ms]); and whether the two tables are
+identical row by row (all columns but wall_time_s). The load average before and after
+says how busy the (possibly shared) machine was.
 """
 
 import argparse
@@ -105,17 +106,19 @@ def run_benchmark(runs=40, duration=0.3, workers=2, repeat=1):
             rep = {}
             for engine in ('serial', 'dask'):
                 d = tmp / f'{engine}{k}'
-                t = time.perf_counter()
+                t, cpu = time.perf_counter(), time.process_time()
                 if engine == 'serial':
                     run_sweep(spec, d, workers=1, stream=None)
                 else:
                     run_sweep(spec, d, client=client, stream=None)
                 wall = time.perf_counter() - t
+                cpu = time.process_time() - cpu
                 walls = _run_walls(spec, d)
                 n_workers = 1 if engine == 'serial' else workers
                 rep[engine] = {'wall_s': wall, 'runs_per_min': 60.0 * runs / wall,
                                'run_wall_s': _stats(walls),
-                               'overhead_per_run_s': (n_workers * wall - sum(walls)) / runs}
+                               'overhead_per_run_s': (n_workers * wall - sum(walls)) / runs,
+                               'this_process_cpu_per_run_s': cpu / runs}
             rep['ratio'] = rep['dask']['runs_per_min'] / rep['serial']['runs_per_min']
             rep['identical_rows'] = _table(tmp / f'serial{k}') == _table(tmp / f'dask{k}')
             out['repeats'].append(rep)
@@ -146,7 +149,8 @@ def format_report(res):
             w = r['run_wall_s']
             lines.append(f"  [{k}] {engine:<6} {r['wall_s']:6.2f} s  {r['runs_per_min']:6.1f} "
                          f"runs/min  run wall median {w['median']:.3f} p99 {w['p99']:.3f} max "
-                         f"{w['max']:.3f} s  overhead/run {1e3 * r['overhead_per_run_s']:.1f} ms")
+                         f"{w['max']:.3f} s  overhead/run {1e3 * r['overhead_per_run_s']:.1f} ms  "
+                         f"this process CPU/run {1e3 * r['this_process_cpu_per_run_s']:.1f} ms")
         lines.append(f"  [{k}] dask/serial throughput ratio {rep['ratio']:.2f}; rows identical: "
                      f"{rep['identical_rows']}")
     lines.append(f"Dask no-op task round trip (client.map, median of 4 x 50): "
