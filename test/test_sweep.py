@@ -212,6 +212,21 @@ def test_shipped_sweeps_are_valid(name, count):
     assert len({p.key for p in points}) == count
 
 
+def test_stack_files_are_read_in_so_their_fields_are_paths(tmp_path):
+    path = tmp_path / 'gain.yaml'
+    path.write_text(textwrap.dedent("""\
+        scenario: thesis_4_4_free_ee_z.yaml
+        axes:
+          stacks.0.stack.tasks.0.gain: {values: [2.0, 8.0]}
+        metrics: [limit_violations]
+        """))
+    points = load_sweep(path).points()
+    tasks = [p.scenario['stacks'][0]['stack']['tasks'][0] for p in points]
+    assert [t['gain'] for t in tasks] == [2.0, 8.0]
+    assert all(t['name'] == 'pose_but_ee_z' for t in tasks)  # the file's task, its gain set
+    assert 'file' not in points[0].scenario['stacks'][0]
+
+
 def test_a_worker_with_other_code_runs_nothing(serial):
     spec = load_sweep(serial[0].parent / 'missing.yaml', text=SWEEP.replace(
         'free_push.yaml', str(find_config_dir() / 'scenarios' / 'free_push.yaml')))

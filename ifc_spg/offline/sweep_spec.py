@@ -411,31 +411,32 @@ def _scenario_metric_names(data):
     return out
 
 
-def _axes(d, axes, base, base_dir):
+def _axes(d, axes, base):
     if not isinstance(axes, dict) or not axes:
         raise d.error(('axes',), 'axes needs a mapping {PATH: SPEC}, e.g. '
                       '{sim.stiffness: {values: [200, 400]}}')
     out = []
-    probe = _inline_stack_files(copy.deepcopy(base), base_dir)
     for path, spec in axes.items():
+        if not isinstance(path, str):
+            raise d.error(('axes', path), f'an axis is a dotted path into the scenario, e.g. '
+                          f"'sim.stiffness', got {path!r}")
         axis = _axis(d, path, spec)
-        sample = axis.spec[0] if axis.kind in ('values', 'choice') else axis.spec[0]
         try:
-            set_path(copy.deepcopy(probe), path, sample)
+            set_path(copy.deepcopy(base), path, axis.spec[0])
         except ValueError as exc:
             raise d.error(('axes', path), f'{exc}') from None
         out.append(axis)
     return tuple(out)
 
 
-def _set(d, values, base, base_dir):
+def _set(d, values, base):
     if values is None:
         return {}
     if not isinstance(values, dict):
         raise d.error(('set',), 'set needs a mapping {PATH: VALUE}, e.g. {duration: 1.0}')
     for path, value in values.items():
         try:
-            set_path(base, path, value)
+            set_path(base, str(path), value)
         except ValueError as exc:
             raise d.error(('set', path), str(exc)) from None
     return dict(values)
@@ -463,8 +464,9 @@ def load_sweep(path, text=None):
     data = d.doc.data
     _check_top(d, data)
     scenario_path, base = _scenario_file(d, data['scenario'], path.parent)
-    fixed = _set(d, data.get('set'), base, scenario_path.parent)
-    axes = _axes(d, data['axes'], base, scenario_path.parent)
+    base = _inline_stack_files(base, scenario_path.parent)  # their fields become paths
+    fixed = _set(d, data.get('set'), base)
+    axes = _axes(d, data['axes'], base)
     randoms = [a.path for a in axes if a.random]
     if randoms and data.get('samples') is None:
         raise d.error(('axes', randoms[0]), f"'{randoms[0]}' is drawn at random: add "
