@@ -86,7 +86,10 @@ def test_serial_sweep_rows_and_draws(serial, sweep_file):
 
 
 def test_local_cluster_equals_serial_row_by_row(serial, sweep_file, client, tmp_path):
-    summary = run_sweep(load_sweep(sweep_file), tmp_path, client=client, stream=None)
+    # through its address, as --scheduler tcp://HOST:8786 connects
+    address = client.scheduler.address
+    assert address.startswith('tcp://127.0.0.1:')
+    summary = run_sweep(load_sweep(sweep_file), tmp_path, scheduler=address, stream=None)
     assert summary['ran'] == 12 and summary['failed'] == 0
     assert _table(tmp_path) == _table(serial[0])
 
