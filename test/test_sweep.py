@@ -3,7 +3,10 @@
 import csv
 import os
 import signal
+import subprocess
+import sys
 import textwrap
+import time
 
 import pytest
 
@@ -134,6 +137,29 @@ def test_resume_runs_only_the_missing_points(serial, sweep_file, tmp_path):
     assert summary['ran'] == 7 and summary['skipped'] == 5
     assert not set(again) & set(done) and len(set(again) | set(done)) == 12
     assert _table(tmp_path) == _table(serial[0])
+
+
+def test_sigterm_mid_sweep_keeps_the_finished_runs(sweep_file, tmp_path):
+    """The CLI turns SIGTERM into an orderly stop: exit 130, the table of what finished."""
+    out = tmp_path / 'out'
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'ifc_spg.tools.sweep', str(sweep_file), '-o', str(out),
+         '--workers', '1', '--no-figures'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list((out / 'runs').glob('*.json')) and time.monotonic() < deadline:
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert 'interrupted' in err and '--resume' in err
+    done = len(list((out / 'runs').glob('*.json')))
+    assert 1 <= done < 12 and len(_table(out)) == done
 
 
 def test_a_failing_run_is_a_row_with_its_error(tmp_path, capsys):

@@ -10,13 +10,18 @@ Writes ``DIR/results.csv`` (one row per run: point, key, status, error, seed, sa
 wall_time_s, the axes, the metrics), ``DIR/runs/KEY.json`` (each run's record with its full
 metrics), and figures: ``DIR/METRIC.png`` (the metric against each axis) and, for a sweep
 with two axes, ``DIR/METRIC_heatmap.png``. Exit status 0 when every run succeeded, 1 when
-some failed (their rows say why), 2 on a bad sweep file or usage.
+some failed (their rows say why), 2 on a bad sweep file or usage, 130 when interrupted
+(SIGINT or SIGTERM: the finished runs are kept and in the table; ``--resume`` runs the rest).
 """
 
 import argparse
 import math
+import os
+from pathlib import Path
 import re
+import signal
 import sys
+import threading
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.offline.sweep import read_records, rows, run_sweep
@@ -137,12 +142,34 @@ def _heatmap(plt, spec, ok, metric, y, out_dir):
     return path
 
 
+def _interrupt_on_signals():
+    """SIGINT and SIGTERM raise KeyboardInterrupt: the sweep writes its table, stops Dask.
+
+    Returns the handlers to restore (none outside the main thread).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+    return {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
 def _check(file, spec):
     points = spec.points()
     print(f"{file}: ok: {len(points)} points, axes {', '.join(a.path for a in spec.axes)}")
     for p in points:
         print(f'  {p.index:4d} {p.key} {p.params}')
     return 0
+
+
+def _usage_error(opts):
+    """The message for a bad option combination, or None."""
+    if not opts.output:
+        return '-o DIR is required to run (or --check to validate only)'
+    if opts.workers is not None and opts.workers < 1:
+        return '--workers must be >= 1'
+    return None
 
 
 def main(argv=None):
@@ -158,16 +185,14 @@ def main(argv=None):
         return 2
     if opts.check:
         return _check(opts.file, spec)
-    if not opts.output:
-        print('ifc-spg sweep: -o DIR is required to run (or --check to validate only)',
-              file=sys.stderr)
+    if _usage_error(opts):
+        print(f'ifc-spg sweep: {_usage_error(opts)}', file=sys.stderr)
         return 2
-    if opts.workers is not None and opts.workers < 1:
-        print('ifc-spg sweep: --workers must be >= 1', file=sys.stderr)
-        return 2
-    from pathlib import Path
-
     out_dir = Path(opts.output)
+    # Dask's INFO lines (cluster start, workers joining) would bury the progress line; the
+    # spawned workers read this too. Set DASK_LOGGING__DISTRIBUTED=info to see them.
+    os.environ.setdefault('DASK_LOGGING__DISTRIBUTED', 'warning')
+    old = _interrupt_on_signals()
     try:
         summary = run_sweep(spec, out_dir, workers=opts.workers, scheduler=opts.scheduler,
                             resume=opts.resume, stream=sys.stderr)
@@ -175,9 +200,12 @@ def main(argv=None):
         print(f'ifc-spg sweep: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f'\nifc-spg sweep: interrupted; the finished runs are in {out_dir}/runs '
-              '(--resume runs the rest)', file=sys.stderr)
+        print(f'\nifc-spg sweep: interrupted; the finished runs are in {out_dir}/runs and '
+              f'{out_dir}/results.csv (--resume runs the rest)', file=sys.stderr)
         return 130
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
     print(f"results: {summary['table']} ({summary['points']} points: {summary['ran']} run, "
           f"{summary['skipped']} resumed, {summary['failed']} failed)")
     if not opts.no_figures:
