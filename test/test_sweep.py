@@ -18,12 +18,12 @@ from ifc_spg.tools import sweep as sweep_cli
 
 distributed = pytest.importorskip('distributed')
 
-# 3 grid values x 4 random draws = 12 points of 0.3 s simulated time each
+# 3 grid values x 4 random draws = 12 points of 0.2 s simulated time each
 SWEEP = """\
 version: 1
 name: test_push
 scenario: free_push.yaml
-set: {duration: 0.3, progress: 0, pushes.0.at: 0.05, pushes.0.duration: 0.1}
+set: {duration: 0.2, progress: 0, pushes.0.at: 0.05, pushes.0.duration: 0.1}
 axes:
   sim.stiffness: {values: [150, 300, 600]}
   pushes.0.wrench.1: {uniform: [5.0, 25.0]}
