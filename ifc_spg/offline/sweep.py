@@ -96,22 +96,31 @@ def metric_value(metrics, path):
 
 
 class _Progress:
-    """``sweep NAME: 5/12 runs (1 failed, 3 resumed)  elapsed 10.2 s  ETA 14.3 s``."""
+    """``sweep NAME: 5/12 runs (1 failed, 3 resumed)  elapsed 10.2 s  ETA 14.3 s``.
+
+    The ETA is the remaining runs at the rate since the first run finished (the time to
+    the first one includes starting the cluster and the workers' imports).
+    """
 
     def __init__(self, name, total, skipped, stream):
         self.name, self.total, self.skipped, self.stream = name, total, skipped, stream
         self.done = self.failed = 0
         self.t0 = time.perf_counter()
+        self.t_first = None
         self.tty = stream is not None and hasattr(stream, 'isatty') and stream.isatty()
 
     def update(self, record):
         self.done += 1
         self.failed += record['status'] != 'ok'
+        now = time.perf_counter()
+        if self.t_first is None:
+            self.t_first = now
         if self.stream is None:
             return
-        elapsed = time.perf_counter() - self.t0
+        elapsed = now - self.t0
         todo = self.total - self.skipped - self.done
-        eta = elapsed / self.done * todo
+        eta = ((now - self.t_first) / (self.done - 1) if self.done > 1
+               else elapsed) * todo
         line = (f'sweep {self.name}: {self.skipped + self.done}/{self.total} runs '
                 f'({self.failed} failed, {self.skipped} resumed)  elapsed {elapsed:.1f} s  '
                 f'ETA {eta:.1f} s')
