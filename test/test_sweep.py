@@ -211,6 +211,8 @@ metrics: [tank_energy_min_j]
     (BASE.replace('free_push.yaml', 'no_such.yaml'), 1, 'scenario', 'not found; looked in'),
     (BASE.replace('scenario: free_push.yaml\n', ''), 1, '', 'add scenario:'),
     (BASE + 'samples: 3\n', 5, 'samples', 'needs a random axis'),
+    (BASE.replace('[200, 400]', '[200, 400, 200]'), 3, 'axes.sim.stiffness.values',
+     'values lists 200 twice; remove one'),
     (BASE + 'keep_bags: maybe\n', 5, 'keep_bags', 'true or false'),
 ])
 def test_bad_sweep_files_name_field_line_and_fix(tmp_path, text, line, field, fix):

@@ -128,8 +128,9 @@ class SweepSpec:
                 values.update(drawn)
                 params = {a.path: values[a.path] for a in self.axes}
                 data = scenario_for(self.base, params, self.scenario_dir)
-                key = point_key(data, version)
-                out.append(Point(len(out), params, s if rand else 0, key, data))
+                sample = s if rand else 0
+                key = point_key(data, version, sample)
+                out.append(Point(len(out), params, sample, key, data))
         return out
 
     @property
@@ -160,9 +161,13 @@ def _draw(axes, seed, sample):
     return out
 
 
-def point_key(scenario, version):
-    """Hash of a point's full scenario (base, set, parameters) and the code version."""
-    text = json.dumps({'scenario': scenario, 'code': version}, sort_keys=True)
+def point_key(scenario, version, sample=0):
+    """Hash of a point's full scenario (base, set, parameters), sample and code version.
+
+    The sample index keeps two draws apart that happen to be equal (``choice`` axes).
+    """
+    text = json.dumps({'scenario': scenario, 'code': version, 'sample': sample},
+                      sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -291,6 +296,19 @@ def _is_number(x):
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def _list_axis(d, at, kind, value):
+    """The entries of a ``values`` or ``choice`` axis (a grid value only once)."""
+    if not isinstance(value, list) or not value:
+        raise d.error(at, f'{kind} needs a non-empty list, e.g. {kind}: [1, 2, 3]; got '
+                      f'{value!r}')
+    seen = [json.dumps(v, sort_keys=True) for v in value]
+    twice = next((v for i, v in enumerate(value) if seen[i] in seen[:i]), None)
+    if kind == 'values' and twice is not None:
+        raise d.error(at, f'values lists {twice!r} twice; remove one (each grid point runs '
+                      'once)')
+    return tuple(value)
+
+
 def _axis(d, path, spec):
     """Validate one axis entry ``axes: {PATH: SPEC}``."""
     where = ('axes', path)
@@ -304,10 +322,7 @@ def _axis(d, path, spec):
                       f"{did_you_mean(kind, AXIS_KINDS)}; use {example}")
     at = where + (kind,)
     if kind in ('values', 'choice'):
-        if not isinstance(value, list) or not value:
-            raise d.error(at, f'{kind} needs a non-empty list, e.g. {kind}: [1, 2, 3]; got '
-                          f'{value!r}')
-        return Axis(path, kind, tuple(value))
+        return Axis(path, kind, _list_axis(d, at, kind, value))
     if kind == 'normal' and isinstance(value, dict):
         bad = [k for k in value if k not in ('mean', 'std')]
         if bad:
