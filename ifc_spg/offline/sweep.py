@@ -13,7 +13,8 @@ Each point is one call of :func:`run_point` (the worker's side): the point's sce
 :func:`~ifc_spg.offline.runner.run_scenario`; an exception becomes the record's ``error``,
 not the end of the sweep. The records are written by this process, one JSON file per
 point, ``DIR/runs/KEY.json`` (KEY: :func:`~ifc_spg.offline.sweep_spec.point_key`, a hash of
-the point's scenario and the code version); ``resume=True`` skips points whose file exists.
+the point's scenario, sample index and the code version); ``resume=True`` skips points
+whose file exists.
 ``DIR/results.csv`` has one row per point (:data:`FIXED_COLUMNS`, then the axes, then the
 metrics). The rows do not depend on the engine: a run is deterministic, so only
 ``wall_time_s`` (and timing metrics such as ``tick_time_ms``) differ between runs.
