@@ -23,11 +23,9 @@ error; ``--strict`` makes a failing claim exit 1.
 """
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor, as_completed
 import dataclasses
 import json
 import math
-from multiprocessing import get_context
 import os
 from pathlib import Path
 import shutil
@@ -39,6 +37,7 @@ import numpy as np
 from experiments import claims
 from ifc_spg.constrained.metrics import error_angles, perpendicular_force
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
+from ifc_spg.offline.sweep import map_unordered
 
 __all__ = ['ALL_EXPERIMENTS', 'EXPERIMENTS', 'Check', 'Experiment', 'RunSpec', 'main',
            'run_experiment', 'run_experiments', 'write_report']
@@ -1552,8 +1551,12 @@ def _scenario_path(name):
 _WORKER_CACHE: dict = {}
 
 
-def _experiment_in_worker(name, out_dir, quick, figures):
-    """Worker task: one scenario experiment by name (runs cached per worker process)."""
+def _experiment_in_worker(job):
+    """Worker task: one scenario experiment, ``(name, out_dir, quick, figures)``.
+
+    Its runs are cached per worker process.
+    """
+    name, out_dir, quick, figures = job
     exp = {e.name: e for e in ALL_EXPERIMENTS}[name]
     return run_experiment(exp, out_dir, quick=quick, figures=figures, cache=_WORKER_CACHE)
 
@@ -1561,7 +1564,8 @@ def _experiment_in_worker(name, out_dir, quick, figures):
 def _run_selected(selected, out_dir, quick, figures, stream, workers):
     """Run ``selected``; return {name: (check, figure, wall)}.
 
-    The scenario experiments go to ``workers`` spawned processes (longest first) when
+    The scenario experiments go to a local Dask cluster of ``workers`` worker processes
+    (:func:`ifc_spg.offline.sweep.map_unordered`, longest first) when
     ``workers`` > 1; the others (Table 5.1, Ch. 5, report Ch. 6) run here afterwards and
     use processes of their own. Every run is deterministic: the results do not depend on
     ``workers``.
@@ -1577,13 +1581,11 @@ def _run_selected(selected, out_dir, quick, figures, stream, workers):
     pooled = [e for e in selected if e.name not in _DIRECT] if workers > 1 else []
     if len(pooled) > 1:
         order = sorted(pooled, key=lambda e: -sum(r.duration or 10.0 for r in e.runs))
-        print(f'[reproduce] {len(pooled)} scenario experiments in {workers} processes ...',
-              file=stream, flush=True)
-        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn')) as pool:
-            futures = {pool.submit(_experiment_in_worker, e.name, out_dir, quick, figures):
-                       e.name for e in order}
-            for fut in as_completed(futures):
-                report(futures[fut], fut.result())
+        print(f'[reproduce] {len(pooled)} scenario experiments in {workers} processes '
+              '(a local Dask cluster) ...', file=stream, flush=True)
+        jobs = [(e.name, out_dir, quick, figures) for e in order]
+        for i, res in map_unordered(_experiment_in_worker, jobs, workers=workers):
+            report(order[i].name, res)
     cache = {}
     for exp in selected:
         if exp.name not in done:

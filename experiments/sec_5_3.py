@@ -1,6 +1,6 @@
 """Thesis Sec. 5.3.4: the original strategy (5.3) on the admittance-controlled ACCREA.
 
-    python -m experiments.sec_5_3 [--quick] [-o DIR]
+    python -m experiments.sec_5_3 [--quick] [-o DIR] [--workers N | --scheduler ADDRESS]
 
 Two parts, both with the Cartesian-admittance strategy
 (:class:`~ifc_spg.constrained.admittance_strategy.CartesianAdmittanceStrategy`) on the
@@ -30,10 +30,8 @@ the budget; the SMA order N is scaled so the time window is the thesis' 0.3-1 s.
 """
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor, as_completed
 import json
 import math
-from multiprocessing import get_context
 import os
 from pathlib import Path
 import sys
@@ -44,6 +42,7 @@ import numpy as np
 from ifc_spg.constrained.metrics import error_angles, perpendicular_force
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
 from ifc_spg.offline.constrained import Scenario, run
+from ifc_spg.offline.sweep import map_unordered
 
 __all__ = ['BREAKAWAY', 'DEVICES', 'DT', 'FORCE_LIMIT', 'SEED', 'TRIALS', 'draw_trials',
            'final_window', 'main', 'run_sec_5_3']
@@ -163,8 +162,12 @@ def _breakaway_jobs():
     return [dict(base, mode=mode) for mode in _MODES]
 
 
-def _execute(jobs, workers, stream):
-    """Run ``jobs`` (in ``workers`` processes); results in job order."""
+def _execute(jobs, workers, stream, scheduler=None):
+    """Run ``jobs`` (here, or on Dask: :func:`ifc_spg.offline.sweep.map_unordered`).
+
+    Results in job order. Dask's worker processes are spawned, not forked: the caller (the
+    test suite) may run DDS threads whose locks a forked child would inherit.
+    """
     results = [None] * len(jobs)
 
     def done(i, res):
@@ -175,18 +178,13 @@ def _execute(jobs, workers, stream):
                   f"{'ok' if res['success'] else 'FAIL'} max |f| {res['max_force']:.1f} N, "
                   f"final |f_perp| {res['final_f_perp_n']:.2f} N", file=stream, flush=True)
 
-    if workers <= 1:
-        for i, job in enumerate(jobs):
-            done(i, _run_one(job))
-        return results
-    # spawn, not fork: the caller (the test suite) may run DDS threads whose locks a forked
-    # child would inherit.
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn')) as pool:
+    order = list(range(len(jobs)))
+    if workers > 1 or scheduler:
         # Longest runs first (the slowest nu), so that the workers finish together.
-        order = sorted(range(len(jobs)), key=lambda i: -jobs[i]['duration'])
-        futures = {pool.submit(_run_one, jobs[i]): i for i in order}
-        for fut in as_completed(futures):
-            done(futures[fut], fut.result())
+        order.sort(key=lambda i: -jobs[i]['duration'])
+    for k, res in map_unordered(_run_one, [jobs[i] for i in order], workers=workers,
+                                scheduler=scheduler):
+        done(order[k], res)
     return results
 
 
@@ -282,7 +280,7 @@ def _figure(num, brk, path):
     plt.close(fig)
 
 
-def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None):
+def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None, scheduler=None):
     """Run the Sec. 5.3.4 trials and the Fig. 5.6/5.7 break-away runs.
 
     Args:
@@ -290,7 +288,10 @@ def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None):
         quick: :data:`QUICK_TRIALS` per device instead of :data:`TRIALS`.
         figures: Draw the figure.
         stream: A text stream for one progress line per run (None: silent).
-        workers: Worker processes (default: the CPU count, at most 4; 1: in-process).
+        workers: Worker processes of a local Dask cluster (default: the CPU count, at
+            most 4; 1: in-process).
+        scheduler: Address of an existing Dask scheduler (``tcp://HOST:8786``) to run the
+            trials on instead.
 
     Returns:
         ``(numbers, text)``: the JSON-serialisable numbers (``success_share``,
@@ -304,7 +305,7 @@ def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None):
     jobs += _breakaway_jobs()
     if workers is None:
         workers = max(1, min(4, os.cpu_count() or 1))
-    res = _execute(jobs, workers, stream)
+    res = _execute(jobs, workers, stream, scheduler)
     brk = res[-2:]
     num = _numbers(trials, res[:-2], brk, n, 0.0)
     out = Path(out_dir)
@@ -321,9 +322,12 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--quick', action='store_true')
     ap.add_argument('-o', '--out', default='results_sec_5_3')
-    ap.add_argument('--workers', type=int, default=None)
+    ap.add_argument('--workers', type=int, default=None,
+                    help='local Dask cluster of N worker processes (1: in-process)')
+    ap.add_argument('--scheduler', help='an existing Dask scheduler, tcp://HOST:8786')
     args = ap.parse_args(argv)
-    num, text = run_sec_5_3(args.out, args.quick, stream=sys.stderr, workers=args.workers)
+    num, text = run_sec_5_3(args.out, args.quick, stream=sys.stderr, workers=args.workers,
+                            scheduler=args.scheduler)
     print(text)
     print(json.dumps({k: num[k] for k in ('success_share', 'median_final_ratio', 'breakaway',
                                           'per_device', 'wall_s')}, indent=1))

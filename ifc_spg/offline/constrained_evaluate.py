@@ -23,16 +23,15 @@ Examples::
 """
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor
 import json
 import math
-from multiprocessing import get_context
 import sys
 
 from ifc_spg.constrained.metrics import pooled_rms
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.offline.constrained import Scenario, run
+from ifc_spg.offline.sweep import map_unordered
 
 __all__ = ['ACCREA_SCENES', 'KAPPAS', 'QUICK_COMPARISON', 'STIFFNESSES', 'THESIS_5_5_3',
            'accrea', 'comparison', 'main', 'mechanisms', 'reduction']
@@ -74,17 +73,17 @@ def _grid_run(job):
 def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, workers=1):
     """Both strategies once per (K, kappa) on the vertical drawer: one row each.
 
-    With ``workers`` > 1 the runs go to as many spawned processes (each run is
-    deterministic, so the rows are the same).
+    With ``workers`` > 1 the runs go to a local Dask cluster of as many worker processes
+    (:func:`ifc_spg.offline.sweep.map_unordered`; each run is deterministic, so the rows
+    are the same).
     """
     jobs = [(strategy, float(k), float(kappa), fixed, initial_error_deg, travel, duration)
             for k in stiffnesses for kappa in kappas
             for strategy in ('joint_compliance', 'task_specification')]
-    if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn')) as pool:
-            results = list(pool.map(_grid_run, jobs))
-    else:
-        results = [_grid_run(job) for job in jobs]
+    results = [None] * len(jobs)
+    for i, res in map_unordered(_grid_run, jobs,
+                                workers=workers if workers > 1 and len(jobs) > 1 else 1):
+        results[i] = res
     rows = []
     for i in range(0, len(jobs), 2):
         _, k, kappa, *_ = jobs[i]

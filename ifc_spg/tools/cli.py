@@ -1,4 +1,4 @@
-"""The ``ifc-spg`` tool: demo, run, check, bag, replay, plot, bench, dynamics, ros.
+"""The ``ifc-spg`` tool: demo, run, sweep, check, bag, replay, plot, bench, dynamics, ros.
 
 Each verb lives in its own module exposing ``main(argv) -> int``; this file only
 dispatches, so ``ifc-spg VERB --help`` is answered by the module that implements VERB.
@@ -17,6 +17,7 @@ VERBS = {
     'bag': ('ifc_spg.offline.bag', 'rosbag2 MCAP record | play | info'),
     'replay': ('ifc_spg.offline.replay', 'recompute the SPG output from a bag'),
     'plot': ('ifc_spg.tools.plot', 'figures from a bag'),
+    'sweep': ('ifc_spg.tools.sweep', 'run a sweep file: every point, one table, figures'),
     'render': ('ifc_spg.tools.render', 'video of a bag: the robot in its MuJoCo scene'),
     'bench': ('ifc_spg.tools.bench', 'benchmark the SPG tick per solver'),
     'dynamics': ('ifc_spg.tools.dynamics_cli', 'Popov-Vereshchagin solver scenarios'),
