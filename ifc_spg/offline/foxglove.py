@@ -1,0 +1,200 @@
+"""The topics Foxglove's (and RViz's) 3D panel draws a robot from, written into our bags.
+
+:class:`FoxgloveTopics` adds to a :class:`~ifc_spg.offline.bag.BagWriter`:
+
+- ``/robot_description`` (std_msgs/String, latched): the URDF of :func:`~ifc_spg.model.urdf.
+  urdf_from_robot`, generated from the robot's MJCF;
+- ``/tf_static`` (tf2_msgs/TFMessage, latched): the fixed joints of the URDF, for the
+  measured robot and for a second tree ``virtual/...`` (q_v), joined by ``world`` ->
+  ``virtual/world`` (identity);
+- ``/tf`` (tf2_msgs/TFMessage): every moving joint of the URDF at the recorded joint states
+  (measured q, frames as in the URDF) and at the commanded q_v (``virtual/`` frames), with
+  the messages' header stamps, at most every ``tf_period`` [s] of stamp time;
+- ``/spg/markers`` (visualization_msgs/MarkerArray): each Cartesian task's target frame
+  (three arrows x/y/z red/green/blue and a sphere at its origin, namespace = task name) in
+  ``world``, the robot's base frame.
+
+There is no tf2_msgs or visualization_msgs wheel for rclpy here, and the built-in DDS backend
+has no such message classes: these channels are serialized with ``rosbags`` (its Jazzy
+typestore), in the bag writer only.
+"""
+
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.model.urdf import urdf_from_robot
+from ifc_spg.ros.qos import QoSProfile, latched
+
+__all__ = ['VIRTUAL_PREFIX', 'FoxgloveTopics', 'cartesian_targets', 'tf_transforms']
+
+#: Frame prefix of the q_v tree.
+VIRTUAL_PREFIX = 'virtual/'
+_TF = 'tf2_msgs/msg/TFMessage'
+_STRING = 'std_msgs/msg/String'
+_MARKERS = 'visualization_msgs/msg/MarkerArray'
+
+
+def tf_transforms(tree, q_by_name, prefix=''):
+    """``[(parent, child, SE3)]`` of the moving joints of ``tree`` at joint positions.
+
+    Args:
+        tree: :class:`~ifc_spg.model.urdf.UrdfTree`.
+        q_by_name: Joint name -> position; joints not given are at 0.
+        prefix: Prepended to every frame name.
+    """
+    return [(prefix + j.parent, prefix + j.child, j.transform(q_by_name.get(j.name, 0.0)))
+            for j in tree.moving]
+
+
+def cartesian_targets(tasks, kin, t):
+    """``[(task name, position (3,), rotation (3, 3))]``: each Cartesian task's target frame.
+
+    The target is the pose whose task value is the task value at q_v clipped into the bounds
+    (the nearest point of the band; the target itself for an equality task); directions
+    outside the task's subspace keep the virtual pose's.
+
+    Args:
+        tasks: The SPG's tasks (inactive ones are skipped).
+        kin: :class:`~ifc_spg.kinematics.Kinematics` updated at (q, qdot, q_v).
+        t: Task time [s].
+    """
+    out = []
+    for task in tasks:
+        if task.kind != 'cartesian_pose' or not task.active:
+            continue
+        lower, upper = task.bounds_at(t)
+        p, R, _ = kin.frame(task.frame_id, virtual=True)
+        value = np.asarray(task.compute_value(kin), dtype=float)
+        goal = np.clip(value, lower, upper)
+        R_ref = task.reference_orientation(R)
+        x = np.concatenate((p - task._p_ref, pin.log3(R @ R_ref.T)))
+        x = x + task._S_base(R) @ (goal - value)
+        out.append((task.name, task._p_ref + x[:3], pin.exp3(x[3:]) @ R_ref))
+    return out
+
+
+class FoxgloveTopics:
+    """Writes the robot description, tf and task-target markers into a bag (module docstring).
+
+    Args:
+        writer: The :class:`~ifc_spg.offline.bag.BagWriter`.
+        robot: The :class:`~ifc_spg.model.RobotModel` whose joint states are recorded.
+        tf_period: Least stamp time [s] between two ``/tf`` (and marker) messages of a tree.
+    """
+
+    def __init__(self, writer, robot, tf_period=0.01):
+        from rosbags.typesys import Stores, get_typestore
+
+        self.writer, self.robot = writer, robot
+        self.tree = urdf_from_robot(robot)
+        self.tf_period_ns = int(round(tf_period * 1e9))
+        self._last = {}
+        store = get_typestore(Stores.ROS2_JAZZY)
+        self._store = store
+        self._T = store.types
+        for topic, msgtype, qos in (('/robot_description', _STRING, latched(1)),
+                                    ('/tf_static', _TF, latched(1)),
+                                    ('/tf', _TF, QoSProfile(depth=100)),
+                                    ('/spg/markers', _MARKERS, QoSProfile(depth=10))):
+            writer.add_topic(topic, msgtype, qos)
+
+    # -- message construction (rosbags dataclasses) ---------------------------------------
+    def _header(self, t_ns, frame):
+        T = self._T
+        sec, nsec = divmod(int(t_ns), 1_000_000_000)
+        return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
+            sec=sec, nanosec=nsec), frame_id=frame)
+
+    def _pose(self, p, R):
+        T = self._T
+        qx, qy, qz, qw = pin.Quaternion(np.asarray(R, float)).coeffs()
+        return T['geometry_msgs/msg/Pose'](
+            position=T['geometry_msgs/msg/Point'](x=float(p[0]), y=float(p[1]), z=float(p[2])),
+            orientation=T['geometry_msgs/msg/Quaternion'](x=qx, y=qy, z=qz, w=qw))
+
+    def _tf_message(self, t_ns, transforms):
+        T = self._T
+        items = []
+        for parent, child, M in transforms:
+            qx, qy, qz, qw = pin.Quaternion(M.rotation).coeffs()
+            tr = M.translation
+            items.append(T['geometry_msgs/msg/TransformStamped'](
+                header=self._header(t_ns, parent), child_frame_id=child,
+                transform=T['geometry_msgs/msg/Transform'](
+                    translation=T['geometry_msgs/msg/Vector3'](
+                        x=float(tr[0]), y=float(tr[1]), z=float(tr[2])),
+                    rotation=T['geometry_msgs/msg/Quaternion'](x=qx, y=qy, z=qz, w=qw))))
+        return T[_TF](transforms=items)
+
+    def _write(self, topic, t_ns, msg):
+        self.writer.write(topic, t_ns, self._store.serialize_cdr(msg, msg.__msgtype__))
+
+    # -- the channels ---------------------------------------------------------------------
+    def write_static(self, t_ns):
+        """``/robot_description`` and ``/tf_static`` at log time ``t_ns``."""
+        self._write('/robot_description', t_ns, self._T[_STRING](data=self.tree.xml))
+        fixed = []
+        for prefix in ('', VIRTUAL_PREFIX):
+            fixed += [(prefix + j.parent, prefix + j.child, j.origin) for j in self.tree.fixed]
+        root = self.tree.root
+        fixed.append((root, VIRTUAL_PREFIX + root, pin.SE3.Identity()))
+        self._write('/tf_static', t_ns, self._tf_message(t_ns, fixed))
+
+    def _due(self, key, stamp_ns):
+        last = self._last.get(key)
+        if last is not None and stamp_ns - last < self.tf_period_ns:
+            return False
+        self._last[key] = stamp_ns
+        return True
+
+    def joint_state(self, t_ns, stamp_ns, names, positions, virtual=False):
+        """``/tf`` of one joint state (``virtual``: the q_v tree), if due; True if written."""
+        prefix = VIRTUAL_PREFIX if virtual else ''
+        if not self._due(prefix, stamp_ns):
+            return False
+        q = dict(zip(names, (float(x) for x in positions)))
+        self._write('/tf', t_ns, self._tf_message(stamp_ns, tf_transforms(self.tree, q,
+                                                                           prefix)))
+        return True
+
+    def markers_due(self, stamp_ns):
+        """True if a ``/spg/markers`` message is due at ``stamp_ns`` (then write it)."""
+        return self._due('markers', stamp_ns)
+
+    def markers(self, t_ns, stamp_ns, targets, length=0.08):
+        """Write ``/spg/markers`` of ``targets`` (:func:`cartesian_targets`)."""
+        T = self._T
+        M = T['visualization_msgs/msg/Marker']
+        color = T['std_msgs/msg/ColorRGBA']
+        vec = T['geometry_msgs/msg/Vector3']
+        zero = T['builtin_interfaces/msg/Duration'](sec=0, nanosec=0)
+        no_texture = T['sensor_msgs/msg/CompressedImage'](
+            header=self._header(0, ''), format='', data=np.zeros(0, np.uint8))
+        no_mesh = T['visualization_msgs/msg/MeshFile'](filename='', data=np.zeros(0, np.uint8))
+
+        def marker(ns, i, kind, p, R, scale, rgba):
+            return M(header=self._header(stamp_ns, self.tree.root), ns=ns, id=i, type=kind,
+                     action=M.ADD, pose=self._pose(p, R), scale=vec(x=scale[0], y=scale[1],
+                                                                    z=scale[2]),
+                     color=color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]), lifetime=zero,
+                     frame_locked=False, points=[], colors=[], texture_resource='',
+                     texture=no_texture, uv_coordinates=[], text='', mesh_resource='',
+                     mesh_file=no_mesh, mesh_use_embedded_materials=False)
+
+        items = [M(header=self._header(stamp_ns, self.tree.root), ns='', id=0, type=M.ARROW,
+                   action=M.DELETEALL, pose=self._pose(np.zeros(3), np.eye(3)),
+                   scale=vec(x=0.0, y=0.0, z=0.0), color=color(r=0.0, g=0.0, b=0.0, a=0.0),
+                   lifetime=zero, frame_locked=False, points=[], colors=[],
+                   texture_resource='', texture=no_texture, uv_coordinates=[], text='',
+                   mesh_resource='', mesh_file=no_mesh, mesh_use_embedded_materials=False)]
+        # an ARROW's pose points its x axis; the y and z arrows are x turned onto them
+        turns = (np.eye(3), pin.exp3(np.array([0, 0, np.pi / 2])),
+                 pin.exp3(np.array([0, -np.pi / 2, 0])))
+        rgb = ((1.0, 0.1, 0.1, 1.0), (0.1, 0.9, 0.1, 1.0), (0.2, 0.3, 1.0, 1.0))
+        for name, p, R in targets:
+            for k in range(3):
+                items.append(marker(name, k, M.ARROW, p, R @ turns[k],
+                                    (length, 0.006, 0.006), rgb[k]))
+            items.append(marker(name, 3, M.SPHERE, p, R, (0.02, 0.02, 0.02),
+                                (1.0, 0.85, 0.1, 0.8)))
+        self._write('/spg/markers', t_ns, T[_MARKERS](markers=items))
