@@ -4,6 +4,12 @@ The bag is read back with rosbags (not our reader) and every transform is compar
 pinocchio's FK of the bag's own URDF at the recorded joint positions.
 """
 
+import os
+import signal
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -14,6 +20,7 @@ from ifc_spg.model import RobotModel
 from ifc_spg.model.urdf import urdf_from_robot
 from ifc_spg.offline.bag import info
 from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
+from ifc_spg.ros.testing import loopback_env
 
 
 @pytest.mark.parametrize('name', ['lbr_iiwa14', 'lbr4', 'accrea_dual_arm', 'icub_upper_body'])
@@ -70,8 +77,9 @@ def _pose(tr):
                    np.array([t.x, t.y, t.z]))
 
 
-def test_every_transform_is_pinocchio_fk_of_the_bags_urdf(bag):
-    msgs = _read(bag)
+def _check_transforms(msgs, per_tree):
+    """Every /tf and /tf_static transform is pinocchio's FK of the bag's URDF at the
+    recorded joint state (measured) or command (virtual/) of the same stamp."""
     (_, desc), = msgs['/robot_description']
     model = pin.buildModelFromXML(desc.data)
     data = model.createData()
@@ -93,19 +101,18 @@ def test_every_transform_is_pinocchio_fk_of_the_bags_urdf(bag):
         assert np.linalg.norm(err) < 1e-9, (tf.header.frame_id, tf.child_frame_id)
 
     n_checked = {'': 0, 'virtual/': 0}
-    moving = {j for j in model.names[1:]}
     for _, msg in msgs['/tf']:
         prefix = 'virtual/' if msg.transforms[0].child_frame_id.startswith('virtual/') else ''
         stamp = _stamp(msg.transforms[0].header)
         frames = fk(states[prefix][stamp])  # the joint state of the same stamp
-        assert len(msg.transforms) == len(moving)
+        assert len(msg.transforms) == model.njoints - 1
         for tf in msg.transforms:
             assert _stamp(tf.header) == stamp
             check(tf, frames, prefix)
             n_checked[prefix] += 1
-    assert n_checked[''] == n_checked['virtual/'] >= 7 * 100  # every 10 ms of 1.2 s
+    assert min(n_checked.values()) >= (model.njoints - 1) * per_tree, n_checked
     (_, static), = msgs['/tf_static']
-    frames = fk(states[''][min(states[''])])
+    frames = fk(next(iter(states[''].values())))
     children = set()
     for tf in static.transforms:
         children.add(tf.child_frame_id)
@@ -115,6 +122,51 @@ def test_every_transform_is_pinocchio_fk_of_the_bags_urdf(bag):
             continue
         check(tf, frames, 'virtual/' if tf.header.frame_id.startswith('virtual/') else '')
     assert {'tool', 'flange', 'link0', 'virtual/tool', 'virtual/link0'} <= children
+
+
+def test_every_transform_is_pinocchio_fk_of_the_bags_urdf(bag):
+    _check_transforms(_read(bag), per_tree=120)  # every 10 ms of 1.2 s
+
+
+@pytest.mark.ros
+def test_recorded_bag_gets_tf_of_the_robot_spg_status_names(bag, tmp_path):
+    """A live recording (``bag record``) of a lockstep bag played over DDS: the robot comes
+    from the played spg/status; /tf from the received joint states."""
+    env = loopback_env()
+    dst = tmp_path / 'live'
+    topics = ['/joint_states', '/command/joint_position', '/spg/status']
+    rec = _start(['bag', 'record', '-o', str(dst), *topics], env)
+    try:
+        _wait_line(rec, 'recording')
+        player = _start(['bag', 'play', str(bag), '--rate', '2', '--topics', *topics,
+                         '--wait-for-subscribers', '1'], env)
+        assert player.wait(60) == 0, player.stderr.read()
+        rec.send_signal(signal.SIGINT)
+        assert rec.wait(20) == 0, rec.stderr.read()
+    finally:
+        for p in (rec,):
+            if p.poll() is None:
+                os.kill(p.pid, signal.SIGKILL)
+                p.wait()
+    msgs = _read(dst)
+    assert len(msgs['/joint_states']) == 600
+    _check_transforms(msgs, per_tree=100)
+
+
+def _start(args, env):
+    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_line(proc, word, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if word in line:
+            return line
+        if not line and proc.poll() is not None:
+            break
+    raise AssertionError(f'no "{word}" from {proc.args}: {proc.stderr.read()}')
 
 
 def test_markers_show_the_cartesian_targets(bag):

@@ -1,6 +1,7 @@
 """rosbag2 MCAP bags: write, read, record over DDS, play back, summarise (``ifc-spg bag``).
 
-    ifc-spg bag record -o DIR [TOPIC ...] [--all] [--duration S] [--ros-args ...]
+    ifc-spg bag record -o DIR [TOPIC ...] [--all] [--duration S] [--robot NAME] [--no-tf]
+                       [--ros-args ...]
     ifc-spg bag play DIR [--rate R] [--delay S] [--topics T ...] [--ros-args ...]
     ifc-spg bag info DIR
 
@@ -16,7 +17,10 @@ original reliability and durability (the latched ``spg/task_stack`` stays latche
 resolved in the node's namespace); types of known topics are fixed, other topics are
 discovered on the DDS graph. It writes every message it receives with its receive time and
 closes the bag cleanly on SIGINT/SIGTERM (and after ``--duration`` seconds): messages
-already received are written, then the MCAP index and ``metadata.yaml``.
+already received are written, then the MCAP index and ``metadata.yaml``. It also writes
+``/robot_description``, ``/tf_static`` and ``/tf`` computed from the recorded
+``joint_states`` (and ``command/joint_position`` as the ``virtual/`` tree) of the robot
+``--robot`` or ``spg/config`` names (:mod:`ifc_spg.offline.foxglove`; ``--no-tf``: not).
 """
 
 import argparse
@@ -573,7 +577,22 @@ class RclpyRecorder(_Recording):
         return self._write_and_discover()
 
 
-def record(path, topics=None, discover_all=False, duration=None, args=None, quiet=False):
+class _Observed:
+    """A :class:`BagWriter` that shows every message it writes to ``observer``."""
+
+    def __init__(self, writer, observer):
+        self._writer, self._observer = writer, observer
+
+    def write(self, topic, t_ns, data):
+        self._writer.write(topic, t_ns, data)
+        self._observer(topic, t_ns, data)
+
+    def __getattr__(self, name):
+        return getattr(self._writer, name)
+
+
+def record(path, topics=None, discover_all=False, duration=None, args=None, quiet=False,
+           robot=None, foxglove=True):
     """Record until SIGINT/SIGTERM or ``duration`` [s]; returns {topic: count}.
 
     Args:
@@ -583,16 +602,28 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
         duration: Stop after this many seconds (None: until a signal).
         args: Command line with ``--ros-args`` for the recorder node.
         quiet: Do not print the summary.
+        robot: Robot configuration name for ``/robot_description`` and ``/tf`` (None: the
+            one the SPG's ``spg/config`` or ``spg/status`` names).
+        foxglove: Write ``/robot_description``, ``/tf_static`` and ``/tf`` from the recorded
+            joint states (:class:`~ifc_spg.offline.foxglove.RecordingObserver`).
     """
     stop = _Stop()
+    observer = None
+    if foxglove:
+        from ifc_spg.model import RobotModel
+        from ifc_spg.offline.foxglove import RecordingObserver
+        if robot is not None:
+            RobotModel.from_config(robot)  # a bad --robot fails before the bag is created
+        observer = RecordingObserver
     ros.init(args=['ifc-spg', *(args or [])])
     # after init: rclpy's own SIGINT handler would invalidate the context mid-spin
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     node = ros.Node('bag_recorder')
     writer = BagWriter(path)
     try:
+        sink = writer if observer is None else _Observed(writer, observer(writer, robot))
         rec = (Recorder if ros.BACKEND == 'cyclonedds' else RclpyRecorder)(
-            node, writer, topics, discover_all)
+            node, sink, topics, discover_all)
         print(f'recording {", ".join(sorted(rec.recording)) or "(none)"}'
               f'{" + discovered topics" if discover_all or topics else ""} into {path}; '
               'stop with Ctrl-C', flush=True)
@@ -775,6 +806,11 @@ def main(argv=None):
     r.add_argument('-o', '--output', required=True, help='bag directory to create')
     r.add_argument('-a', '--all', action='store_true', help='also record discovered topics')
     r.add_argument('--duration', type=float, default=None, help='stop after S seconds')
+    r.add_argument('--robot', default=None,
+                   help='robot of /robot_description and /tf (default: the one spg/config '
+                        'or spg/status names)')
+    r.add_argument('--no-tf', action='store_true',
+                   help='no /robot_description, /tf_static, /tf')
     p = sub.add_parser('play', help='publish a bag with its original timing and QoS')
     p.add_argument('bag')
     p.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
@@ -790,7 +826,8 @@ def main(argv=None):
         if opts.cmd == 'info':
             print(info(opts.bag))
         elif opts.cmd == 'record':
-            record(opts.output, opts.topics or None, opts.all, opts.duration, ros_args)
+            record(opts.output, opts.topics or None, opts.all, opts.duration, ros_args,
+                   robot=opts.robot, foxglove=not opts.no_tf)
         else:
             counts = play(opts.bag, opts.rate, opts.delay, opts.topics, ros_args,
                           wait_subscribers=opts.wait_for_subscribers)

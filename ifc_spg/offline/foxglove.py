@@ -19,13 +19,16 @@ has no such message classes: these channels are serialized with ``rosbags`` (its
 typestore), in the bag writer only.
 """
 
+import sys
+
 import numpy as np
 import pinocchio as pin
 
 from ifc_spg.model.urdf import urdf_from_robot
 from ifc_spg.ros.qos import QoSProfile, latched
 
-__all__ = ['VIRTUAL_PREFIX', 'FoxgloveTopics', 'cartesian_targets', 'tf_transforms']
+__all__ = ['VIRTUAL_PREFIX', 'FoxgloveTopics', 'RecordingObserver', 'cartesian_targets',
+           'tf_transforms']
 
 #: Frame prefix of the q_v tree.
 VIRTUAL_PREFIX = 'virtual/'
@@ -89,6 +92,7 @@ class FoxgloveTopics:
         self.tree = urdf_from_robot(robot)
         self.tf_period_ns = int(round(tf_period * 1e9))
         self._last = {}
+        self._static_written = False
         store = get_typestore(Stores.ROS2_JAZZY)
         self._store = store
         self._T = store.types
@@ -132,6 +136,7 @@ class FoxgloveTopics:
     # -- the channels ---------------------------------------------------------------------
     def write_static(self, t_ns):
         """``/robot_description`` and ``/tf_static`` at log time ``t_ns``."""
+        self._static_written = True
         self._write('/robot_description', t_ns, self._T[_STRING](data=self.tree.xml))
         fixed = []
         for prefix in ('', VIRTUAL_PREFIX):
@@ -198,3 +203,91 @@ class FoxgloveTopics:
             items.append(marker(name, 3, M.SPHERE, p, R, (0.02, 0.02, 0.02),
                                 (1.0, 0.85, 0.1, 0.8)))
         self._write('/spg/markers', t_ns, T[_MARKERS](markers=items))
+
+
+class RecordingObserver:
+    """Adds the Foxglove topics to a bag being recorded (``ifc-spg bag record``).
+
+    Called with every message the recorder writes: ``joint_states`` become ``/tf`` of the
+    measured tree, ``command/joint_position`` of the ``virtual/`` tree. The robot is
+    ``robot`` if given, else the one the SPG names in its ``spg/config`` or first
+    ``spg/status`` (``config.robot``); joint states that arrive before that are held (at most
+    ``max_pending``) and written when the robot is known. Markers need the SPG's tasks and
+    are written by offline runs only.
+
+    Args:
+        writer: The :class:`~ifc_spg.offline.bag.BagWriter`.
+        robot: A robot configuration name (``RobotModel.from_config``), or None.
+        tf_period: As :class:`FoxgloveTopics`.
+        max_pending: Joint states held while the robot is unknown.
+    """
+
+    def __init__(self, writer, robot=None, tf_period=0.01, max_pending=10000):
+        self.writer, self.tf_period, self.max_pending = writer, tf_period, max_pending
+        self.topics = None
+        self.failed = None
+        self._pending = []
+        if robot is not None:
+            self._start(robot, None)
+
+    def _start(self, name, t_ns):
+        from ifc_spg.errors import IfcSpgError
+        from ifc_spg.model import RobotModel
+
+        try:
+            self.topics = FoxgloveTopics(self.writer, RobotModel.from_config(name),
+                                         self.tf_period)
+        except IfcSpgError as exc:
+            if t_ns is None:  # --robot given: the caller's error
+                raise
+            self.failed = f'no robot_description and tf: {exc}'
+            print(f'ifc-spg bag record: {self.failed}', file=sys.stderr, flush=True)
+            return
+        self.robot_name = name
+        if t_ns is not None:
+            self.topics.write_static(t_ns)
+
+    def __call__(self, topic, t_ns, data):
+        """Observe one written message (CDR ``data`` on ``topic`` at log time ``t_ns``)."""
+        import json
+
+        from ifc_spg.ros import messages
+
+        if self.failed:
+            return
+        parts = topic.split('/')
+        leaf = '/'.join(parts[-2:])
+        if self.topics is None and leaf in ('spg/config', 'spg/status'):
+            try:
+                doc = json.loads(messages.deserialize(messages.String, data).data)
+                robot = (doc.get('config') or {}).get('robot')
+            except (ValueError, AttributeError, TypeError):
+                robot = None
+            if isinstance(robot, str):
+                self._start(robot, t_ns)
+                for item in self._pending:
+                    self._joint_state(*item)
+                self._pending.clear()
+            return
+        virtual = leaf == 'command/joint_position'
+        if not virtual and parts[-1] != 'joint_states':
+            return
+        item = (t_ns, data, virtual)
+        if self.topics is None:
+            if len(self._pending) < self.max_pending:
+                self._pending.append(item)
+            return
+        self._joint_state(*item)
+
+    def _joint_state(self, t_ns, data, virtual):
+        from ifc_spg.errors import IfcSpgError
+        from ifc_spg.ros import messages
+
+        if self.topics._static_written is False:
+            self.topics.write_static(t_ns)
+        try:
+            js = messages.deserialize(messages.JointState, data)
+        except (IfcSpgError, ValueError):
+            return
+        stamp = js.header.stamp.sec * 1_000_000_000 + js.header.stamp.nanosec
+        self.topics.joint_state(t_ns, stamp, js.name, js.position, virtual)
