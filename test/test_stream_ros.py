@@ -1,6 +1,6 @@
 """A PoseStamped stream over DDS into a running SPG: ``sim_bridge`` (lockstep, free scene) and
 ``spg_node`` as processes, this test streams a circle at 100 Hz of sim time with 10 % of the
-messages dropped and some NaN ones, then stops."""
+messages dropped and some NaN ones, then stops; it also reads ``spg/markers``."""
 
 import time
 
@@ -70,6 +70,10 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
         pub.publish(out)
 
     node.create_subscription(ros_msg.JointState, 'joint_states', on_state, 10000)
+    markers = []
+    if ros_msg.MarkerArray is not None:  # rclpy without visualization_msgs: no markers
+        node.create_subscription(ros_msg.MarkerArray, 'spg/markers',
+                                 lambda m: markers.append((time.monotonic(), m)), 1000)
     procs = ProcessGroup(tmp_path, env)
     try:
         spg = procs.start('spg_node', '--ros-args', '--params-file',
@@ -140,6 +144,25 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
     traj = np.array([q_v[s] for s in stamps])
     assert np.all(traj >= robot.q_min) and np.all(traj <= robot.q_max)
     assert np.all(np.abs(np.diff(traj, axis=0)) <= robot.v_max * 0.002 + 1e-12)
+
+    # spg/markers (default 30 Hz): the tool task's target, on the streamed circle
+    if ros_msg.MarkerArray is None:
+        assert 'spg/markers is off' in procs.log('spg_node')
+        return
+    assert len(markers) > 10
+    wall = markers[-1][0] - markers[0][0]
+    assert len(markers) - 1 <= 30 * wall + 3  # never faster than markers.rate
+    on_circle = []
+    for _, arr in markers:
+        assert arr.markers[0].action == arr.markers[0].DELETEALL
+        spheres = [mk for mk in arr.markers[1:] if mk.type == mk.SPHERE]
+        assert [mk.ns for mk in spheres] == ['tool'] and spheres[0].header.frame_id == 'world'
+        t = stamp_ns(spheres[0]) * 1e-9
+        if T_START + 0.1 < t < T_STOP:
+            p = spheres[0].pose.position
+            d = np.array([p.x, p.y, p.z]) - center
+            on_circle.append(np.hypot(np.hypot(d[0], d[1]) - RADIUS, d[2]))
+    assert len(on_circle) > 5 and max(on_circle) < 1e-6
 
 
 def _circle(p0, t):

@@ -53,6 +53,7 @@ from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.node.config import PARAMETERS, declare_parameters
 from ifc_spg.node.core import SpgRunner, status_json
+from ifc_spg.node.markers import MarkerPublisher
 from ifc_spg.node.stream_subscriptions import StreamSubscriptions
 from ifc_spg.ros import msg
 
@@ -140,6 +141,7 @@ class SpgNode:
         self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
                                                   self.on_task_stack, ros.latched(1))
         self.streams = StreamSubscriptions(node, self.runner)  # streamed task references
+        self.markers = MarkerPublisher(node, self.runner, c.markers_rate, c.markers_frame)
         self._streams_stack = 0
         self._watchdog_timer = self._diag_timer = None
         self._latest, self._last_tick_ns = None, -1   # tick: timer

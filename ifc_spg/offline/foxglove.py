@@ -11,12 +11,11 @@
   (measured q, frames as in the URDF) and at the commanded q_v (``virtual/`` frames), with
   the messages' header stamps, at most every ``tf_period`` [s] of stamp time;
 - ``/spg/markers`` (visualization_msgs/MarkerArray): each Cartesian task's target frame
-  (three arrows x/y/z red/green/blue and a sphere at its origin, namespace = task name) in
-  ``world``, the robot's base frame.
+  (:func:`ifc_spg.node.markers.marker_array`) in ``world``, the robot's base frame.
 
-There is no tf2_msgs or visualization_msgs wheel for rclpy here, and the built-in DDS backend
-has no such message classes: these channels are serialized with ``rosbags`` (its Jazzy
-typestore), in the bag writer only.
+There is no tf2_msgs wheel for rclpy here, and the built-in DDS backend has no tf2_msgs
+classes: ``/tf`` and ``/tf_static`` are serialized with ``rosbags`` (its Jazzy typestore), in
+the bag writer only.
 """
 
 import sys
@@ -109,13 +108,6 @@ class FoxgloveTopics:
         return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
             sec=sec, nanosec=nsec), frame_id=frame)
 
-    def _pose(self, p, R):
-        T = self._T
-        qx, qy, qz, qw = pin.Quaternion(np.asarray(R, float)).coeffs()
-        return T['geometry_msgs/msg/Pose'](
-            position=T['geometry_msgs/msg/Point'](x=float(p[0]), y=float(p[1]), z=float(p[2])),
-            orientation=T['geometry_msgs/msg/Quaternion'](x=qx, y=qy, z=qz, w=qw))
-
     def _tf_message(self, t_ns, transforms):
         T = self._T
         items = []
@@ -166,43 +158,13 @@ class FoxgloveTopics:
         """True if a ``/spg/markers`` message is due at ``stamp_ns`` (then write it)."""
         return self._due('markers', stamp_ns)
 
-    def markers(self, t_ns, stamp_ns, targets, length=0.08):
+    def markers(self, t_ns, stamp_ns, targets):
         """Write ``/spg/markers`` of ``targets`` (:func:`cartesian_targets`)."""
-        T = self._T
-        M = T['visualization_msgs/msg/Marker']
-        color = T['std_msgs/msg/ColorRGBA']
-        vec = T['geometry_msgs/msg/Vector3']
-        zero = T['builtin_interfaces/msg/Duration'](sec=0, nanosec=0)
-        no_texture = T['sensor_msgs/msg/CompressedImage'](
-            header=self._header(0, ''), format='', data=np.zeros(0, np.uint8))
-        no_mesh = T['visualization_msgs/msg/MeshFile'](filename='', data=np.zeros(0, np.uint8))
+        from ifc_spg.node.markers import marker_array
+        from ifc_spg.ros import messages
 
-        def marker(ns, i, kind, p, R, scale, rgba):
-            return M(header=self._header(stamp_ns, self.tree.root), ns=ns, id=i, type=kind,
-                     action=M.ADD, pose=self._pose(p, R), scale=vec(x=scale[0], y=scale[1],
-                                                                    z=scale[2]),
-                     color=color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]), lifetime=zero,
-                     frame_locked=False, points=[], colors=[], texture_resource='',
-                     texture=no_texture, uv_coordinates=[], text='', mesh_resource='',
-                     mesh_file=no_mesh, mesh_use_embedded_materials=False)
-
-        items = [M(header=self._header(stamp_ns, self.tree.root), ns='', id=0, type=M.ARROW,
-                   action=M.DELETEALL, pose=self._pose(np.zeros(3), np.eye(3)),
-                   scale=vec(x=0.0, y=0.0, z=0.0), color=color(r=0.0, g=0.0, b=0.0, a=0.0),
-                   lifetime=zero, frame_locked=False, points=[], colors=[],
-                   texture_resource='', texture=no_texture, uv_coordinates=[], text='',
-                   mesh_resource='', mesh_file=no_mesh, mesh_use_embedded_materials=False)]
-        # an ARROW's pose points its x axis; the y and z arrows are x turned onto them
-        turns = (np.eye(3), pin.exp3(np.array([0, 0, np.pi / 2])),
-                 pin.exp3(np.array([0, -np.pi / 2, 0])))
-        rgb = ((1.0, 0.1, 0.1, 1.0), (0.1, 0.9, 0.1, 1.0), (0.2, 0.3, 1.0, 1.0))
-        for name, p, R in targets:
-            for k in range(3):
-                items.append(marker(name, k, M.ARROW, p, R @ turns[k],
-                                    (length, 0.006, 0.006), rgb[k]))
-            items.append(marker(name, 3, M.SPHERE, p, R, (0.02, 0.02, 0.02),
-                                (1.0, 0.85, 0.1, 0.8)))
-        self._write('/spg/markers', t_ns, T[_MARKERS](markers=items))
+        self.writer.write_msg('/spg/markers', t_ns, marker_array(
+            messages, targets, stamp_ns, self.tree.root))
 
 
 class RecordingObserver:

@@ -1,0 +1,104 @@
+"""``spg/markers``: the Cartesian task targets as visualization_msgs/MarkerArray.
+
+:func:`marker_array` builds the message with the classes of either backend (rclpy's
+generated ones or :mod:`ifc_spg.ros.messages`); the offline bags
+(:mod:`ifc_spg.offline.foxglove`) and ``spg_node`` (:class:`MarkerPublisher`, at most
+``markers.rate`` Hz, 0: off) write the same markers: a DELETEALL, then per Cartesian task
+(namespace = task name) its target frame as three arrows x/y/z (red, green, blue, 8 cm) and
+a yellow sphere at its origin (2 cm), in ``frame`` (the robot's base frame, default
+``world``).
+"""
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = ['MarkerPublisher', 'marker_array']
+
+# an ARROW points along its pose's x axis: the y and z arrows are x turned onto them
+_TURNS = (np.eye(3), pin.exp3(np.array([0.0, 0.0, np.pi / 2])),
+          pin.exp3(np.array([0.0, -np.pi / 2, 0.0])))
+_RGB = ((1.0, 0.1, 0.1, 1.0), (0.1, 0.9, 0.1, 1.0), (0.2, 0.3, 1.0, 1.0))
+_SPHERE_RGBA = (1.0, 0.85, 0.1, 0.8)
+
+
+def _marker(classes, stamp_ns, frame, ns, i, kind, p, R, scale, rgba):
+    mk = classes.Marker()
+    mk.header.stamp.sec, mk.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    mk.header.frame_id = frame
+    mk.ns, mk.id, mk.type = ns, int(i), int(kind)
+    mk.action = int(classes.Marker.ADD)
+    pos, o = mk.pose.position, mk.pose.orientation
+    pos.x, pos.y, pos.z = (float(v) for v in p)
+    o.x, o.y, o.z, o.w = (float(v) for v in pin.Quaternion(np.asarray(R, float)).coeffs())
+    mk.scale.x, mk.scale.y, mk.scale.z = (float(v) for v in scale)
+    mk.color.r, mk.color.g, mk.color.b, mk.color.a = (float(v) for v in rgba)
+    return mk
+
+
+def marker_array(classes, targets, stamp_ns, frame='world', length=0.08):
+    """The MarkerArray of ``targets`` (``[(task name, position, rotation)]``).
+
+    Args:
+        classes: A namespace with ``Marker`` and ``MarkerArray`` (``ifc_spg.ros.msg`` or
+            ``ifc_spg.ros.messages``).
+        targets: :func:`~ifc_spg.offline.foxglove.cartesian_targets`.
+        stamp_ns: Header stamp [ns].
+        frame: Header frame id.
+        length: Arrow length [m].
+    """
+    M = classes.Marker
+    clear = M()
+    clear.header.frame_id = frame
+    clear.action = int(M.DELETEALL)
+    items = [clear]
+    for name, p, R in targets:
+        for k in range(3):
+            items.append(_marker(classes, stamp_ns, frame, name, k, M.ARROW, p, R @ _TURNS[k],
+                                 (length, 0.006, 0.006), _RGB[k]))
+        items.append(_marker(classes, stamp_ns, frame, name, 3, M.SPHERE, p, R,
+                             (0.02, 0.02, 0.02), _SPHERE_RGBA))
+    out = classes.MarkerArray()
+    out.markers = items
+    return out
+
+
+class MarkerPublisher:
+    """``spg_node``'s ``spg/markers`` timer: the running stack's Cartesian targets.
+
+    Args:
+        node: The ``ifc_spg.ros.Node``.
+        runner: The :class:`~ifc_spg.node.core.SpgRunner`.
+        rate: Publish rate [Hz] (0: no publisher, no timer).
+        frame: Frame id of the markers (the robot's base frame in your tf tree).
+    """
+
+    def __init__(self, node, runner, rate, frame='world'):
+        from ifc_spg import ros
+        from ifc_spg.ros import msg
+
+        self.node, self.runner, self.frame = node, runner, frame
+        self.pub = self.timer = None
+        self.published = 0
+        if rate <= 0:
+            return
+        if msg.MarkerArray is None:
+            node.get_logger().warning(
+                'spg/markers is off: rclpy has no visualization_msgs here (install '
+                'ros-jazzy-visualization-msgs, requirements.txt); markers.rate:=0 silences this')
+            return
+        self._msg = msg
+        self.pub = node.create_publisher(msg.MarkerArray, 'spg/markers', ros.QoSProfile(depth=1))
+        self.timer = node.create_timer(1.0 / rate, self.publish)
+
+    def publish(self):
+        """Publish the targets of the last tick (nothing before the first tick)."""
+        from ifc_spg.offline.foxglove import cartesian_targets
+
+        spg = self.runner.spg
+        if spg.q_v is None or not spg.tasks:
+            return
+        t = spg.info.task_time if spg.info.task_time is not None else 0.0
+        targets = cartesian_targets(spg.tasks, spg.kin, t)
+        stamp = self.runner._last_stamp or 0
+        self.pub.publish(marker_array(self._msg, targets, stamp, self.frame))
+        self.published += 1
