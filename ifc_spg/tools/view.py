@@ -1,0 +1,326 @@
+"""``ifc-spg view BAG``: a browser cockpit of a recorded run (viser).
+
+    ifc-spg view out/run/bag [--port 8080] [--host 127.0.0.1]
+
+Serves a 3D view on ``http://HOST:PORT`` (loopback by default; ``--host 0.0.0.0`` to expose)
+and prints the URL: the robot at the measured q (solid) and at q_v (a translucent blue
+ghost), the Cartesian task targets of ``/spg/markers`` (axes), a floor grid, and a timeline
+slider with play/pause over the bag's joint states. The robot is the bag's
+``/robot_description`` (URDF; else generated from the robot its SPG configuration names),
+drawn with its primitive shapes, placed by pinocchio's FK of that URDF.
+
+viser (pinned in requirements.txt) ships its built web client inside the wheel, so the page
+works without internet. Chosen over rerun: viser is a Python scene graph with GUI controls
+(sliders, buttons) and transform gizmos served by the same process, which a cockpit that
+also steers needs; rerun is a logging viewer with its own binary and data model.
+"""
+
+import argparse
+import sys
+import threading
+import time
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.errors import IfcSpgError, ParameterError
+
+__all__ = ['Cockpit', 'ViewData', 'load_bag', 'main']
+
+_SOLID = (200, 200, 205)
+_GHOST = (60, 120, 255)
+
+
+class ViewData:
+    """What the cockpit shows of a bag (:func:`load_bag`).
+
+    Attributes:
+        urdf: The URDF text.
+        joint_names: Joint names (the order of ``q`` and ``q_v`` columns).
+        t: Joint-state stamps [s], shape (N,).
+        q: Measured joint positions, shape (N, n).
+        q_v: Commanded q_v at the same stamps (NaN rows where no command has that stamp).
+        targets: ``[(stamp [s], [(task name, position (3,), wxyz (4,))])]`` from
+            ``/spg/markers``.
+    """
+
+    def __init__(self, urdf, joint_names, t, q, q_v, targets):
+        self.urdf, self.joint_names = urdf, list(joint_names)
+        self.t, self.q, self.q_v, self.targets = t, q, q_v, targets
+
+
+def _stamp(msg):
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def _markers(data):
+    """``(stamp [s], [(task, position, wxyz)])`` of a recorded ``spg/markers`` message."""
+    from ifc_spg.ros import messages
+
+    arr = messages.deserialize(messages.MarkerArray, data)
+    spheres = [m for m in arr.markers if m.type == messages.Marker.SPHERE]
+    if not spheres:
+        return None
+    return (_stamp(spheres[0]), [
+        (m.ns, np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z]),
+         np.array([m.pose.orientation.w, m.pose.orientation.x, m.pose.orientation.y,
+                   m.pose.orientation.z])) for m in spheres])
+
+
+def _read(path):
+    """The bag's joint states and commands by stamp, markers, URDF and robot name."""
+    import json
+
+    from ifc_spg.offline.bag import BagReader
+    from ifc_spg.ros import messages
+
+    states, commands, targets = {}, {}, []
+    urdf = robot = None
+    with BagReader(path) as bag:
+        topics = {t.lstrip('/'): t for t in bag.topics}
+        if 'joint_states' not in topics:
+            raise ParameterError(f"bag '{path}' has no joint_states; topics: "
+                                 f"{', '.join(sorted(bag.topics)) or 'none'}")
+        wanted = {topics[k] for k in ('joint_states', 'command/joint_position',
+                                      'robot_description', 'spg/markers', 'spg/status',
+                                      'spg/config') if k in topics}
+        for topic, _, _, data in bag.raw(wanted):
+            name = topic.lstrip('/')
+            if name == 'robot_description':
+                urdf = messages.deserialize(messages.String, data).data
+            elif name in ('spg/status', 'spg/config') and robot is None:
+                try:
+                    doc = json.loads(messages.deserialize(messages.String, data).data)
+                    robot = (doc.get('config') or {}).get('robot')
+                except (ValueError, AttributeError):
+                    pass
+            elif name == 'spg/markers':
+                item = _markers(data)
+                if item is not None:
+                    targets.append(item)
+            elif name in ('joint_states', 'command/joint_position'):
+                js = messages.deserialize(messages.JointState, data)
+                (states if name == 'joint_states' else commands)[_stamp(js)] = js
+    return states, commands, targets, urdf, robot
+
+
+def load_bag(path):
+    """Read a bag written by ``ifc-spg run`` or ``ifc-spg bag record`` into :class:`ViewData`.
+
+    Raises:
+        ParameterError: Not a bag, no joint states, or no way to know the robot.
+    """
+    states, commands, targets, urdf, robot = _read(path)
+    if not states:
+        raise ParameterError(f"bag '{path}': no joint states recorded")
+    if urdf is None:
+        if robot is None:
+            raise ParameterError(f"bag '{path}' has neither /robot_description nor the SPG "
+                                 'configuration (spg/status, spg/config) naming the robot')
+        from ifc_spg.model import RobotModel
+        from ifc_spg.model.urdf import urdf_from_robot
+        urdf = urdf_from_robot(RobotModel.from_config(robot)).xml
+    stamps = sorted(states)
+    names = list(states[stamps[0]].name)
+
+    def row(js):
+        index = {n: i for i, n in enumerate(js.name)}
+        return [float(js.position[index[n]]) if n in index else np.nan for n in names]
+
+    q = np.array([row(states[s]) for s in stamps])
+    q_v = np.array([row(commands[s]) if s in commands else [np.nan] * len(names)
+                    for s in stamps])
+    targets.sort(key=lambda x: x[0])
+    return ViewData(urdf, names, np.array(stamps), q, q_v, targets)
+
+
+def _visuals(urdf):
+    """``{link: [(kind, size, SE3 in the link, rgb)]}`` of the URDF's visual elements."""
+    out = {}
+    for link in ET.fromstring(urdf).iter('link'):
+        items = []
+        for vis in link.iter('visual'):
+            origin = vis.find('origin')
+            xyz = [float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None
+                                      else '0 0 0').split()]
+            rpy = [float(v) for v in (origin.get('rpy', '0 0 0') if origin is not None
+                                      else '0 0 0').split()]
+            M = pin.SE3(pin.rpy.rpyToMatrix(np.array(rpy)), np.array(xyz))
+            color = vis.find('material/color')
+            rgba = [float(v) for v in color.get('rgba').split()] if color is not None \
+                else [0.8, 0.8, 0.8, 1.0]
+            rgb = tuple(int(255 * min(max(c, 0.0), 1.0)) for c in rgba[:3])
+            geom = vis.find('geometry')
+            for kind in ('box', 'sphere', 'cylinder'):
+                g = geom.find(kind) if geom is not None else None
+                if g is None:
+                    continue
+                if kind == 'box':
+                    size = tuple(float(v) for v in g.get('size').split())
+                elif kind == 'sphere':
+                    size = (float(g.get('radius')),)
+                else:
+                    size = (float(g.get('radius')), float(g.get('length')))
+                items.append((kind, size, M, rgb))
+        if items:
+            out[link.get('name')] = items
+    return out
+
+
+def _wxyz(R):
+    x, y, z, w = pin.Quaternion(np.asarray(R, float)).coeffs()
+    return np.array([w, x, y, z])
+
+
+class Cockpit:
+    """The viser server and scene of one bag.
+
+    Args:
+        data: :class:`ViewData`.
+        host: Interface to serve on (default loopback).
+        port: TCP port.
+
+    Attributes:
+        server: The ``viser.ViserServer``.
+        url: ``http://host:port``.
+        links: Link names drawn (each a scene node ``/robot/<link>`` and ``/virtual/<link>``).
+    """
+
+    def __init__(self, data, host='127.0.0.1', port=8080):
+        import viser
+
+        self.data = data
+        self.model = pin.buildModelFromXML(data.urdf)
+        self.pin_data = self.model.createData()
+        self._idx = [self.model.joints[self.model.getJointId(n)].idx_q
+                     if self.model.existJointName(n) else None for n in data.joint_names]
+        visuals = _visuals(data.urdf)
+        self.links = [link for link in visuals if self.model.existFrame(link)]
+        self._frame_ids = [self.model.getFrameId(link) for link in self.links]
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.url = f'http://{host}:{self.server.get_port()}'
+        scene = self.server.scene
+        scene.add_grid('/floor', width=2.0, height=2.0, cell_size=0.1, section_size=0.5)
+        cam = self.server.initial_camera  # looking at the robot from the front right
+        cam.position, cam.look_at, cam.up = (1.6, -1.3, 1.2), (0.3, 0.0, 0.45), (0.0, 0.0, 1.0)
+        self.handles = {'robot': [], 'virtual': []}
+        for tree, opacity, tint in (('robot', None, None), ('virtual', 0.35, _GHOST)):
+            for link in self.links:
+                frame = scene.add_frame(f'/{tree}/{link}', show_axes=False)
+                self.handles[tree].append(frame)
+                for i, (kind, size, M, rgb) in enumerate(visuals[link]):
+                    kw = {'color': tint or rgb, 'opacity': opacity, 'position': M.translation,
+                          'wxyz': _wxyz(M.rotation)}
+                    name = f'/{tree}/{link}/v{i}'
+                    if kind == 'box':
+                        scene.add_box(name, dimensions=size, **kw)
+                    elif kind == 'sphere':
+                        scene.add_icosphere(name, radius=size[0], **kw)
+                    else:
+                        scene.add_cylinder(name, radius=size[0], height=size[1], **kw)
+        self.target_handles = {}
+        gui = self.server.gui
+        n = len(data.t)
+        self.slider = gui.add_slider('joint state', min=0, max=max(n - 1, 1), step=1,
+                                     initial_value=0)
+        self.playing = gui.add_checkbox('play', initial_value=False)
+        self.speed = gui.add_slider('speed', min=0.1, max=4.0, step=0.1, initial_value=1.0)
+        self.label = gui.add_markdown('')
+        self.slider.on_update(lambda _: self.show(int(self.slider.value)))
+        self.index = None
+        self.show(0)
+        self._stop = threading.Event()
+        self._player = threading.Thread(target=self._play, daemon=True)
+        self._player.start()
+
+    def _poses(self, q):
+        qq = pin.neutral(self.model)
+        for k, i in enumerate(self._idx):
+            if i is not None and np.isfinite(q[k]):
+                qq[i] = q[k]
+        pin.framesForwardKinematics(self.model, self.pin_data, qq)
+        return [self.pin_data.oMf[f] for f in self._frame_ids]
+
+    def show(self, i):
+        """Draw sample ``i``: the robot at q, the ghost at q_v, the targets then."""
+        data = self.data
+        i = int(np.clip(i, 0, len(data.t) - 1))
+        self.index = i
+        with self.server.atomic():
+            for tree, q in (('robot', data.q[i]), ('virtual', data.q_v[i])):
+                visible = bool(np.all(np.isfinite(q)))
+                for handle, M in zip(self.handles[tree], self._poses(q if visible else
+                                                                      data.q[i])):
+                    handle.position = M.translation
+                    handle.wxyz = _wxyz(M.rotation)
+                    handle.visible = visible or tree == 'robot'
+            self._show_targets(data.t[i])
+        self.label.content = (f'**t = {data.t[i] - data.t[0]:.3f} s** ({i + 1}/{len(data.t)}); '
+                              'solid: measured q, blue: q_v, axes: task targets')
+
+    def _show_targets(self, t):
+        current = []
+        for stamp, items in self.data.targets:
+            if stamp > t + 1e-9:
+                break
+            current = items
+        seen = set()
+        for name, p, wxyz in current:
+            seen.add(name)
+            handle = self.target_handles.get(name)
+            if handle is None:
+                handle = self.target_handles[name] = self.server.scene.add_frame(
+                    f'/targets/{name}', axes_length=0.08, axes_radius=0.004)
+            handle.position, handle.wxyz, handle.visible = p, wxyz, True
+        for name, handle in self.target_handles.items():
+            if name not in seen:
+                handle.visible = False
+
+    def _play(self):
+        last = time.monotonic()
+        while not self._stop.wait(1 / 30):  # at most 30 frames a second
+            now = time.monotonic()
+            if self.playing.value and len(self.data.t) > 1:
+                t = self.data.t[self.index] + (now - last) * float(self.speed.value)
+                i = int(np.searchsorted(self.data.t, t))
+                if i >= len(self.data.t):
+                    i = 0
+                self.slider.value = max(i, self.index + 1) % len(self.data.t)
+            last = now
+
+    def close(self):
+        """Stop playing and the server."""
+        self._stop.set()
+        self.server.stop()
+
+
+def main(argv=None):
+    """``ifc-spg view BAG``."""
+    parser = argparse.ArgumentParser(prog='ifc-spg view', description=__doc__.split('\n')[0])
+    parser.add_argument('bag', help='bag directory (ifc-spg run / bag record)')
+    parser.add_argument('--host', default='127.0.0.1',
+                        help='interface to serve on (default loopback; 0.0.0.0 exposes it)')
+    parser.add_argument('--port', type=int, default=8080, help='TCP port (default 8080)')
+    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        cockpit = Cockpit(load_bag(opts.bag), opts.host, opts.port)
+    except IfcSpgError as exc:
+        print(f'ifc-spg view: {exc}', file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f'ifc-spg view: cannot serve on {opts.host}:{opts.port}: {exc}', file=sys.stderr)
+        return 2
+    print(f'ifc-spg view: {cockpit.url} (Ctrl-C to stop)', flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        cockpit.close()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
