@@ -12,13 +12,40 @@ a yellow sphere at its origin (2 cm), in ``frame`` (the robot's base frame, defa
 import numpy as np
 import pinocchio as pin
 
-__all__ = ['MarkerPublisher', 'marker_array']
+__all__ = ['MarkerPublisher', 'cartesian_targets', 'marker_array']
 
 # an ARROW points along its pose's x axis: the y and z arrows are x turned onto them
 _TURNS = (np.eye(3), pin.exp3(np.array([0.0, 0.0, np.pi / 2])),
           pin.exp3(np.array([0.0, -np.pi / 2, 0.0])))
 _RGB = ((1.0, 0.1, 0.1, 1.0), (0.1, 0.9, 0.1, 1.0), (0.2, 0.3, 1.0, 1.0))
 _SPHERE_RGBA = (1.0, 0.85, 0.1, 0.8)
+
+
+def cartesian_targets(tasks, kin, t):
+    """``[(task name, position (3,), rotation (3, 3))]``: each Cartesian task's target frame.
+
+    The target is the pose whose task value is the task value at q_v clipped into the bounds
+    (the nearest point of the band; the target itself for an equality task); directions
+    outside the task's subspace keep the virtual pose's.
+
+    Args:
+        tasks: The SPG's tasks (inactive ones are skipped).
+        kin: :class:`~ifc_spg.kinematics.Kinematics` updated at (q, qdot, q_v).
+        t: Task time [s].
+    """
+    out = []
+    for task in tasks:
+        if task.kind != 'cartesian_pose' or not task.active:
+            continue
+        lower, upper = task.bounds_at(t)
+        p, R, _ = kin.frame(task.frame_id, virtual=True)
+        value = np.asarray(task.compute_value(kin), dtype=float)
+        goal = np.clip(value, lower, upper)
+        R_ref = task.reference_orientation(R)
+        x = np.concatenate((p - task._p_ref, pin.log3(R @ R_ref.T)))
+        x = x + task._S_base(R) @ (goal - value)
+        out.append((task.name, task._p_ref + x[:3], pin.exp3(x[3:]) @ R_ref))
+    return out
 
 
 def _marker(classes, stamp_ns, frame, ns, i, kind, p, R, scale, rgba):
@@ -41,7 +68,7 @@ def marker_array(classes, targets, stamp_ns, frame='world', length=0.08):
     Args:
         classes: A namespace with ``Marker`` and ``MarkerArray`` (``ifc_spg.ros.msg`` or
             ``ifc_spg.ros.messages``).
-        targets: :func:`~ifc_spg.offline.foxglove.cartesian_targets`.
+        targets: :func:`cartesian_targets`.
         stamp_ns: Header stamp [ns].
         frame: Header frame id.
         length: Arrow length [m].
@@ -92,8 +119,6 @@ class MarkerPublisher:
 
     def publish(self):
         """Publish the targets of the last tick (nothing before the first tick)."""
-        from ifc_spg.offline.foxglove import cartesian_targets
-
         spg = self.runner.spg
         if spg.q_v is None or not spg.tasks:
             return

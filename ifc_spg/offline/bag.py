@@ -332,7 +332,15 @@ class BagReader:
             yield c.topic, c.msgtype, t, data
 
     def messages(self, topics=None):
-        """Yield ``(topic, log time [ns], message)`` decoded with the built-in classes."""
+        """Yield ``(topic, log time [ns], message)`` decoded with the built-in classes.
+
+        With ``topics`` None: every topic with a built-in class (``/tf`` and ``/tf_static``,
+        tf2_msgs, have none: read them with :meth:`raw` and rosbags); a topic asked for by
+        name without one is an error.
+        """
+        if topics is None:
+            topics = {t for t, (msgtype, _, _) in self.topics.items()
+                      if msgtype in messages.REGISTRY}
         for topic, msgtype, t, data in self.raw(topics):
             cls = messages.REGISTRY.get(msgtype)
             if cls is None:

@@ -20,10 +20,10 @@ the bag writer only.
 
 import sys
 
-import numpy as np
 import pinocchio as pin
 
 from ifc_spg.model.urdf import urdf_from_robot
+from ifc_spg.node.markers import cartesian_targets, marker_array
 from ifc_spg.ros.qos import QoSProfile, latched
 
 __all__ = ['VIRTUAL_PREFIX', 'FoxgloveTopics', 'RecordingObserver', 'cartesian_targets',
@@ -46,33 +46,6 @@ def tf_transforms(tree, q_by_name, prefix=''):
     """
     return [(prefix + j.parent, prefix + j.child, j.transform(q_by_name.get(j.name, 0.0)))
             for j in tree.moving]
-
-
-def cartesian_targets(tasks, kin, t):
-    """``[(task name, position (3,), rotation (3, 3))]``: each Cartesian task's target frame.
-
-    The target is the pose whose task value is the task value at q_v clipped into the bounds
-    (the nearest point of the band; the target itself for an equality task); directions
-    outside the task's subspace keep the virtual pose's.
-
-    Args:
-        tasks: The SPG's tasks (inactive ones are skipped).
-        kin: :class:`~ifc_spg.kinematics.Kinematics` updated at (q, qdot, q_v).
-        t: Task time [s].
-    """
-    out = []
-    for task in tasks:
-        if task.kind != 'cartesian_pose' or not task.active:
-            continue
-        lower, upper = task.bounds_at(t)
-        p, R, _ = kin.frame(task.frame_id, virtual=True)
-        value = np.asarray(task.compute_value(kin), dtype=float)
-        goal = np.clip(value, lower, upper)
-        R_ref = task.reference_orientation(R)
-        x = np.concatenate((p - task._p_ref, pin.log3(R @ R_ref.T)))
-        x = x + task._S_base(R) @ (goal - value)
-        out.append((task.name, task._p_ref + x[:3], pin.exp3(x[3:]) @ R_ref))
-    return out
 
 
 class FoxgloveTopics:
@@ -160,7 +133,6 @@ class FoxgloveTopics:
 
     def markers(self, t_ns, stamp_ns, targets):
         """Write ``/spg/markers`` of ``targets`` (:func:`cartesian_targets`)."""
-        from ifc_spg.node.markers import marker_array
         from ifc_spg.ros import messages
 
         self.writer.write_msg('/spg/markers', t_ns, marker_array(
