@@ -110,7 +110,7 @@ def test_spg_follows_a_lossy_100_hz_pose_stream_and_holds_when_it_stops():
 
     sent = dropped = nans = wrong = 0
     errors, last = [], None
-    while loop.t < t_start + 6.0:
+    while loop.t < t_start + 3.5:
         if loop.k % 5 == 0:  # 100 Hz
             sent += 1
             r = rng.random()
@@ -152,10 +152,10 @@ def test_spg_follows_a_lossy_100_hz_pose_stream_and_holds_when_it_stops():
     (stream,) = status['streams']
     assert stream['rejected'] == {'nonfinite': nans, 'frame': wrong, 'joints': 0}
     assert stream['received'] == sent - dropped and stream['state'] == 'live'
-    assert nans > 5 and wrong > 3 and dropped > 30
+    assert nans > 3 and wrong > 2 and dropped > 15
     # the stream stops: after stale_after (0.2 s) it is reported stale, the target holds
     t_stop = loop.t
-    while loop.t < t_stop + 3.0:
+    while loop.t < t_stop + 1.5:
         loop.tick()
     status = loop.runner.status()
     (stream,) = status['streams']
@@ -180,7 +180,7 @@ def test_a_jump_in_the_stream_is_bounded_by_the_limits():
     loop.tick()
     p0, R0 = loop.fk(loop.q_v[-1])
     loop.runner.handle_reference('spg/reference/tool', _pose_msg(p0 + [0.0, 0.4, -0.1], R0))
-    for _ in range(1500):
+    for _ in range(1000):
         loop.tick()
     q_v = np.array(loop.q_v)
     robot = loop.robot

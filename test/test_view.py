@@ -73,7 +73,7 @@ def _screenshot(url, path):
     subprocess.run([CHROMIUM, '--headless=new', '--no-sandbox', '--disable-gpu',
                     '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
                     '--window-size=800,600', '--hide-scrollbars',
-                    '--virtual-time-budget=20000', f'--screenshot={path}', url],
+                    '--virtual-time-budget=3000', f'--screenshot={path}', url],
                    check=True, timeout=120, capture_output=True)
     from PIL import Image
 
