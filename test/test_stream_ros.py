@@ -2,15 +2,17 @@
 ``spg_node`` as processes, this test streams a circle at 100 Hz of sim time with 10 % of the
 messages dropped and some NaN ones, then stops; it also reads ``spg/markers``."""
 
+import signal
 import time
 
-from helpers import CONFIG, record_spg_topics, use_loopback
+from helpers import CONFIG, record_spg_topics, start_recorder, use_loopback
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
+from ifc_spg.offline.bag import BagReader
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
@@ -25,6 +27,7 @@ STACK = CONFIG / 'examples' / 'teleop_pose_stream.yaml'  # the README's example 
 def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch):
     env = use_loopback(monkeypatch)
     stack = STACK
+    bag = tmp_path / 'bag'
     robot = RobotModel.from_config('lbr_iiwa14')
     data, tool = robot.create_data(), robot.frame_id('tool')
 
@@ -79,9 +82,12 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'), '-p', 'status.decimation:=50',
                           '-p', f'task_stack_file:={stack}')
+        # the recorder (default topics) records the streamed reference too
+        start_recorder(procs, bag)
         assert ros.spin_until(lambda: node.count_publishers('spg/status') >= 1 and
-                              node.count_subscribers('spg/reference/tool') >= 1 or
-                              spg.poll() is not None, 60.0, nodes=node), procs.log('spg_node')
+                              node.count_subscribers('spg/reference/tool') >= 2 or
+                              spg.poll() is not None, 60.0, nodes=node), \
+            procs.log('spg_node') + procs.log('recorder')
         bridge = procs.start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
                              'scene:=free', '-p', 'mode:=lockstep', '-p',
                              f'duration:={SIM_SECONDS}', '-p', 'wait_for_subscribers:=2')
@@ -94,10 +100,16 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
                        nodes=node)
         # a last status after the stream stopped (the node publishes every 50 ticks)
         ros.spin_until(lambda: False, 0.5, nodes=node)
+        assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
     finally:
         procs.close()
         ros.shutdown()
     assert "following 'spg/reference/tool'" in procs.log('spg_node')
+    with BagReader(bag) as reader:
+        recorded = {t: c for t, (_, c, _) in reader.topics.items()}
+    published = sent['n'] - sent['dropped']
+    assert published >= recorded.get('/spg/reference/tool', 0) >= 0.95 * published, recorded
+    assert recorded.get('/tf', 0) > 100, recorded  # the robot named by spg/config
     q_v = {stamp_ns(c): np.array(c.position) for c in commands}
     q = {stamp_ns(s): np.array(s.position) for s in states}
     stamps = sorted(set(q_v) & set(q))

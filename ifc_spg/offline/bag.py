@@ -14,8 +14,9 @@ its publishers' offered QoS profiles in the metadata, so ``play`` republishes wi
 original reliability and durability (the latched ``spg/task_stack`` stays latched).
 
 ``record`` with no topics records the topics of ARCHITECTURE.md "Topics" (relative names,
-resolved in the node's namespace); types of known topics are fixed, other topics are
-discovered on the DDS graph. It writes every message it receives with its receive time and
+resolved in the node's namespace) and every streamed task reference under
+``spg/reference/``; types of known topics are fixed, other topics are discovered on the DDS
+graph. It writes every message it receives with its receive time and
 closes the bag cleanly on SIGINT/SIGTERM (and after ``--duration`` seconds): messages
 already received are written, then the MCAP index and ``metadata.yaml``. It also writes
 ``/robot_description``, ``/tf_static`` and ``/tf`` computed from the recorded
@@ -409,6 +410,14 @@ class _Recording:
         """The topics subscribed to."""
         return [t for t, s in self._subs.items() if s is not None]
 
+    _references = None  # '<ns>/spg/reference/' when recording the default topics
+
+    def _wants(self, topic):
+        """Record a discovered ``topic``: asked for, a streamed task reference, or --all."""
+        return topic in self._wanted or bool(
+            self._references and topic.startswith(self._references)) or (
+            self.discover_all and topic not in ('/rosout', '/parameter_events'))
+
     def _write_and_discover(self):
         n = self.drain()
         now = time.monotonic()
@@ -440,6 +449,8 @@ class Recorder(_Recording):
         self._wanted = {}
         self._waitset = WaitSet(node.context.participant)
         self._waitset.attach(node.context.guard)
+        if topics is None:
+            self._references = _absolute(node, 'spg/reference').rstrip('/') + '/'
         for topic in (TOPICS if topics is None else topics):
             name = _absolute(node, topic)
             known = TOPICS.get(topic) or TOPICS.get(name.lstrip('/'))
@@ -471,8 +482,7 @@ class Recorder(_Recording):
         for topic, msgtype, qos in _discovered(self.node.context.participant, self._pubs):
             if topic in self._subs:
                 continue
-            if topic in self._wanted or (self.discover_all and topic not in (
-                    '/rosout', '/parameter_events')):
+            if self._wants(topic):
                 self._subscribe(topic, msgtype, qos)
 
     def drain(self):
@@ -530,6 +540,8 @@ class RclpyRecorder(_Recording):
         self.node, self.writer, self.discover_all = node, writer, discover_all
         self._executor = ros.executor((node,))
         self._subs, self._wanted, self._pending = {}, set(), []
+        if topics is None:
+            self._references = _absolute(node, 'spg/reference').rstrip('/') + '/'
         for topic in (TOPICS if topics is None else topics):
             name = _absolute(node, topic)
             known = TOPICS.get(topic) or TOPICS.get(name.lstrip('/'))
@@ -560,8 +572,7 @@ class RclpyRecorder(_Recording):
         for topic, types in self.node.get_topic_names_and_types():
             if topic in self._subs or not types:
                 continue
-            if topic in self._wanted or (self.discover_all and topic not in (
-                    '/rosout', '/parameter_events')):
+            if self._wants(topic):
                 infos = self.node.get_publishers_info_by_topic(topic)
                 qos = _from_rclpy_qos(infos[0].qos_profile) if infos else QoSProfile(depth=10)
                 self._subscribe(topic, types[0], qos)
