@@ -91,3 +91,56 @@ def test_a_real_browser_draws_the_robot_and_it_moves(cockpit, tmp_path):
         assert img.std() > 10, img.std()
     diff = np.abs(robots[0] - robots[1]).max(axis=2)
     assert (diff > 30).mean() > 0.001  # the robot moved between the two times
+
+
+@pytest.mark.dds
+@pytest.mark.ros
+def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, monkeypatch):
+    """``ifc-spg view --live``: spg_node (the README's streamed stack) and a lockstep bridge
+    run as processes; a drag of the tool task's gizmo (through the viewer's Python API)
+    publishes the target and the simulated robot's tool reaches it."""
+    import time
+
+    from helpers import CONFIG, use_loopback
+
+    from ifc_spg.ros.testing import ProcessGroup
+    from ifc_spg.tools.view import LiveCockpit
+
+    env = use_loopback(monkeypatch)
+    robot = RobotModel.from_config('lbr_iiwa14')
+    data, tool = robot.create_data(), robot.frame_id('tool')
+    procs = ProcessGroup(tmp_path, env)
+    cockpit = None
+    try:
+        procs.start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
+                    '-p', f"task_stack_file:={CONFIG / 'examples' / 'teleop_pose_stream.yaml'}")
+        cockpit = LiveCockpit('lbr_iiwa14', port=_free_port())
+        bridge = procs.start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
+                             'scene:=free', '-p', 'mode:=lockstep', '-p', 'duration:=8.0',
+                             '-p', 'wait_for_subscribers:=2')
+
+        def wait(condition, timeout):
+            deadline = time.monotonic() + timeout
+            while not condition() and time.monotonic() < deadline:
+                time.sleep(0.05)
+            return condition()
+
+        assert wait(lambda: 'tool' in cockpit.gizmos and cockpit.q is not None, 90.0), \
+            procs.log('spg_node') + procs.log('sim_bridge')
+        pin.framesForwardKinematics(robot.model, data, cockpit.q)
+        start = data.oMf[tool].translation.copy()
+        goal = start + [0.0, 0.08, -0.05]
+        cockpit.move_target('tool', goal)  # as a drag of the gizmo in the page
+        wait(lambda: bridge.poll() is not None, 120.0)
+        pin.framesForwardKinematics(robot.model, data, cockpit.q)
+        end = data.oMf[tool].translation
+        # the ghost (q_v) and the drawn robot follow the topics
+        np.testing.assert_allclose(cockpit.handles['robot'][cockpit.links.index('link7')]
+                                   .position, data.oMf[robot.model.getFrameId('link7')]
+                                   .translation, atol=1e-6)
+    finally:
+        if cockpit is not None:
+            cockpit.close()
+        procs.close()
+    assert np.linalg.norm(end - goal) < 0.005, (start, goal, end)
+    assert bridge.returncode == 0

@@ -1,6 +1,7 @@
 """``ifc-spg view BAG``: a browser cockpit of a recorded run (viser).
 
     ifc-spg view out/run/bag [--port 8080] [--host 127.0.0.1]
+    ifc-spg view --live lbr_iiwa14 [--port 8080]      (a running SPG, from its topics)
 
 Serves a 3D view on ``http://HOST:PORT`` (loopback by default; ``--host 0.0.0.0`` to expose)
 and prints the URL: the robot at the measured q (solid) and at q_v (a translucent blue
@@ -26,7 +27,7 @@ import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 
-__all__ = ['Cockpit', 'ViewData', 'load_bag', 'main']
+__all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'main']
 
 _SOLID = (200, 200, 205)
 _GHOST = (60, 120, 255)
@@ -173,29 +174,23 @@ def _wxyz(R):
     return np.array([w, x, y, z])
 
 
-class Cockpit:
-    """The viser server and scene of one bag.
+class _Scene:
+    """The viser server, the robot at q (solid) and q_v (ghost), targets and a floor.
 
     Args:
-        data: :class:`ViewData`.
-        host: Interface to serve on (default loopback).
-        port: TCP port.
-
-    Attributes:
-        server: The ``viser.ViserServer``.
-        url: ``http://host:port``.
-        links: Link names drawn (each a scene node ``/robot/<link>`` and ``/virtual/<link>``).
+        urdf: URDF text of the robot.
+        joint_names: The order of the q vectors given to :meth:`draw`.
+        host, port: Where to serve.
     """
 
-    def __init__(self, data, host='127.0.0.1', port=8080):
+    def __init__(self, urdf, joint_names, host, port):
         import viser
 
-        self.data = data
-        self.model = pin.buildModelFromXML(data.urdf)
+        self.model = pin.buildModelFromXML(urdf)
         self.pin_data = self.model.createData()
         self._idx = [self.model.joints[self.model.getJointId(n)].idx_q
-                     if self.model.existJointName(n) else None for n in data.joint_names]
-        visuals = _visuals(data.urdf)
+                     if self.model.existJointName(n) else None for n in joint_names]
+        visuals = _visuals(urdf)
         self.links = [link for link in visuals if self.model.existFrame(link)]
         self._frame_ids = [self.model.getFrameId(link) for link in self.links]
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
@@ -220,6 +215,68 @@ class Cockpit:
                     else:
                         scene.add_cylinder(name, radius=size[0], height=size[1], **kw)
         self.target_handles = {}
+        self._stop = threading.Event()
+
+    def fk(self, q):
+        """Run pinocchio's FK of the URDF at ``q`` (joint_names order; NaN: neutral)."""
+        qq = pin.neutral(self.model)
+        for k, i in enumerate(self._idx):
+            if i is not None and np.isfinite(q[k]):
+                qq[i] = q[k]
+        pin.framesForwardKinematics(self.model, self.pin_data, qq)
+        return self.pin_data
+
+    def draw(self, q, q_v):
+        """Place the robot at ``q`` and the ghost at ``q_v`` (hidden if not finite)."""
+        for tree, x in (('robot', q), ('virtual', q_v)):
+            visible = x is not None and bool(np.all(np.isfinite(x)))
+            if not visible:
+                for handle in self.handles[tree]:
+                    handle.visible = tree == 'robot'
+                continue
+            data = self.fk(x)
+            for handle, f in zip(self.handles[tree], self._frame_ids):
+                M = data.oMf[f]
+                handle.position, handle.wxyz, handle.visible = M.translation, \
+                    _wxyz(M.rotation), True
+
+    def draw_targets(self, items):
+        """Show ``[(task, position, wxyz)]`` as axes; hide the others."""
+        seen = set()
+        for name, p, wxyz in items:
+            seen.add(name)
+            handle = self.target_handles.get(name)
+            if handle is None:
+                handle = self.target_handles[name] = self.server.scene.add_frame(
+                    f'/targets/{name}', axes_length=0.08, axes_radius=0.004)
+            handle.position, handle.wxyz, handle.visible = p, wxyz, True
+        for name, handle in self.target_handles.items():
+            if name not in seen:
+                handle.visible = False
+
+    def close(self):
+        """Stop the background thread and the server."""
+        self._stop.set()
+        self.server.stop()
+
+
+class Cockpit(_Scene):
+    """The cockpit of one bag: the scene and a timeline.
+
+    Args:
+        data: :class:`ViewData`.
+        host: Interface to serve on (default loopback).
+        port: TCP port.
+
+    Attributes:
+        server: The ``viser.ViserServer``.
+        url: ``http://host:port``.
+        links: Link names drawn (each a scene node ``/robot/<link>`` and ``/virtual/<link>``).
+    """
+
+    def __init__(self, data, host='127.0.0.1', port=8080):
+        super().__init__(data.urdf, data.joint_names, host, port)
+        self.data = data
         gui = self.server.gui
         n = len(data.t)
         self.slider = gui.add_slider('joint state', min=0, max=max(n - 1, 1), step=1,
@@ -230,17 +287,8 @@ class Cockpit:
         self.slider.on_update(lambda _: self.show(int(self.slider.value)))
         self.index = None
         self.show(0)
-        self._stop = threading.Event()
         self._player = threading.Thread(target=self._play, daemon=True)
         self._player.start()
-
-    def _poses(self, q):
-        qq = pin.neutral(self.model)
-        for k, i in enumerate(self._idx):
-            if i is not None and np.isfinite(q[k]):
-                qq[i] = q[k]
-        pin.framesForwardKinematics(self.model, self.pin_data, qq)
-        return [self.pin_data.oMf[f] for f in self._frame_ids]
 
     def show(self, i):
         """Draw sample ``i``: the robot at q, the ghost at q_v, the targets then."""
@@ -248,34 +296,15 @@ class Cockpit:
         i = int(np.clip(i, 0, len(data.t) - 1))
         self.index = i
         with self.server.atomic():
-            for tree, q in (('robot', data.q[i]), ('virtual', data.q_v[i])):
-                visible = bool(np.all(np.isfinite(q)))
-                for handle, M in zip(self.handles[tree], self._poses(q if visible else
-                                                                      data.q[i])):
-                    handle.position = M.translation
-                    handle.wxyz = _wxyz(M.rotation)
-                    handle.visible = visible or tree == 'robot'
-            self._show_targets(data.t[i])
+            self.draw(data.q[i], data.q_v[i])
+            current = []
+            for stamp, items in data.targets:
+                if stamp > data.t[i] + 1e-9:
+                    break
+                current = items
+            self.draw_targets(current)
         self.label.content = (f'**t = {data.t[i] - data.t[0]:.3f} s** ({i + 1}/{len(data.t)}); '
                               'solid: measured q, blue: q_v, axes: task targets')
-
-    def _show_targets(self, t):
-        current = []
-        for stamp, items in self.data.targets:
-            if stamp > t + 1e-9:
-                break
-            current = items
-        seen = set()
-        for name, p, wxyz in current:
-            seen.add(name)
-            handle = self.target_handles.get(name)
-            if handle is None:
-                handle = self.target_handles[name] = self.server.scene.add_frame(
-                    f'/targets/{name}', axes_length=0.08, axes_radius=0.004)
-            handle.position, handle.wxyz, handle.visible = p, wxyz, True
-        for name, handle in self.target_handles.items():
-            if name not in seen:
-                handle.visible = False
 
     def _play(self):
         last = time.monotonic()
@@ -289,22 +318,148 @@ class Cockpit:
                 self.slider.value = max(i, self.index + 1) % len(self.data.t)
             last = now
 
+
+class LiveCockpit(_Scene):
+    """The cockpit of a running SPG, from its topics; a gizmo per streamed pose target.
+
+    Subscribes to ``joint_states`` (solid robot), ``command/joint_position`` (ghost),
+    ``spg/markers`` (targets) and the latched ``spg/config`` (the running stack). Each
+    ``cartesian_pose`` task of that stack with ``equal: {stream: ...}`` gets a transform
+    gizmo; moving it (in the page, or with :meth:`move_target`) publishes a
+    geometry_msgs/PoseStamped in ``world`` on the task's stream topic. Redraws at most 30
+    times a second.
+
+    Args:
+        robot: Robot configuration name (the URDF is generated from its MJCF).
+        node: An ``ifc_spg.ros.Node`` to use (None: ``ros.init`` and a node ``spg_view``).
+        host, port: Where to serve.
+    """
+
+    def __init__(self, robot, node=None, host='127.0.0.1', port=8080):
+        from ifc_spg import ros
+        from ifc_spg.model import RobotModel
+        from ifc_spg.model.urdf import urdf_from_robot
+        from ifc_spg.ros import msg
+
+        self.robot = RobotModel.from_config(robot)
+        super().__init__(urdf_from_robot(self.robot).xml, self.robot.joint_names, host, port)
+        self._ros, self._msg = ros, msg
+        self._own_node = node is None
+        if node is None:
+            ros.init(args=['ifc-spg'])
+            node = ros.Node('spg_view')
+        self.node = node
+        self.q = self.q_v = None
+        self.targets, self.gizmos, self._pubs = [], {}, {}
+        self._stack = None
+        node.create_subscription(msg.JointState, 'joint_states',
+                                 lambda m: setattr(self, 'q', self._ordered(m)), 10)
+        node.create_subscription(msg.JointState, 'command/joint_position',
+                                 lambda m: setattr(self, 'q_v', self._ordered(m)), 10)
+        node.create_subscription(msg.String, 'spg/config', self._on_config, ros.latched(1))
+        if msg.MarkerArray is not None:
+            node.create_subscription(msg.MarkerArray, 'spg/markers', self._on_markers, 10)
+        self.label = self.server.gui.add_markdown('waiting for joint_states ...')
+        self._spinner = threading.Thread(target=self._spin, daemon=True)
+        self._spinner.start()
+
+    def _ordered(self, m):
+        index = {n: i for i, n in enumerate(m.name)}
+        return np.array([float(m.position[index[n]]) if n in index else np.nan
+                         for n in self.robot.joint_names])
+
+    def _on_markers(self, arr):
+        self.targets = [(m.ns, np.array([m.pose.position.x, m.pose.position.y,
+                                         m.pose.position.z]),
+                         np.array([m.pose.orientation.w, m.pose.orientation.x,
+                                   m.pose.orientation.y, m.pose.orientation.z]))
+                        for m in arr.markers if m.type == 2]  # SPHERE: a target's origin
+
+    def _on_config(self, message):
+        import json
+
+        from ifc_spg.node.core import parse_task_stack
+        from ifc_spg.tasks.stream import default_topic
+
+        try:
+            stack = (json.loads(message.data) or {}).get('stack') or {}
+            tasks = parse_task_stack(stack['text']).tasks if stack.get('text') else ()
+        except (ValueError, KeyError, IfcSpgError):
+            return
+        self._stack = stack.get('name')
+        for t in tasks:
+            if t.type != 'cartesian_pose' or getattr(t.equal, 'kind', None) != 'stream' or \
+                    t.name in self.gizmos:
+                continue
+            topic = t.equal.get('stream') or default_topic(t.name)
+            self._pubs[t.name] = self.node.create_publisher(self._msg.PoseStamped, topic, 10)
+            q = self.q_v if self.q_v is not None else self.q
+            data = self.fk(q if q is not None else self.robot.q_home)
+            fid = self.model.getFrameId(self.robot.frames[t.frame])
+            M = data.oMf[fid]
+            gizmo = self.server.scene.add_transform_controls(
+                f'/gizmos/{t.name}', scale=0.2, position=M.translation, wxyz=_wxyz(M.rotation))
+            gizmo.on_update(lambda _, name=t.name: self._publish(name))
+            self.gizmos[t.name] = gizmo
+
+    def _publish(self, name):
+        gizmo = self.gizmos[name]
+        out = self._msg.PoseStamped()
+        out.header.frame_id = 'world'
+        p, (w, x, y, z) = gizmo.position, gizmo.wxyz
+        out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
+        o = out.pose.orientation
+        o.w, o.x, o.y, o.z = float(w), float(x), float(y), float(z)
+        self._pubs[name].publish(out)
+
+    def move_target(self, name, position, wxyz=None):
+        """Move the gizmo of streamed task ``name`` (as a drag in the page) and publish it."""
+        gizmo = self.gizmos[name]
+        gizmo.position = np.asarray(position, float)
+        if wxyz is not None:
+            gizmo.wxyz = np.asarray(wxyz, float)
+        self._publish(name)
+
+    def _spin(self):
+        last = 0.0
+        while not self._stop.is_set() and self._ros.ok():
+            self._ros.spin_once(self.node, timeout_sec=0.01)
+            now = time.monotonic()
+            if now - last >= 1 / 30 and self.q is not None:  # at most 30 frames a second
+                last = now
+                with self.server.atomic():
+                    self.draw(self.q, self.q_v)
+                    self.draw_targets(self.targets)
+                self.label.content = (f"stack **{self._stack or 'none'}**; solid: measured q, "
+                                      'blue: q_v, axes: targets; drag a gizmo to stream a '
+                                      'pose target')
+
     def close(self):
-        """Stop playing and the server."""
+        """Stop spinning and serving (and the ROS node this cockpit made)."""
         self._stop.set()
+        self._spinner.join(timeout=2.0)
         self.server.stop()
+        if self._own_node:
+            self.node.destroy_node()
+            self._ros.shutdown()
 
 
 def main(argv=None):
     """``ifc-spg view BAG``."""
     parser = argparse.ArgumentParser(prog='ifc-spg view', description=__doc__.split('\n')[0])
-    parser.add_argument('bag', help='bag directory (ifc-spg run / bag record)')
+    parser.add_argument('bag', nargs='?', help='bag directory (ifc-spg run / bag record)')
+    parser.add_argument('--live', metavar='ROBOT', default=None,
+                        help='instead of a bag: the running SPG of robot ROBOT, from its '
+                             'topics (drag a gizmo to stream a target)')
     parser.add_argument('--host', default='127.0.0.1',
                         help='interface to serve on (default loopback; 0.0.0.0 exposes it)')
     parser.add_argument('--port', type=int, default=8080, help='TCP port (default 8080)')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if (opts.bag is None) == (opts.live is None):
+        parser.error('give a bag directory or --live ROBOT')
     try:
-        cockpit = Cockpit(load_bag(opts.bag), opts.host, opts.port)
+        cockpit = LiveCockpit(opts.live, None, opts.host, opts.port) if opts.live else \
+            Cockpit(load_bag(opts.bag), opts.host, opts.port)
     except IfcSpgError as exc:
         print(f'ifc-spg view: {exc}', file=sys.stderr)
         return 2
