@@ -198,6 +198,38 @@ def test_markers_show_the_cartesian_targets(bag):
     assert speed == pytest.approx(2 * np.pi * 0.03 * 0.5, rel=0.02)  # radius 3 cm, 0.5 Hz
 
 
+def test_markers_draw_the_commanded_and_measured_force(bag):
+    msgs = _read(bag)
+    model = pin.buildModelFromXML(msgs['/robot_description'][0][1].data)
+    data = model.createData()
+    states = {_stamp(m.header): m for _, m in msgs['/joint_states']}
+    contact = {_stamp(m.header): m.wrench.force for _, m in msgs['/sim/contact_wrench']}
+    n = 0
+    for _, arr in msgs['/spg/markers']:
+        arrows = {mk.ns: mk for mk in arr.markers if mk.type == mk.ARROW and len(mk.points)}
+        labels = {mk.ns: mk.text for mk in arr.markers if mk.type == mk.TEXT_VIEW_FACING}
+        assert set(arrows) == set(labels) == {'contact_force', 'tool measured'}
+        stamp = _stamp(arrows['contact_force'].header)
+        js = states[stamp]
+        q = pin.neutral(model)
+        for joint, v in zip(js.name, js.position):
+            q[model.joints[model.getJointId(joint)].idx_q] = v
+        pin.framesForwardKinematics(model, data, q)
+        tool = data.oMf[model.getFrameId('tool')]
+        for ns, mk in arrows.items():
+            a, b = (np.array([p.x, p.y, p.z]) for p in mk.points)
+            np.testing.assert_allclose(a, tool.translation, atol=1e-9)  # at the tool, at q
+            force = (b - a) / 0.01  # 1 cm per N
+            assert labels[ns] == f'{ns}: {np.linalg.norm(force):.1f} N'
+            if ns == 'contact_force':  # 8 N along the tool's z axis (equal: 8.0, frame ee)
+                np.testing.assert_allclose(force, 8.0 * tool.rotation[:, 2], atol=1e-6)
+            else:  # the contact force the robot exerts, from sim/contact_wrench
+                f = contact[stamp]
+                np.testing.assert_allclose(force, [-f.x, -f.y, -f.z], atol=1e-6)
+        n += 1
+    assert n >= 100
+
+
 def test_bag_info_lists_the_new_topics(bag):
     text = info(bag)
     for line in ('/robot_description       std_msgs/msg/String',

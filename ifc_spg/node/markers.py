@@ -6,13 +6,14 @@ generated ones or :mod:`ifc_spg.ros.messages`); the offline bags
 ``markers.rate`` Hz, 0: off) write the same markers: a DELETEALL, then per Cartesian task
 (namespace = task name) its target frame as three arrows x/y/z (red, green, blue, 8 cm) and
 a yellow sphere at its origin (2 cm), in ``frame`` (the robot's base frame, default
-``world``).
+``world``). The bags of ``ifc-spg run`` add force arrows (1 cm per N, labelled in N): each
+wrench task's commanded force (green) and the measured contact force (orange).
 """
 
 import numpy as np
 import pinocchio as pin
 
-__all__ = ['MarkerPublisher', 'cartesian_targets', 'marker_array']
+__all__ = ['MarkerPublisher', 'cartesian_targets', 'marker_array', 'wrench_arrows']
 
 # an ARROW points along its pose's x axis: the y and z arrows are x turned onto them
 _TURNS = (np.eye(3), pin.exp3(np.array([0.0, 0.0, np.pi / 2])),
@@ -62,16 +63,76 @@ def _marker(classes, stamp_ns, frame, ns, i, kind, p, R, scale, rgba):
     return mk
 
 
-def marker_array(classes, targets, stamp_ns, frame='world', length=0.08):
-    """The MarkerArray of ``targets`` (``[(task name, position, rotation)]``).
+#: Force arrows: metres of arrow per newton.
+FORCE_SCALE = 0.01
+COMMANDED_RGBA = (0.1, 0.8, 0.2, 0.9)
+MEASURED_RGBA = (1.0, 0.45, 0.0, 0.9)
+
+
+def wrench_arrows(tasks, kin, t, measured=None):
+    """``[(name, start (3,), force (3,) [N], rgba)]``: the forces to draw.
+
+    Each active wrench task's commanded force (green: the task value clipped into its bounds,
+    force rows only, in the base frame) at its frame at the measured q; and ``measured``
+    ``(chain, force (3,))``, the force the robot exerts there (orange).
 
     Args:
-        classes: A namespace with ``Marker`` and ``MarkerArray`` (``ifc_spg.ros.msg`` or
-            ``ifc_spg.ros.messages``).
+        tasks: The SPG's tasks.
+        kin: :class:`~ifc_spg.kinematics.Kinematics` at this tick's (q, qdot, q_v).
+        t: Task time [s].
+        measured: ``(chain id, force (3,) [N])`` or None.
+    """
+    from ifc_spg.tasks.subspace import subspace_in_base
+
+    out = []
+    for task in tasks:
+        if task.kind != 'wrench' or not task.active:
+            continue
+        p, R, _ = kin.frame(task.robot.frame_id(task.frame), virtual=False)
+        value = np.asarray(task.compute_value(kin), dtype=float)
+        lower, upper = task.bounds_at(t)
+        goal = np.clip(value, lower, upper)
+        w = subspace_in_base(task.S, task.subspace_frame, R) @ goal
+        out.append((task.name, p.copy(), w[:3], COMMANDED_RGBA))
+    if measured is not None:
+        chain, force = measured
+        robot = tasks[0].robot if tasks else None
+        if robot is not None:
+            p, _, _ = kin.frame(robot.frame_id(chain), virtual=False)
+            out.append((f'{chain} measured', p.copy(), np.asarray(force, float),
+                        MEASURED_RGBA))
+    return out
+
+
+def _arrow(classes, stamp_ns, frame, name, start, force, rgba):
+    """An arrow of ``force`` from ``start`` (FORCE_SCALE m/N) and a label with its size."""
+    M = classes.Marker
+    end = np.asarray(start, float) + FORCE_SCALE * np.asarray(force, float)
+    arrow = _marker(classes, stamp_ns, frame, name, 10, M.ARROW, np.zeros(3), np.eye(3),
+                    (0.006, 0.014, 0.02), rgba)
+    points = []
+    for x in (start, end):
+        pt = classes.Point()
+        pt.x, pt.y, pt.z = (float(v) for v in x)
+        points.append(pt)
+    arrow.points = points
+    label = _marker(classes, stamp_ns, frame, name, 11, M.TEXT_VIEW_FACING,
+                    end + [0.0, 0.0, 0.02], np.eye(3), (0.0, 0.0, 0.025), rgba)
+    label.text = f'{name}: {np.linalg.norm(force):.1f} N'
+    return [arrow, label]
+
+
+def marker_array(classes, targets, stamp_ns, frame='world', length=0.08, forces=()):
+    """The MarkerArray of ``targets`` (``[(task name, position, rotation)]``) and forces.
+
+    Args:
+        classes: A namespace with ``Marker``, ``MarkerArray`` and ``Point``
+            (``ifc_spg.ros.msg`` or ``ifc_spg.ros.messages``).
         targets: :func:`cartesian_targets`.
         stamp_ns: Header stamp [ns].
         frame: Header frame id.
         length: Arrow length [m].
+        forces: :func:`wrench_arrows` (arrows of FORCE_SCALE m/N, labelled in N).
     """
     M = classes.Marker
     clear = M()
@@ -84,6 +145,8 @@ def marker_array(classes, targets, stamp_ns, frame='world', length=0.08):
                                  (length, 0.006, 0.006), _RGB[k]))
         items.append(_marker(classes, stamp_ns, frame, name, 3, M.SPHERE, p, R,
                              (0.02, 0.02, 0.02), _SPHERE_RGBA))
+    for name, start, force, rgba in forces:
+        items.extend(_arrow(classes, stamp_ns, frame, name, start, force, rgba))
     out = classes.MarkerArray()
     out.markers = items
     return out

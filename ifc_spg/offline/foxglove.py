@@ -10,8 +10,9 @@
 - ``/tf`` (tf2_msgs/TFMessage): every moving joint of the URDF at the recorded joint states
   (measured q, frames as in the URDF) and at the commanded q_v (``virtual/`` frames), with
   the messages' header stamps, at most every ``tf_period`` [s] of stamp time;
-- ``/spg/markers`` (visualization_msgs/MarkerArray): each Cartesian task's target frame
-  (:func:`ifc_spg.node.markers.marker_array`) in ``world``, the robot's base frame.
+- ``/spg/markers`` (visualization_msgs/MarkerArray): each Cartesian task's target frame and
+  the force arrows (:func:`ifc_spg.node.markers.marker_array`) in ``world``, the robot's
+  base frame.
 
 There is no tf2_msgs wheel for rclpy here, and the built-in DDS backend has no tf2_msgs
 classes: ``/tf`` and ``/tf_static`` are serialized with ``rosbags`` (its Jazzy typestore), in
@@ -131,12 +132,12 @@ class FoxgloveTopics:
         """True if a ``/spg/markers`` message is due at ``stamp_ns`` (then write it)."""
         return self._due('markers', stamp_ns)
 
-    def markers(self, t_ns, stamp_ns, targets):
-        """Write ``/spg/markers`` of ``targets`` (:func:`cartesian_targets`)."""
+    def markers(self, t_ns, stamp_ns, targets, forces=()):
+        """Write ``/spg/markers``: ``targets`` (:func:`cartesian_targets`) and ``forces``."""
         from ifc_spg.ros import messages
 
         self.writer.write_msg('/spg/markers', t_ns, marker_array(
-            messages, targets, stamp_ns, self.tree.root))
+            messages, targets, stamp_ns, self.tree.root, forces=forces))
 
 
 class RecordingObserver:

@@ -77,6 +77,7 @@ from ifc_spg.kinematics import Kinematics
 from ifc_spg.model import RobotModel
 from ifc_spg.node.config import PARAMETERS, config_from_parameters
 from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params, status_json
+from ifc_spg.node.markers import wrench_arrows
 from ifc_spg.offline.bag import TOPICS, BagWriter
 from ifc_spg.offline.foxglove import FoxgloveTopics, cartesian_targets
 from ifc_spg.offline.metrics import MetricsRecorder, band_error
@@ -569,8 +570,11 @@ class _LockstepRun:
                                     np.asarray(js.velocity), cmd.position, task_time,
                                     s.contact_wrench, self.contact_chain)
         if self.foxglove.markers_due(t_ns):  # self.probe.kin_v is at this tick's q_v
+            force = -np.asarray(s.contact_wrench[:3], dtype=float)  # robot on environment
             self.foxglove.markers(t_ns, t_ns, cartesian_targets(
-                runner.spg.tasks, self.probe.kin_v, task_time))
+                runner.spg.tasks, self.probe.kin_v, task_time), wrench_arrows(
+                runner.spg.tasks, self.probe.kin_v, task_time,
+                (self.contact_chain, force)))
         event = None
         if runner.pspm_stalls != stalls:  # once per episode, as spg_node logs it
             event = ('pspm_stall', runner.last_stall)
