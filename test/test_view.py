@@ -53,6 +53,12 @@ def test_robot_ghost_and_targets_follow_the_timeline(cockpit):
         for name, p, _ in items:
             np.testing.assert_allclose(cockpit.target_handles[name].position, p)
     assert not np.allclose(bag.q[0], bag.q[-1])  # the timeline spans a motion
+    # the status of the time shown: the recorded spg/status at or before it
+    stamp, doc = [x for x in bag.status if x[0] <= bag.t[-1] + 1e-9][-1]
+    assert doc['stack']['name'] == 'circle'
+    assert cockpit.status.content.startswith('stack **circle**, running')
+    assert 'tanks [J]: ' + ' '.join(f'{e:.2f}' for e in doc['tank_energy']) in \
+        cockpit.status.content
 
 
 def _wxyz(R):

@@ -5,8 +5,9 @@
 
 Serves a 3D view on ``http://HOST:PORT`` (loopback by default; ``--host 0.0.0.0`` to expose)
 and prints the URL: the robot at the measured q (solid) and at q_v (a translucent blue
-ghost), the Cartesian task targets of ``/spg/markers`` (axes), a floor grid, and a timeline
-slider with play/pause over the bag's joint states. The robot is the bag's
+ghost), the Cartesian task targets of ``/spg/markers`` (axes), a floor grid, the
+``spg/status`` of the time shown (stack, SPG state, tank energies, PSPM stall), and a
+timeline slider with play/pause over the bag's joint states. The robot is the bag's
 ``/robot_description`` (URDF; else generated from the robot its SPG configuration names),
 drawn with its primitive shapes, placed by pinocchio's FK of that URDF.
 
@@ -27,7 +28,7 @@ import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError, ParameterError
 
-__all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'main']
+__all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'main', 'status_text']
 
 _SOLID = (200, 200, 205)
 _GHOST = (60, 120, 255)
@@ -44,11 +45,13 @@ class ViewData:
         q_v: Commanded q_v at the same stamps (NaN rows where no command has that stamp).
         targets: ``[(stamp [s], [(task name, position (3,), wxyz (4,))])]`` from
             ``/spg/markers``.
+        status: ``[(stamp [s], spg/status document)]`` (documents with a stamp).
     """
 
-    def __init__(self, urdf, joint_names, t, q, q_v, targets):
+    def __init__(self, urdf, joint_names, t, q, q_v, targets, status=()):
         self.urdf, self.joint_names = urdf, list(joint_names)
         self.t, self.q, self.q_v, self.targets = t, q, q_v, targets
+        self.status = list(status)
 
 
 def _stamp(msg):
@@ -69,14 +72,23 @@ def _markers(data):
                    m.pose.orientation.z])) for m in spheres])
 
 
-def _read(path):
-    """The bag's joint states and commands by stamp, markers, URDF and robot name."""
+def _json_doc(text):
+    """The JSON object in ``text`` ({} if it is not one)."""
     import json
 
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def _read(path):
+    """The bag's joint states and commands by stamp, markers, URDF, robot name, status."""
     from ifc_spg.offline.bag import BagReader
     from ifc_spg.ros import messages
 
-    states, commands, targets = {}, {}, []
+    states, commands, targets, status = {}, {}, [], []
     urdf = robot = None
     with BagReader(path) as bag:
         topics = {t.lstrip('/'): t for t in bag.topics}
@@ -90,12 +102,11 @@ def _read(path):
             name = topic.lstrip('/')
             if name == 'robot_description':
                 urdf = messages.deserialize(messages.String, data).data
-            elif name in ('spg/status', 'spg/config') and robot is None:
-                try:
-                    doc = json.loads(messages.deserialize(messages.String, data).data)
-                    robot = (doc.get('config') or {}).get('robot')
-                except (ValueError, AttributeError):
-                    pass
+            elif name in ('spg/status', 'spg/config'):
+                doc = _json_doc(messages.deserialize(messages.String, data).data)
+                robot = robot or (doc.get('config') or {}).get('robot')
+                if name == 'spg/status' and isinstance(doc.get('stamp'), (int, float)):
+                    status.append((float(doc['stamp']), doc))
             elif name == 'spg/markers':
                 item = _markers(data)
                 if item is not None:
@@ -103,7 +114,7 @@ def _read(path):
             elif name in ('joint_states', 'command/joint_position'):
                 js = messages.deserialize(messages.JointState, data)
                 (states if name == 'joint_states' else commands)[_stamp(js)] = js
-    return states, commands, targets, urdf, robot
+    return states, commands, targets, urdf, robot, status
 
 
 def load_bag(path):
@@ -112,7 +123,7 @@ def load_bag(path):
     Raises:
         ParameterError: Not a bag, no joint states, or no way to know the robot.
     """
-    states, commands, targets, urdf, robot = _read(path)
+    states, commands, targets, urdf, robot, status = _read(path)
     if not states:
         raise ParameterError(f"bag '{path}': no joint states recorded")
     if urdf is None:
@@ -133,7 +144,8 @@ def load_bag(path):
     q_v = np.array([row(commands[s]) if s in commands else [np.nan] * len(names)
                     for s in stamps])
     targets.sort(key=lambda x: x[0])
-    return ViewData(urdf, names, np.array(stamps), q, q_v, targets)
+    status.sort(key=lambda x: x[0])
+    return ViewData(urdf, names, np.array(stamps), q, q_v, targets, status)
 
 
 def _visuals(urdf):
@@ -167,6 +179,25 @@ def _visuals(urdf):
         if items:
             out[link.get('name')] = items
     return out
+
+
+def status_text(doc):
+    """Markdown of an ``spg/status`` document: stack, SPG state, tank energies, PSPM."""
+    if not doc:
+        return 'no spg/status yet'
+    stack = (doc.get('stack') or {}).get('name') or 'none'
+    lines = [f"stack **{stack}**, {doc.get('state', '?')}, SPG "
+             f"{(doc.get('spg') or {}).get('status', '?')}"]
+    tanks = doc.get('tank_energy')
+    if tanks:
+        lines.append('tanks [J]: ' + ' '.join(f'{e:.2f}' for e in tanks))
+    pspm = doc.get('pspm') or {}
+    stall = pspm.get('stall')
+    if stall:
+        lines.append(f"**PSPM stall**: {', '.join(map(str, stall.get('joints', [])))}")
+    elif tanks:
+        lines.append('PSPM: no stall')
+    return '  \n'.join(lines)
 
 
 def _wxyz(R):
@@ -284,6 +315,7 @@ class Cockpit(_Scene):
         self.playing = gui.add_checkbox('play', initial_value=False)
         self.speed = gui.add_slider('speed', min=0.1, max=4.0, step=0.1, initial_value=1.0)
         self.label = gui.add_markdown('')
+        self.status = gui.add_markdown('')
         self.slider.on_update(lambda _: self.show(int(self.slider.value)))
         self.index = None
         self.show(0)
@@ -305,6 +337,12 @@ class Cockpit(_Scene):
             self.draw_targets(current)
         self.label.content = (f'**t = {data.t[i] - data.t[0]:.3f} s** ({i + 1}/{len(data.t)}); '
                               'solid: measured q, blue: q_v, axes: task targets')
+        doc = None
+        for stamp, d in data.status:
+            if stamp > data.t[i] + 1e-9:
+                break
+            doc = d
+        self.status.content = status_text(doc)
 
     def _play(self):
         last = time.monotonic()
@@ -351,15 +389,17 @@ class LiveCockpit(_Scene):
         self.node = node
         self.q = self.q_v = None
         self.targets, self.gizmos, self._pubs = [], {}, {}
-        self._stack = None
         node.create_subscription(msg.JointState, 'joint_states',
                                  lambda m: setattr(self, 'q', self._ordered(m)), 10)
         node.create_subscription(msg.JointState, 'command/joint_position',
                                  lambda m: setattr(self, 'q_v', self._ordered(m)), 10)
         node.create_subscription(msg.String, 'spg/config', self._on_config, ros.latched(1))
+        self.last_status = None
+        node.create_subscription(msg.String, 'spg/status', self._on_status, 10)
         if msg.MarkerArray is not None:
             node.create_subscription(msg.MarkerArray, 'spg/markers', self._on_markers, 10)
         self.label = self.server.gui.add_markdown('waiting for joint_states ...')
+        self.status = self.server.gui.add_markdown('')
         self._spinner = threading.Thread(target=self._spin, daemon=True)
         self._spinner.start()
 
@@ -367,6 +407,11 @@ class LiveCockpit(_Scene):
         index = {n: i for i, n in enumerate(m.name)}
         return np.array([float(m.position[index[n]]) if n in index else np.nan
                          for n in self.robot.joint_names])
+
+    def _on_status(self, message):
+        doc = _json_doc(message.data)
+        if doc:
+            self.last_status = doc
 
     def _on_markers(self, arr):
         self.targets = [(m.ns, np.array([m.pose.position.x, m.pose.position.y,
@@ -386,7 +431,6 @@ class LiveCockpit(_Scene):
             tasks = parse_task_stack(stack['text']).tasks if stack.get('text') else ()
         except (ValueError, KeyError, IfcSpgError):
             return
-        self._stack = stack.get('name')
         for t in tasks:
             if t.type != 'cartesian_pose' or getattr(t.equal, 'kind', None) != 'stream' or \
                     t.name in self.gizmos:
@@ -430,9 +474,9 @@ class LiveCockpit(_Scene):
                 with self.server.atomic():
                     self.draw(self.q, self.q_v)
                     self.draw_targets(self.targets)
-                self.label.content = (f"stack **{self._stack or 'none'}**; solid: measured q, "
-                                      'blue: q_v, axes: targets; drag a gizmo to stream a '
-                                      'pose target')
+                self.label.content = ('solid: measured q, blue: q_v, axes: targets; drag a '
+                                      'gizmo to stream a pose target')
+                self.status.content = status_text(self.last_status)
 
     def close(self):
         """Stop spinning and serving (and the ROS node this cockpit made)."""
