@@ -284,6 +284,11 @@ class SetPointGenerator:
         """
         return None if self._pending is None else self._pending[0]
 
+    @property
+    def pending_tasks(self) -> list[Task]:
+        """The tasks of :attr:`pending_stack` (empty when no swap is pending)."""
+        return [] if self._pending is None else list(self._pending[1])
+
     def set_stack(self, stack: Any) -> None:
         """Replace the running stack at the next tick (hot swap, no jump in q_v).
 

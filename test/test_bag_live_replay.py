@@ -127,7 +127,7 @@ def _copy_without(src, dst, drop):
         for topic, (msgtype, _, profiles) in r.topics.items():
             w.add_topic(topic, msgtype, profiles)
         for topic, msgtype, t, data in r.raw():
-            if not drop(topic, deserialize(REGISTRY[msgtype], data)):
+            if msgtype not in REGISTRY or not drop(topic, deserialize(REGISTRY[msgtype], data)):
                 w.write(topic, t, data)
 
 

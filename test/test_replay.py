@@ -38,7 +38,7 @@ def _copy(src, dst, tamper=None, custom=None):
         seen = {}
         for topic, msgtype, t, data in r.raw():
             i = seen[topic] = seen.get(topic, -1) + 1
-            if tamper is not None:
+            if tamper is not None and msgtype in REGISTRY:  # (not the rosbags-only tf, markers)
                 msg = deserialize(REGISTRY[msgtype], data)
                 if tamper(topic, i, msg):
                     data = serialize(msg)

@@ -1,7 +1,8 @@
 """RIHS01 type hashes of the built-in message classes equal rosidl's (Jazzy).
 
 The table below is what rosidl_generator_type_description wrote into the Jazzy message
-packages (share/<pkg>/msg/<T>.json of ros-jazzy-*-msgs 5.3.6 incl. trajectory_msgs,
+packages (share/<pkg>/msg/<T>.json of ros-jazzy-*-msgs 5.3.6 incl. trajectory_msgs and
+visualization_msgs,
 builtin_interfaces 2.0.3, rmw_dds_common 3.1.0). Where those packages are installed the
 table is checked against their files, against the hash an rclpy publisher announces, and
 against the hash rclpy (Fast DDS) reads from a built-in backend writer's USER_DATA on the wire.
@@ -67,6 +68,18 @@ ROSIDL_HASHES = {
         'RIHS01_4c66e6f78e740ac103a94cf63259f968e48c617e7699e829b63c21a5cb50dac6',
     'std_msgs/msg/String':
         'RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18',
+    'std_msgs/msg/ColorRGBA':
+        'RIHS01_77a7a5b9ae477306097665106e0413ba74440245b1f3d0c6d6405fe5c7813fe8',
+    'sensor_msgs/msg/CompressedImage':
+        'RIHS01_15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a',
+    'visualization_msgs/msg/UVCoordinate':
+        'RIHS01_f27f7ed21fe360c6066944f856b801a0c0d1e94e815b6886444b42d90b196a26',
+    'visualization_msgs/msg/MeshFile':
+        'RIHS01_7710ece15a148fb7c9b546364cfb215bb06098087bd6394fe5b73a493508f8c4',
+    'visualization_msgs/msg/Marker':
+        'RIHS01_45b13ccf791f225962bf74e746f9644518855d783a6f42ba0cc14fde2b4f3ce0',
+    'visualization_msgs/msg/MarkerArray':
+        'RIHS01_86cb8800b6fb05b5eff1abd7a56f62a5641d3ae9a1c29e78e67e704f1d067dcf',
 }
 
 
@@ -77,6 +90,11 @@ def _rclpy():
     except ImportError:
         pytest.skip('rclpy and the Jazzy message packages are not installed (the ros-jazzy '
                     'wheels exist for Linux x86_64, CPython 3.10-3.13 only)')
+    try:
+        import visualization_msgs.msg  # noqa: F401
+    except ImportError:
+        pytest.skip('ros-jazzy-visualization-msgs (requirements.txt) is not installed: run '
+                    './run setup')
     return rclpy
 
 

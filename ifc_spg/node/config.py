@@ -74,6 +74,8 @@ class SpgConfig:
         tick: 'joint_states' (one tick per joint state: lockstep simulation, FRI at the
             SPG's rate) or 'timer' (a tick every ``dt`` with the latest joint state, for
             robots whose states come at another rate; nothing is extrapolated).
+        markers_rate: Rate of ``spg/markers`` in [Hz] (<= 30; 0: off).
+        markers_frame: Frame id of ``spg/markers``.
     """
 
     robot: str = 'lbr_iiwa14'
@@ -103,6 +105,8 @@ class SpgConfig:
     command_interface: str = 'joint_state'
     command_joints: tuple = ()
     tick: str = 'joint_states'
+    markers_rate: float = 30.0
+    markers_frame: str = 'world'
 
     def __post_init__(self):
         for p in PARAMETERS:
@@ -214,6 +218,10 @@ PARAMETERS = (
           "Joint order of the command (ros2_control's 'joints'; default: the robot's)"),
     Param('tick', 'tick', 'joint_states (one tick per joint state) or timer (a tick every dt '
           'with the latest joint state; a state older than watchdog.timeout stops commanding)'),
+    Param('markers.rate', 'markers_rate', 'Rate of spg/markers (each Cartesian task target, '
+          'visualization_msgs/MarkerArray) in [Hz], at most 30 (0: off)', (0.0, 30.0)),
+    Param('markers.frame', 'markers_frame',
+          "Frame id of spg/markers: the robot's base frame in your tf tree"),
 )
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 TICKS = ('joint_states', 'timer')

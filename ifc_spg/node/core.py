@@ -46,6 +46,7 @@ from ifc_spg.model import JOINT_IMPEDANCE, RobotModel
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.spg import Activation, SetPointGenerator, SpgState
 from ifc_spg.task_stack import TaskStack
+from ifc_spg.tasks.stream import streams_of
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
            'parse_task_stack', 'robot_gains', 'robot_params', 'status_json']
@@ -278,6 +279,34 @@ class SpgRunner:
                           f"task stack '{self._pending_name}' (id {self._next_id}) accepted"
                           f'{note}; active from the next tick')
 
+    def streams(self):
+        """The streamed references of the running and the pending stack.
+
+        :class:`~ifc_spg.tasks.stream.StreamReference` objects; the node subscribes to
+        their topics.
+        """
+        return streams_of(self.spg.tasks) + streams_of(self.spg.pending_tasks)
+
+    def handle_reference(self, topic, message):
+        """A message on a streamed task's ``topic`` (as the stack wrote it); False if rejected."""
+        now_ns = int(self.clock() * 1e9)
+        ok = True
+        for stream in self.streams():
+            if stream.topic == topic:
+                ok = stream.feed(message, now_ns) and ok
+        return ok
+
+    def _update_streams(self):
+        """Age the running stack's streams; log a stream that went stale (once per episode)."""
+        now_ns = int(self.clock() * 1e9)
+        for stream in streams_of(self.spg.tasks):
+            episodes = stream.stale_episodes
+            stream.update(now_ns)
+            if stream.stale_episodes != episodes:
+                self._error('stream', f"task '{stream.task.name}': no reference on "
+                            f"'{stream.topic}' for {stream.age:.3f} s > stale_after "
+                            f'{stream.stale_after:g} s; holding the last one')
+
     def handle_joint_state(self, names, position, velocity, stamp_ns):
         """One tick for one joint-state message; None when the message is rejected.
 
@@ -398,6 +427,7 @@ class SpgRunner:
             self._error('pspm', info.message)
         self.ticks += 1
         self._tick_times.append(info.tick_time or 0.0)
+        self._update_streams()
 
     def _check_names(self, names):
         if len(names) != self._n:
@@ -513,6 +543,9 @@ class SpgRunner:
             'pspm': self._pspm_status(info),
             'errors': list(self.errors),
         }
+        streams = streams_of(self.spg.tasks)
+        if streams:
+            doc['streams'] = [st.status() for st in streams]
         if event is not None:
             doc['event'] = {'type': event[0], 'message': event[1]}
         if event is not None or not self._config_sent:

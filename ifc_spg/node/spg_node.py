@@ -53,6 +53,8 @@ from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.node.config import PARAMETERS, declare_parameters
 from ifc_spg.node.core import SpgRunner, status_json
+from ifc_spg.node.markers import MarkerPublisher
+from ifc_spg.node.stream_subscriptions import StreamSubscriptions
 from ifc_spg.ros import msg
 
 __all__ = ['SpgNode', 'main']
@@ -181,6 +183,9 @@ class SpgNode:
                                                    self.on_joint_state, 10)
         self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
                                                   self.on_task_stack, ros.latched(1))
+        self.streams = StreamSubscriptions(node, self.runner)  # streamed task references
+        self.markers = MarkerPublisher(node, self.runner, c.markers_rate, c.markers_frame)
+        self._streams_stack = 0
         self._watchdog_timer = self._diag_timer = None
         self._latest, self._last_tick_ns = None, -1   # tick: timer
         self._ages = deque(maxlen=1000)                # [s] state age at each timer tick
@@ -352,6 +357,9 @@ class SpgNode:
         if cmd is None:
             return
         self._write(stamp, cmd.position, cmd.velocity)
+        if runner.stack_id != self._streams_stack:  # a stack took over: drop its old streams
+            self._streams_stack = runner.stack_id
+            self.streams.sync()
         self.commands_sent += 1
         if runner.config_version != self._config_version:
             self.publish_config()
@@ -388,6 +396,7 @@ class SpgNode:
         """Log a stack event and publish it on the status topic."""
         if event.accepted:
             self.log.info(event.message)
+            self.streams.sync()
             self.publish_status(('stack_accepted', event.message))
         else:
             self.log.error(f'{event.message}; keeping stack '

@@ -1,6 +1,7 @@
 """rosbag2 MCAP bags: write, read, record over DDS, play back, summarise (``ifc-spg bag``).
 
-    ifc-spg bag record -o DIR [TOPIC ...] [--all] [--duration S] [--ros-args ...]
+    ifc-spg bag record -o DIR [TOPIC ...] [--all] [--duration S] [--robot NAME] [--no-tf]
+                       [--ros-args ...]
     ifc-spg bag play DIR [--rate R] [--delay S] [--topics T ...] [--ros-args ...]
     ifc-spg bag info DIR
 
@@ -13,10 +14,14 @@ its publishers' offered QoS profiles in the metadata, so ``play`` republishes wi
 original reliability and durability (the latched ``spg/task_stack`` stays latched).
 
 ``record`` with no topics records the topics of ARCHITECTURE.md "Topics" (relative names,
-resolved in the node's namespace); types of known topics are fixed, other topics are
-discovered on the DDS graph. It writes every message it receives with its receive time and
+resolved in the node's namespace) and every streamed task reference under
+``spg/reference/``; types of known topics are fixed, other topics are discovered on the DDS
+graph. It writes every message it receives with its receive time and
 closes the bag cleanly on SIGINT/SIGTERM (and after ``--duration`` seconds): messages
-already received are written, then the MCAP index and ``metadata.yaml``.
+already received are written, then the MCAP index and ``metadata.yaml``. It also writes
+``/robot_description``, ``/tf_static`` and ``/tf`` computed from the recorded
+``joint_states`` (and ``command/joint_position`` as the ``virtual/`` tree) of the robot
+``--robot`` or ``spg/config`` names (:mod:`ifc_spg.offline.foxglove`; ``--no-tf``: not).
 """
 
 import argparse
@@ -328,7 +333,15 @@ class BagReader:
             yield c.topic, c.msgtype, t, data
 
     def messages(self, topics=None):
-        """Yield ``(topic, log time [ns], message)`` decoded with the built-in classes."""
+        """Yield ``(topic, log time [ns], message)`` decoded with the built-in classes.
+
+        With ``topics`` None: every topic with a built-in class (``/tf`` and ``/tf_static``,
+        tf2_msgs, have none: read them with :meth:`raw` and rosbags); a topic asked for by
+        name without one is an error.
+        """
+        if topics is None:
+            topics = {t for t, (msgtype, _, _) in self.topics.items()
+                      if msgtype in messages.REGISTRY}
         for topic, msgtype, t, data in self.raw(topics):
             cls = messages.REGISTRY.get(msgtype)
             if cls is None:
@@ -397,6 +410,14 @@ class _Recording:
         """The topics subscribed to."""
         return [t for t, s in self._subs.items() if s is not None]
 
+    _references = None  # '<ns>/spg/reference/' when recording the default topics
+
+    def _wants(self, topic):
+        """Record a discovered ``topic``: asked for, a streamed task reference, or --all."""
+        return topic in self._wanted or bool(
+            self._references and topic.startswith(self._references)) or (
+            self.discover_all and topic not in ('/rosout', '/parameter_events'))
+
     def _write_and_discover(self):
         n = self.drain()
         now = time.monotonic()
@@ -428,6 +449,8 @@ class Recorder(_Recording):
         self._wanted = {}
         self._waitset = WaitSet(node.context.participant)
         self._waitset.attach(node.context.guard)
+        if topics is None:
+            self._references = _absolute(node, 'spg/reference').rstrip('/') + '/'
         for topic in (TOPICS if topics is None else topics):
             name = _absolute(node, topic)
             known = TOPICS.get(topic) or TOPICS.get(name.lstrip('/'))
@@ -459,8 +482,7 @@ class Recorder(_Recording):
         for topic, msgtype, qos in _discovered(self.node.context.participant, self._pubs):
             if topic in self._subs:
                 continue
-            if topic in self._wanted or (self.discover_all and topic not in (
-                    '/rosout', '/parameter_events')):
+            if self._wants(topic):
                 self._subscribe(topic, msgtype, qos)
 
     def drain(self):
@@ -518,6 +540,8 @@ class RclpyRecorder(_Recording):
         self.node, self.writer, self.discover_all = node, writer, discover_all
         self._executor = ros.executor((node,))
         self._subs, self._wanted, self._pending = {}, set(), []
+        if topics is None:
+            self._references = _absolute(node, 'spg/reference').rstrip('/') + '/'
         for topic in (TOPICS if topics is None else topics):
             name = _absolute(node, topic)
             known = TOPICS.get(topic) or TOPICS.get(name.lstrip('/'))
@@ -548,8 +572,7 @@ class RclpyRecorder(_Recording):
         for topic, types in self.node.get_topic_names_and_types():
             if topic in self._subs or not types:
                 continue
-            if topic in self._wanted or (self.discover_all and topic not in (
-                    '/rosout', '/parameter_events')):
+            if self._wants(topic):
                 infos = self.node.get_publishers_info_by_topic(topic)
                 qos = _from_rclpy_qos(infos[0].qos_profile) if infos else QoSProfile(depth=10)
                 self._subscribe(topic, types[0], qos)
@@ -573,7 +596,22 @@ class RclpyRecorder(_Recording):
         return self._write_and_discover()
 
 
-def record(path, topics=None, discover_all=False, duration=None, args=None, quiet=False):
+class _Observed:
+    """A :class:`BagWriter` that shows every message it writes to ``observer``."""
+
+    def __init__(self, writer, observer):
+        self._writer, self._observer = writer, observer
+
+    def write(self, topic, t_ns, data):
+        self._writer.write(topic, t_ns, data)
+        self._observer(topic, t_ns, data)
+
+    def __getattr__(self, name):
+        return getattr(self._writer, name)
+
+
+def record(path, topics=None, discover_all=False, duration=None, args=None, quiet=False,
+           robot=None, foxglove=True):
     """Record until SIGINT/SIGTERM or ``duration`` [s]; returns {topic: count}.
 
     Args:
@@ -583,16 +621,28 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
         duration: Stop after this many seconds (None: until a signal).
         args: Command line with ``--ros-args`` for the recorder node.
         quiet: Do not print the summary.
+        robot: Robot configuration name for ``/robot_description`` and ``/tf`` (None: the
+            one the SPG's ``spg/config`` or ``spg/status`` names).
+        foxglove: Write ``/robot_description``, ``/tf_static`` and ``/tf`` from the recorded
+            joint states (:class:`~ifc_spg.offline.foxglove.RecordingObserver`).
     """
     stop = _Stop()
+    observer = None
+    if foxglove:
+        from ifc_spg.model import RobotModel
+        from ifc_spg.offline.foxglove import RecordingObserver
+        if robot is not None:
+            RobotModel.from_config(robot)  # a bad --robot fails before the bag is created
+        observer = RecordingObserver
     ros.init(args=['ifc-spg', *(args or [])])
     # after init: rclpy's own SIGINT handler would invalidate the context mid-spin
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     node = ros.Node('bag_recorder')
     writer = BagWriter(path)
     try:
+        sink = writer if observer is None else _Observed(writer, observer(writer, robot))
         rec = (Recorder if ros.BACKEND == 'cyclonedds' else RclpyRecorder)(
-            node, writer, topics, discover_all)
+            node, sink, topics, discover_all)
         print(f'recording {", ".join(sorted(rec.recording)) or "(none)"}'
               f'{" + discovered topics" if discover_all or topics else ""} into {path}; '
               'stop with Ctrl-C', flush=True)
@@ -775,6 +825,11 @@ def main(argv=None):
     r.add_argument('-o', '--output', required=True, help='bag directory to create')
     r.add_argument('-a', '--all', action='store_true', help='also record discovered topics')
     r.add_argument('--duration', type=float, default=None, help='stop after S seconds')
+    r.add_argument('--robot', default=None,
+                   help='robot of /robot_description and /tf (default: the one spg/config '
+                        'or spg/status names)')
+    r.add_argument('--no-tf', action='store_true',
+                   help='no /robot_description, /tf_static, /tf')
     p = sub.add_parser('play', help='publish a bag with its original timing and QoS')
     p.add_argument('bag')
     p.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
@@ -790,7 +845,8 @@ def main(argv=None):
         if opts.cmd == 'info':
             print(info(opts.bag))
         elif opts.cmd == 'record':
-            record(opts.output, opts.topics or None, opts.all, opts.duration, ros_args)
+            record(opts.output, opts.topics or None, opts.all, opts.duration, ros_args,
+                   robot=opts.robot, foxglove=not opts.no_tf)
         else:
             counts = play(opts.bag, opts.rate, opts.delay, opts.topics, ros_args,
                           wait_subscribers=opts.wait_for_subscribers)

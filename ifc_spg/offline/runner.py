@@ -9,7 +9,10 @@ period. The bag in ``DIR/bag`` has the topics a live run records, with the same 
 QoS and header stamps (log time = sim time): ``joint_states``, ``command/joint_position``,
 ``spg/task_stack``, ``spg/status``, ``sim/contact_wrench``, ``ft_sensor/wrench`` (robots
 with wrist sensors), ``sim/env_joint_states`` (scenes with mechanisms) and
-``sim/apply_wrench`` (the scenario's pushes). Everything that sets the SPG's output besides
+``sim/apply_wrench`` (the scenario's pushes), and what Foxglove draws the robot from:
+``robot_description``, ``tf_static``, ``tf`` (measured q and, as ``virtual/...``, q_v, every
+10 ms) and ``spg/markers`` (the Cartesian task targets), see
+:mod:`ifc_spg.offline.foxglove`. Everything that sets the SPG's output besides
 the recorded joint states and task stacks is stored in the bag, each as JSON in the
 metadata's ``custom_data`` (``metadata.yaml``) and in the first ``spg/status`` message: the
 SPG configuration (``ifc_spg.node.config`` / ``config``: dt, solver, rho, torque_limits, PSPM,
@@ -74,7 +77,9 @@ from ifc_spg.kinematics import Kinematics
 from ifc_spg.model import RobotModel
 from ifc_spg.node.config import PARAMETERS, config_from_parameters
 from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params, status_json
+from ifc_spg.node.markers import wrench_arrows
 from ifc_spg.offline.bag import TOPICS, BagWriter
+from ifc_spg.offline.foxglove import FoxgloveTopics, cartesian_targets
 from ifc_spg.offline.metrics import MetricsRecorder, band_error
 from ifc_spg.ros import messages as m
 from ifc_spg.tasks.subspace import subspace_in_base
@@ -516,6 +521,8 @@ class _LockstepRun:
             topics.append('sim/apply_wrench')
         for topic in topics:
             writer.add_topic('/' + topic, *TOPICS[topic])
+        self.foxglove = FoxgloveTopics(writer, sim.robot)
+        self.foxglove.write_static(0)
         writer.write_msg('/spg/status', 0, m.String(data=status_json(
             {'event': {'type': 'started', 'message': f'offline run of {scenario.name}'},
              'config': config_doc, 'robot_params': robot_doc, 'robot': sim.robot.name,
@@ -553,6 +560,8 @@ class _LockstepRun:
         out = m.JointState(name=self.names, position=cmd.position, velocity=cmd.velocity)
         out.header.stamp = stamp
         self.writer.write_msg('/command/joint_position', t_ns, out)
+        self.foxglove.joint_state(t_ns, t_ns, js.name, js.position)
+        self.foxglove.joint_state(t_ns, t_ns, self.names, cmd.position, virtual=True)
         if runner.stack_id and runner.stack_id not in self.since:
             self.since[runner.stack_id] = t_ns * 1e-9
         info = runner.spg.info
@@ -560,6 +569,12 @@ class _LockstepRun:
         tasks = self.probe.evaluate(runner.spg.tasks, np.asarray(js.position),
                                     np.asarray(js.velocity), cmd.position, task_time,
                                     s.contact_wrench, self.contact_chain)
+        if self.foxglove.markers_due(t_ns):  # self.probe.kin_v is at this tick's q_v
+            force = -np.asarray(s.contact_wrench[:3], dtype=float)  # robot on environment
+            self.foxglove.markers(t_ns, t_ns, cartesian_targets(
+                runner.spg.tasks, self.probe.kin_v, task_time), wrench_arrows(
+                runner.spg.tasks, self.probe.kin_v, task_time,
+                (self.contact_chain, force)))
         event = None
         if runner.pspm_stalls != stalls:  # once per episode, as spg_node logs it
             event = ('pspm_stall', runner.last_stall)

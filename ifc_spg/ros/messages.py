@@ -24,7 +24,8 @@ __all__ = [
     'Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'MultiArrayLayout',
     'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose', 'PoseStamped',
     'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus', 'DiagnosticArray',
-    'Gid', 'NodeEntitiesInfo', 'ParticipantEntitiesInfo',
+    'Gid', 'NodeEntitiesInfo', 'ParticipantEntitiesInfo', 'ColorRGBA', 'CompressedImage',
+    'UVCoordinate', 'MeshFile', 'Marker', 'MarkerArray',
 ]
 
 REGISTRY = {}
@@ -357,6 +358,81 @@ class WrenchStamped(Message):
     _TYPE = 'geometry_msgs/msg/WrenchStamped'
     _FIELDS = (('header', 'std_msgs/msg/Header'), ('wrench', 'geometry_msgs/msg/Wrench'))
     _HASH = 'RIHS01_8dc3deaf06b2ab281f9f9a742a8961c328ca7cec16e3fd6586d3a5c83fa78f77'
+
+
+# std_msgs / sensor_msgs / visualization_msgs: markers (spg/markers) ---------------------------
+
+class ColorRGBA(Message):
+    """std_msgs/msg/ColorRGBA: ``r``, ``g``, ``b``, ``a`` in [0, 1] (float32)."""
+
+    __slots__ = ('r', 'g', 'b', 'a')
+    _TYPE = 'std_msgs/msg/ColorRGBA'
+    _FIELDS = (('r', 'float32'), ('g', 'float32'), ('b', 'float32'), ('a', 'float32'))
+    _HASH = 'RIHS01_77a7a5b9ae477306097665106e0413ba74440245b1f3d0c6d6405fe5c7813fe8'
+
+
+class CompressedImage(Message):
+    """sensor_msgs/msg/CompressedImage: ``header``, ``format``, ``data`` (uint8[])."""
+
+    __slots__ = ('header', 'format', 'data')
+    _TYPE = 'sensor_msgs/msg/CompressedImage'
+    _FIELDS = (('header', 'std_msgs/msg/Header'), ('format', 'string'), ('data', 'uint8[]'))
+    _HASH = 'RIHS01_15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a'
+
+
+class UVCoordinate(Message):
+    """visualization_msgs/msg/UVCoordinate: ``u``, ``v`` (float32)."""
+
+    __slots__ = ('u', 'v')
+    _TYPE = 'visualization_msgs/msg/UVCoordinate'
+    _FIELDS = (('u', 'float32'), ('v', 'float32'))
+    _HASH = 'RIHS01_f27f7ed21fe360c6066944f856b801a0c0d1e94e815b6886444b42d90b196a26'
+
+
+class MeshFile(Message):
+    """visualization_msgs/msg/MeshFile: ``filename`` and ``data`` (uint8[])."""
+
+    __slots__ = ('filename', 'data')
+    _TYPE = 'visualization_msgs/msg/MeshFile'
+    _FIELDS = (('filename', 'string'), ('data', 'uint8[]'))
+    _HASH = 'RIHS01_7710ece15a148fb7c9b546364cfb215bb06098087bd6394fe5b73a493508f8c4'
+
+
+class Marker(Message):
+    """visualization_msgs/msg/Marker (Jazzy): a shape, its pose, scale and colour.
+
+    ``type`` is one of the class constants ARROW ... ARROW_STRIP, ``action`` ADD, DELETE or
+    DELETEALL.
+    """
+
+    __slots__ = ('header', 'ns', 'id', 'type', 'action', 'pose', 'scale', 'color', 'lifetime',
+                 'frame_locked', 'points', 'colors', 'texture_resource', 'texture',
+                 'uv_coordinates', 'text', 'mesh_resource', 'mesh_file',
+                 'mesh_use_embedded_materials')
+    _TYPE = 'visualization_msgs/msg/Marker'
+    _FIELDS = (('header', 'std_msgs/msg/Header'), ('ns', 'string'), ('id', 'int32'),
+               ('type', 'int32'), ('action', 'int32'), ('pose', 'geometry_msgs/msg/Pose'),
+               ('scale', 'geometry_msgs/msg/Vector3'), ('color', 'std_msgs/msg/ColorRGBA'),
+               ('lifetime', 'builtin_interfaces/msg/Duration'), ('frame_locked', 'bool'),
+               ('points', 'geometry_msgs/msg/Point[]'), ('colors', 'std_msgs/msg/ColorRGBA[]'),
+               ('texture_resource', 'string'), ('texture', 'sensor_msgs/msg/CompressedImage'),
+               ('uv_coordinates', 'visualization_msgs/msg/UVCoordinate[]'), ('text', 'string'),
+               ('mesh_resource', 'string'), ('mesh_file', 'visualization_msgs/msg/MeshFile'),
+               ('mesh_use_embedded_materials', 'bool'))
+    _HASH = 'RIHS01_45b13ccf791f225962bf74e746f9644518855d783a6f42ba0cc14fde2b4f3ce0'
+    ARROW, CUBE, SPHERE, CYLINDER, LINE_STRIP, LINE_LIST = 0, 1, 2, 3, 4, 5
+    CUBE_LIST, SPHERE_LIST, POINTS, TEXT_VIEW_FACING, MESH_RESOURCE = 6, 7, 8, 9, 10
+    TRIANGLE_LIST, ARROW_STRIP = 11, 12
+    ADD, MODIFY, DELETE, DELETEALL = 0, 0, 2, 3
+
+
+class MarkerArray(Message):
+    """visualization_msgs/msg/MarkerArray: ``markers``."""
+
+    __slots__ = ('markers',)
+    _TYPE = 'visualization_msgs/msg/MarkerArray'
+    _FIELDS = (('markers', 'visualization_msgs/msg/Marker[]'),)
+    _HASH = 'RIHS01_86cb8800b6fb05b5eff1abd7a56f62a5641d3ae9a1c29e78e67e704f1d067dcf'
 
 
 # diagnostic_msgs ------------------------------------------------------------------------------

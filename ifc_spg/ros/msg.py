@@ -10,7 +10,8 @@ __all__ = ['Time', 'Duration', 'Header', 'String', 'Bool', 'MultiArrayDimension'
            'MultiArrayLayout',
            'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose',
            'PoseStamped', 'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus',
-           'DiagnosticArray', 'JointTrajectory', 'JointTrajectoryPoint']
+           'DiagnosticArray', 'JointTrajectory', 'JointTrajectoryPoint', 'ColorRGBA', 'Marker',
+           'MarkerArray']
 
 if BACKEND == 'rclpy':
     from builtin_interfaces.msg import Duration, Time
@@ -27,6 +28,7 @@ if BACKEND == 'rclpy':
     from sensor_msgs.msg import JointState
     from std_msgs.msg import (
         Bool,
+        ColorRGBA,
         Float64MultiArray,
         Header,
         MultiArrayDimension,
@@ -34,9 +36,14 @@ if BACKEND == 'rclpy':
         String,
     )
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    try:  # ros-jazzy-visualization-msgs (requirements.txt); spg_node checks for it
+        from visualization_msgs.msg import Marker, MarkerArray
+    except ImportError:
+        Marker = MarkerArray = None
 else:
     from ifc_spg.ros.messages import (
         Bool,
+        ColorRGBA,
         DiagnosticArray,
         DiagnosticStatus,
         Duration,
@@ -46,6 +53,8 @@ else:
         JointTrajectory,
         JointTrajectoryPoint,
         KeyValue,
+        Marker,
+        MarkerArray,
         MultiArrayDimension,
         MultiArrayLayout,
         Point,

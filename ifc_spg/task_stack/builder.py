@@ -28,6 +28,7 @@ from ifc_spg.tasks import (
     JointTorqueTask,
     WrenchTask,
 )
+from ifc_spg.tasks.stream import StreamBound, base_frames
 from ifc_spg.tasks.subspace import AXES, WRENCH_AXES
 
 if TYPE_CHECKING:
@@ -171,6 +172,8 @@ class _Builder:
         """Return a :class:`~ifc_spg.tasks.bounds.Bound` of dimension m."""
         if b.kind == 'init':
             return Init()
+        if b.kind == 'stream':
+            return StreamBound(b.get('stream'), b.get('stale_after'))
         if b.kind == 'constant':
             open_fill = np.inf if which == 'upper' else -np.inf
             values, mask = self.vector(path, b.get('value'), comp, what=which,
@@ -272,7 +275,10 @@ class _Builder:
         if not construct:
             return []
         try:
-            return [_CLASSES[spec.type](self.robot, **kw)]
+            task = _CLASSES[spec.type](self.robot, **kw)
+            if isinstance(kw.get('equal'), StreamBound):
+                kw['equal'].bind(task, base_frames(self.robot))
+            return [task]
         except TaskStackError:
             raise
         except IfcSpgError as exc:

@@ -20,6 +20,7 @@ from ifc_spg.task_stack.spec import (
     SUBSPACE_FIELDS,
     TASK_FIELDS,
     TASK_TYPES,
+    TOPIC_PATTERN,
     TRAJECTORIES,
     TRAJECTORY_ALIASES,
     VERSION,
@@ -156,6 +157,16 @@ def schema() -> dict[str, Any]:
         raise RuntimeError('subspace fields changed; update the schema')
     trajectories = [_trajectory(k) for k in TRAJECTORIES]
     bound = {'anyOf': [_NUM, _INIT, {'$ref': '#/$defs/trajectory'}]}
+    stream = {'type': 'object', 'additionalProperties': False, 'required': ['stream'],
+              'title': 'streamed target',
+              'description': 'Follow the latest message on a topic (null: spg/reference/'
+                             '<task name>): geometry_msgs/PoseStamped (cartesian_pose), '
+                             'sensor_msgs/JointState (joint_position), geometry_msgs/'
+                             'WrenchStamped (wrench); held after stale_after [s].',
+              'properties': {'stream': {'type': ['string', 'null'],
+                                        'pattern': TOPIC_PATTERN},
+                             'stale_after': {'type': 'number', 'exclusiveMinimum': 0,
+                                             'maximum': 1e6}}}
     return {
         '$schema': 'https://json-schema.org/draft/2020-12/schema',
         '$id': 'https://github.com/ifc-spg/ifc_spg/schema/task_stack.schema.json',
@@ -184,7 +195,7 @@ def schema() -> dict[str, Any]:
             'vector': _vector(),
             'anchor': _vector(init=True),
             'trajectory': {'anyOf': trajectories},
-            'bound_equal': {'anyOf': [bound, {'$ref': '#/$defs/constant_equal'}]},
+            'bound_equal': {'anyOf': [bound, {'$ref': '#/$defs/constant_equal'}, stream]},
             'bound_open': {'anyOf': [bound, {'$ref': '#/$defs/constant_open'}]},
             'constant_equal': _vector(init=True),
             'constant_open': _vector(init=True, open_=True),

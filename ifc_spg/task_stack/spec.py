@@ -84,6 +84,15 @@ TRAJECTORIES = {
     'min_jerk': {'from': ('anchor', 'init'), 'to': ('anchor_to', None), 'by': ('vector', None),
                  'duration': ('positive', REQUIRED), 'delay': ('nonnegative', 0.0)},
 }
+#: Streamed bounds (``equal: {stream: TOPIC, stale_after: S}``): the task types that take
+#: one, and the message each reads (see ifc_spg.tasks.stream).
+STREAM_TYPES = {'cartesian_pose': 'geometry_msgs/msg/PoseStamped',
+                'joint_position': 'sensor_msgs/msg/JointState',
+                'wrench': 'geometry_msgs/msg/WrenchStamped'}
+STREAM_STALE_AFTER = 0.2  # [s] default
+#: A streamed bound's topic: a relative, private (~) or absolute ROS topic name.
+TOPIC_PATTERN = r'^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$'
+_TOPIC_RE = re.compile(TOPIC_PATTERN)
 TRAJECTORY_ALIASES = {'lissajous': 'sine', 'square_wave': 'square', 'minjerk': 'min_jerk',
                       'linear': 'ramp'}
 _TIME_LIMIT = 1e6  # [s], bound on durations/periods; also on |frequency| [Hz]
@@ -211,6 +220,8 @@ def bound_to_data(b: BoundSpec) -> Any:
         return 'init'
     if b.kind == 'constant':
         return _vec_to_data(b.get('value'))
+    if b.kind == 'stream':
+        return dict(b.params)
     out = {'trajectory': b.kind}
     for k, v in b.params:
         if v is not None:
@@ -431,6 +442,9 @@ class _Parser:
         self.fields(path, x, TASK_FIELDS[ttype], f'a {ttype} task')
         kw.update(self.task_geometry(path, x, ttype))
         kw.update(self.task_bounds(path, x))
+        if getattr(kw.get('equal'), 'kind', None) == 'stream' and ttype not in STREAM_TYPES:
+            raise self.err(path + ('equal',), f'a {ttype} task cannot follow a stream; '
+                                              f"streamed tasks: {', '.join(STREAM_TYPES)}")
         kw.update(self.task_regulation(path, x))
         for key, parse in (('orientation', self.orientation), ('relative', self.boolean),
                            ('include_damping', self.boolean)):
@@ -594,6 +608,8 @@ class _Parser:
     # bounds and trajectories
     def bound(self, path, x, which):
         allow_open = which != 'equal'
+        if isinstance(x, dict) and 'stream' in x:
+            return self.stream(path, x, which)
         if isinstance(x, dict):
             return self.trajectory(path, x)
         if isinstance(x, str):
@@ -607,6 +623,25 @@ class _Parser:
                                  'trajectory (omit lower/upper to leave that side open)')
         v = self.vector(path, x, allow_init=True, allow_open=allow_open, what=which)
         return BoundSpec('constant', (('value', v),))
+
+    def stream(self, path, x, which):
+        """A streamed target: ``{stream: TOPIC or null, stale_after: S}`` (equal only)."""
+        if which != 'equal':
+            raise self.err(path, f'{which}: a streamed bound is a target; write it as '
+                                 'equal: {stream: TOPIC}')
+        self.fields(path, x, ('stream', 'stale_after'), 'a streamed bound')
+        topic = x['stream']
+        if topic is not None and (not isinstance(topic, str) or
+                                  not _TOPIC_RE.fullmatch(topic)):
+            raise self.err(path + ('stream',), f'expected a topic name (e.g. spg/reference/'
+                                               f'tool, or null for the default), got '
+                                               f'{_show(topic)}')
+        stale = x.get('stale_after', STREAM_STALE_AFTER)
+        stale = self.number(path + ('stale_after',), stale, 'a time in seconds')
+        if not 0.0 < stale <= _TIME_LIMIT:
+            raise self.err(path + ('stale_after',), f'stale_after must be > 0 s, got '
+                                                    f'{stale:g}')
+        return BoundSpec('stream', (('stream', topic), ('stale_after', stale)))
 
     def trajectory(self, path, x):
         kinds = tuple(TRAJECTORIES) + tuple(TRAJECTORY_ALIASES)

@@ -19,6 +19,7 @@ VERBS = {
     'plot': ('ifc_spg.tools.plot', 'figures from a bag'),
     'sweep': ('ifc_spg.tools.sweep', 'run a sweep file: every point, one table, figures'),
     'render': ('ifc_spg.tools.render', 'video of a bag: the robot in its MuJoCo scene'),
+    'view': ('ifc_spg.tools.view', 'browser cockpit of a bag: robot at q and q_v, targets'),
     'bench': ('ifc_spg.tools.bench', 'benchmark the SPG tick per solver'),
     'dynamics': ('ifc_spg.tools.dynamics_cli', 'Popov-Vereshchagin solver scenarios'),
     'ros': ('ifc_spg.ros.tools', 'ROS 2 layer tools: talker, listener, topic echo'),

@@ -104,7 +104,7 @@ def summary(result, pngs):
         lines.append(f"  SPG tick time p50 {tick['p50']:.2f} ms, p99 {tick['p99']:.2f} ms, max "
                      f"{tick['max']:.2f} ms")
     lines.append(f'  bag:     {result.bag}   '
-                 '(ifc-spg bag info / replay / plot; Foxglove opens it)')
+                 '(ifc-spg bag info / replay / plot / view; Foxglove opens it)')
     lines.append(f'  metrics: {result.metrics_path}')
     video = next((p for p in (Path(result.bag).parent / n for n in ('run.mp4', 'run.gif'))
                   if p.is_file()), None)

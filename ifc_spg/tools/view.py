@@ -1,0 +1,525 @@
+"""``ifc-spg view BAG``: a browser cockpit of a recorded run (viser).
+
+    ifc-spg view out/run/bag [--port 8080] [--host 127.0.0.1]
+    ifc-spg view --live lbr_iiwa14 [--port 8080]      (a running SPG, from its topics)
+
+Serves a 3D view on ``http://HOST:PORT`` (loopback by default; ``--host 0.0.0.0`` to expose)
+and prints the URL: the robot at the measured q (solid) and at q_v (a translucent blue
+ghost), the Cartesian task targets of ``/spg/markers`` (axes), a floor grid, the
+``spg/status`` of the time shown (stack, SPG state, tank energies, PSPM stall), and a
+timeline slider with play/pause over the bag's joint states. The robot is the bag's
+``/robot_description`` (URDF; else generated from the robot its SPG configuration names),
+drawn with its primitive shapes, placed by pinocchio's FK of that URDF.
+
+viser (pinned in requirements.txt) ships its built web client inside the wheel, so the page
+works without internet. Chosen over rerun: viser is a Python scene graph with GUI controls
+(sliders, buttons) and transform gizmos served by the same process, which a cockpit that
+also steers needs; rerun is a logging viewer with its own binary and data model.
+"""
+
+import argparse
+import sys
+import threading
+import time
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.errors import IfcSpgError, ParameterError
+
+__all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'main', 'status_text']
+
+_SOLID = (200, 200, 205)
+_GHOST = (60, 120, 255)
+
+
+class ViewData:
+    """What the cockpit shows of a bag (:func:`load_bag`).
+
+    Attributes:
+        urdf: The URDF text.
+        joint_names: Joint names (the order of ``q`` and ``q_v`` columns).
+        t: Joint-state stamps [s], shape (N,).
+        q: Measured joint positions, shape (N, n).
+        q_v: Commanded q_v at the same stamps (NaN rows where no command has that stamp).
+        targets: ``[(stamp [s], [(task name, position (3,), wxyz (4,))])]`` from
+            ``/spg/markers``.
+        status: ``[(stamp [s], spg/status document)]`` (documents with a stamp).
+    """
+
+    def __init__(self, urdf, joint_names, t, q, q_v, targets, status=()):
+        self.urdf, self.joint_names = urdf, list(joint_names)
+        self.t, self.q, self.q_v, self.targets = t, q, q_v, targets
+        self.status = list(status)
+
+
+def _stamp(msg):
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def _markers(data):
+    """``(stamp [s], [(task, position, wxyz)])`` of a recorded ``spg/markers`` message."""
+    from ifc_spg.ros import messages
+
+    arr = messages.deserialize(messages.MarkerArray, data)
+    spheres = [m for m in arr.markers if m.type == messages.Marker.SPHERE]
+    if not spheres:
+        return None
+    return (_stamp(spheres[0]), [
+        (m.ns, np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z]),
+         np.array([m.pose.orientation.w, m.pose.orientation.x, m.pose.orientation.y,
+                   m.pose.orientation.z])) for m in spheres])
+
+
+def _json_doc(text):
+    """The JSON object in ``text`` ({} if it is not one)."""
+    import json
+
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def _read(path):
+    """The bag's joint states and commands by stamp, markers, URDF, robot name, status."""
+    from ifc_spg.offline.bag import BagReader
+    from ifc_spg.ros import messages
+
+    states, commands, targets, status = {}, {}, [], []
+    urdf = robot = None
+    with BagReader(path) as bag:
+        topics = {t.lstrip('/'): t for t in bag.topics}
+        if 'joint_states' not in topics:
+            raise ParameterError(f"bag '{path}' has no joint_states; topics: "
+                                 f"{', '.join(sorted(bag.topics)) or 'none'}")
+        wanted = {topics[k] for k in ('joint_states', 'command/joint_position',
+                                      'robot_description', 'spg/markers', 'spg/status',
+                                      'spg/config') if k in topics}
+        for topic, _, _, data in bag.raw(wanted):
+            name = topic.lstrip('/')
+            if name == 'robot_description':
+                urdf = messages.deserialize(messages.String, data).data
+            elif name in ('spg/status', 'spg/config'):
+                doc = _json_doc(messages.deserialize(messages.String, data).data)
+                robot = robot or (doc.get('config') or {}).get('robot')
+                if name == 'spg/status' and isinstance(doc.get('stamp'), (int, float)):
+                    status.append((float(doc['stamp']), doc))
+            elif name == 'spg/markers':
+                item = _markers(data)
+                if item is not None:
+                    targets.append(item)
+            elif name in ('joint_states', 'command/joint_position'):
+                js = messages.deserialize(messages.JointState, data)
+                (states if name == 'joint_states' else commands)[_stamp(js)] = js
+    return states, commands, targets, urdf, robot, status
+
+
+def load_bag(path):
+    """Read a bag written by ``ifc-spg run`` or ``ifc-spg bag record`` into :class:`ViewData`.
+
+    Raises:
+        ParameterError: Not a bag, no joint states, or no way to know the robot.
+    """
+    states, commands, targets, urdf, robot, status = _read(path)
+    if not states:
+        raise ParameterError(f"bag '{path}': no joint states recorded")
+    if urdf is None:
+        if robot is None:
+            raise ParameterError(f"bag '{path}' has neither /robot_description nor the SPG "
+                                 'configuration (spg/status, spg/config) naming the robot')
+        from ifc_spg.model import RobotModel
+        from ifc_spg.model.urdf import urdf_from_robot
+        urdf = urdf_from_robot(RobotModel.from_config(robot)).xml
+    stamps = sorted(states)
+    names = list(states[stamps[0]].name)
+
+    def row(js):
+        index = {n: i for i, n in enumerate(js.name)}
+        return [float(js.position[index[n]]) if n in index else np.nan for n in names]
+
+    q = np.array([row(states[s]) for s in stamps])
+    q_v = np.array([row(commands[s]) if s in commands else [np.nan] * len(names)
+                    for s in stamps])
+    targets.sort(key=lambda x: x[0])
+    status.sort(key=lambda x: x[0])
+    return ViewData(urdf, names, np.array(stamps), q, q_v, targets, status)
+
+
+def _visuals(urdf):
+    """``{link: [(kind, size, SE3 in the link, rgb)]}`` of the URDF's visual elements."""
+    out = {}
+    for link in ET.fromstring(urdf).iter('link'):
+        items = []
+        for vis in link.iter('visual'):
+            origin = vis.find('origin')
+            xyz = [float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None
+                                      else '0 0 0').split()]
+            rpy = [float(v) for v in (origin.get('rpy', '0 0 0') if origin is not None
+                                      else '0 0 0').split()]
+            M = pin.SE3(pin.rpy.rpyToMatrix(np.array(rpy)), np.array(xyz))
+            color = vis.find('material/color')
+            rgba = [float(v) for v in color.get('rgba').split()] if color is not None \
+                else [0.8, 0.8, 0.8, 1.0]
+            rgb = tuple(int(255 * min(max(c, 0.0), 1.0)) for c in rgba[:3])
+            geom = vis.find('geometry')
+            for kind in ('box', 'sphere', 'cylinder'):
+                g = geom.find(kind) if geom is not None else None
+                if g is None:
+                    continue
+                if kind == 'box':
+                    size = tuple(float(v) for v in g.get('size').split())
+                elif kind == 'sphere':
+                    size = (float(g.get('radius')),)
+                else:
+                    size = (float(g.get('radius')), float(g.get('length')))
+                items.append((kind, size, M, rgb))
+        if items:
+            out[link.get('name')] = items
+    return out
+
+
+def status_text(doc):
+    """Markdown of an ``spg/status`` document: stack, SPG state, tank energies, PSPM."""
+    if not doc:
+        return 'no spg/status yet'
+    stack = (doc.get('stack') or {}).get('name') or 'none'
+    lines = [f"stack **{stack}**, {doc.get('state', '?')}, SPG "
+             f"{(doc.get('spg') or {}).get('status', '?')}"]
+    tanks = doc.get('tank_energy')
+    if tanks:
+        lines.append('tanks [J]: ' + ' '.join(f'{e:.2f}' for e in tanks))
+    pspm = doc.get('pspm') or {}
+    stall = pspm.get('stall')
+    if stall:
+        lines.append(f"**PSPM stall**: {', '.join(map(str, stall.get('joints', [])))}")
+    elif tanks:
+        lines.append('PSPM: no stall')
+    return '  \n'.join(lines)
+
+
+def _wxyz(R):
+    x, y, z, w = pin.Quaternion(np.asarray(R, float)).coeffs()
+    return np.array([w, x, y, z])
+
+
+class _Scene:
+    """The viser server, the robot at q (solid) and q_v (ghost), targets and a floor.
+
+    Args:
+        urdf: URDF text of the robot.
+        joint_names: The order of the q vectors given to :meth:`draw`.
+        host, port: Where to serve.
+    """
+
+    def __init__(self, urdf, joint_names, host, port):
+        import viser
+
+        self.model = pin.buildModelFromXML(urdf)
+        self.pin_data = self.model.createData()
+        self._idx = [self.model.joints[self.model.getJointId(n)].idx_q
+                     if self.model.existJointName(n) else None for n in joint_names]
+        visuals = _visuals(urdf)
+        self.links = [link for link in visuals if self.model.existFrame(link)]
+        self._frame_ids = [self.model.getFrameId(link) for link in self.links]
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.url = f'http://{host}:{self.server.get_port()}'
+        scene = self.server.scene
+        scene.add_grid('/floor', width=2.0, height=2.0, cell_size=0.1, section_size=0.5)
+        cam = self.server.initial_camera  # looking at the robot from the front right
+        cam.position, cam.look_at, cam.up = (1.6, -1.3, 1.2), (0.3, 0.0, 0.45), (0.0, 0.0, 1.0)
+        self.handles = {'robot': [], 'virtual': []}
+        for tree, opacity, tint in (('robot', None, None), ('virtual', 0.35, _GHOST)):
+            for link in self.links:
+                frame = scene.add_frame(f'/{tree}/{link}', show_axes=False)
+                self.handles[tree].append(frame)
+                for i, (kind, size, M, rgb) in enumerate(visuals[link]):
+                    kw = {'color': tint or rgb, 'opacity': opacity, 'position': M.translation,
+                          'wxyz': _wxyz(M.rotation)}
+                    name = f'/{tree}/{link}/v{i}'
+                    if kind == 'box':
+                        scene.add_box(name, dimensions=size, **kw)
+                    elif kind == 'sphere':
+                        scene.add_icosphere(name, radius=size[0], **kw)
+                    else:
+                        scene.add_cylinder(name, radius=size[0], height=size[1], **kw)
+        self.target_handles = {}
+        self._stop = threading.Event()
+
+    def fk(self, q):
+        """Run pinocchio's FK of the URDF at ``q`` (joint_names order; NaN: neutral)."""
+        qq = pin.neutral(self.model)
+        for k, i in enumerate(self._idx):
+            if i is not None and np.isfinite(q[k]):
+                qq[i] = q[k]
+        pin.framesForwardKinematics(self.model, self.pin_data, qq)
+        return self.pin_data
+
+    def draw(self, q, q_v):
+        """Place the robot at ``q`` and the ghost at ``q_v`` (hidden if not finite)."""
+        for tree, x in (('robot', q), ('virtual', q_v)):
+            visible = x is not None and bool(np.all(np.isfinite(x)))
+            if not visible:
+                for handle in self.handles[tree]:
+                    handle.visible = tree == 'robot'
+                continue
+            data = self.fk(x)
+            for handle, f in zip(self.handles[tree], self._frame_ids):
+                M = data.oMf[f]
+                handle.position, handle.wxyz, handle.visible = M.translation, \
+                    _wxyz(M.rotation), True
+
+    def draw_targets(self, items):
+        """Show ``[(task, position, wxyz)]`` as axes; hide the others."""
+        seen = set()
+        for name, p, wxyz in items:
+            seen.add(name)
+            handle = self.target_handles.get(name)
+            if handle is None:
+                handle = self.target_handles[name] = self.server.scene.add_frame(
+                    f'/targets/{name}', axes_length=0.08, axes_radius=0.004)
+            handle.position, handle.wxyz, handle.visible = p, wxyz, True
+        for name, handle in self.target_handles.items():
+            if name not in seen:
+                handle.visible = False
+
+    def close(self):
+        """Stop the background thread and the server."""
+        self._stop.set()
+        self.server.stop()
+
+
+class Cockpit(_Scene):
+    """The cockpit of one bag: the scene and a timeline.
+
+    Args:
+        data: :class:`ViewData`.
+        host: Interface to serve on (default loopback).
+        port: TCP port.
+
+    Attributes:
+        server: The ``viser.ViserServer``.
+        url: ``http://host:port``.
+        links: Link names drawn (each a scene node ``/robot/<link>`` and ``/virtual/<link>``).
+    """
+
+    def __init__(self, data, host='127.0.0.1', port=8080):
+        super().__init__(data.urdf, data.joint_names, host, port)
+        self.data = data
+        gui = self.server.gui
+        n = len(data.t)
+        self.slider = gui.add_slider('joint state', min=0, max=max(n - 1, 1), step=1,
+                                     initial_value=0)
+        self.playing = gui.add_checkbox('play', initial_value=False)
+        self.speed = gui.add_slider('speed', min=0.1, max=4.0, step=0.1, initial_value=1.0)
+        self.label = gui.add_markdown('')
+        self.status = gui.add_markdown('')
+        self.slider.on_update(lambda _: self.show(int(self.slider.value)))
+        self.index = None
+        self.show(0)
+        self._player = threading.Thread(target=self._play, daemon=True)
+        self._player.start()
+
+    def show(self, i):
+        """Draw sample ``i``: the robot at q, the ghost at q_v, the targets then."""
+        data = self.data
+        i = int(np.clip(i, 0, len(data.t) - 1))
+        self.index = i
+        with self.server.atomic():
+            self.draw(data.q[i], data.q_v[i])
+            current = []
+            for stamp, items in data.targets:
+                if stamp > data.t[i] + 1e-9:
+                    break
+                current = items
+            self.draw_targets(current)
+        self.label.content = (f'**t = {data.t[i] - data.t[0]:.3f} s** ({i + 1}/{len(data.t)}); '
+                              'solid: measured q, blue: q_v, axes: task targets')
+        doc = None
+        for stamp, d in data.status:
+            if stamp > data.t[i] + 1e-9:
+                break
+            doc = d
+        self.status.content = status_text(doc)
+
+    def _play(self):
+        last = time.monotonic()
+        while not self._stop.wait(1 / 30):  # at most 30 frames a second
+            now = time.monotonic()
+            if self.playing.value and len(self.data.t) > 1:
+                t = self.data.t[self.index] + (now - last) * float(self.speed.value)
+                i = int(np.searchsorted(self.data.t, t))
+                if i >= len(self.data.t):
+                    i = 0
+                self.slider.value = max(i, self.index + 1) % len(self.data.t)
+            last = now
+
+
+class LiveCockpit(_Scene):
+    """The cockpit of a running SPG, from its topics; a gizmo per streamed pose target.
+
+    Subscribes to ``joint_states`` (solid robot), ``command/joint_position`` (ghost),
+    ``spg/markers`` (targets) and the latched ``spg/config`` (the running stack). Each
+    ``cartesian_pose`` task of that stack with ``equal: {stream: ...}`` gets a transform
+    gizmo; moving it (in the page, or with :meth:`move_target`) publishes a
+    geometry_msgs/PoseStamped in ``world`` on the task's stream topic. Redraws at most 30
+    times a second.
+
+    Args:
+        robot: Robot configuration name (the URDF is generated from its MJCF).
+        node: An ``ifc_spg.ros.Node`` to use (None: ``ros.init`` and a node ``spg_view``).
+        host, port: Where to serve.
+    """
+
+    def __init__(self, robot, node=None, host='127.0.0.1', port=8080):
+        from ifc_spg import ros
+        from ifc_spg.model import RobotModel
+        from ifc_spg.model.urdf import urdf_from_robot
+        from ifc_spg.ros import msg
+
+        self.robot = RobotModel.from_config(robot)
+        super().__init__(urdf_from_robot(self.robot).xml, self.robot.joint_names, host, port)
+        self._ros, self._msg = ros, msg
+        self._own_node = node is None
+        if node is None:
+            ros.init(args=['ifc-spg'])
+            node = ros.Node('spg_view')
+        self.node = node
+        self.q = self.q_v = None
+        self.targets, self.gizmos, self._pubs = [], {}, {}
+        node.create_subscription(msg.JointState, 'joint_states',
+                                 lambda m: setattr(self, 'q', self._ordered(m)), 10)
+        node.create_subscription(msg.JointState, 'command/joint_position',
+                                 lambda m: setattr(self, 'q_v', self._ordered(m)), 10)
+        node.create_subscription(msg.String, 'spg/config', self._on_config, ros.latched(1))
+        self.last_status = None
+        node.create_subscription(msg.String, 'spg/status', self._on_status, 10)
+        if msg.MarkerArray is not None:
+            node.create_subscription(msg.MarkerArray, 'spg/markers', self._on_markers, 10)
+        self.label = self.server.gui.add_markdown('waiting for joint_states ...')
+        self.status = self.server.gui.add_markdown('')
+        self._spinner = threading.Thread(target=self._spin, daemon=True)
+        self._spinner.start()
+
+    def _ordered(self, m):
+        index = {n: i for i, n in enumerate(m.name)}
+        return np.array([float(m.position[index[n]]) if n in index else np.nan
+                         for n in self.robot.joint_names])
+
+    def _on_status(self, message):
+        doc = _json_doc(message.data)
+        if doc:
+            self.last_status = doc
+
+    def _on_markers(self, arr):
+        self.targets = [(m.ns, np.array([m.pose.position.x, m.pose.position.y,
+                                         m.pose.position.z]),
+                         np.array([m.pose.orientation.w, m.pose.orientation.x,
+                                   m.pose.orientation.y, m.pose.orientation.z]))
+                        for m in arr.markers if m.type == 2]  # SPHERE: a target's origin
+
+    def _on_config(self, message):
+        import json
+
+        from ifc_spg.node.core import parse_task_stack
+        from ifc_spg.tasks.stream import default_topic
+
+        try:
+            stack = (json.loads(message.data) or {}).get('stack') or {}
+            tasks = parse_task_stack(stack['text']).tasks if stack.get('text') else ()
+        except (ValueError, KeyError, IfcSpgError):
+            return
+        for t in tasks:
+            if t.type != 'cartesian_pose' or getattr(t.equal, 'kind', None) != 'stream' or \
+                    t.name in self.gizmos:
+                continue
+            topic = t.equal.get('stream') or default_topic(t.name)
+            self._pubs[t.name] = self.node.create_publisher(self._msg.PoseStamped, topic, 10)
+            q = self.q_v if self.q_v is not None else self.q
+            data = self.fk(q if q is not None else self.robot.q_home)
+            fid = self.model.getFrameId(self.robot.frames[t.frame])
+            M = data.oMf[fid]
+            gizmo = self.server.scene.add_transform_controls(
+                f'/gizmos/{t.name}', scale=0.2, position=M.translation, wxyz=_wxyz(M.rotation))
+            gizmo.on_update(lambda _, name=t.name: self._publish(name))
+            self.gizmos[t.name] = gizmo
+
+    def _publish(self, name):
+        gizmo = self.gizmos[name]
+        out = self._msg.PoseStamped()
+        out.header.frame_id = 'world'
+        p, (w, x, y, z) = gizmo.position, gizmo.wxyz
+        out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
+        o = out.pose.orientation
+        o.w, o.x, o.y, o.z = float(w), float(x), float(y), float(z)
+        self._pubs[name].publish(out)
+
+    def move_target(self, name, position, wxyz=None):
+        """Move the gizmo of streamed task ``name`` (as a drag in the page) and publish it."""
+        gizmo = self.gizmos[name]
+        gizmo.position = np.asarray(position, float)
+        if wxyz is not None:
+            gizmo.wxyz = np.asarray(wxyz, float)
+        self._publish(name)
+
+    def _spin(self):
+        last = 0.0
+        while not self._stop.is_set() and self._ros.ok():
+            self._ros.spin_once(self.node, timeout_sec=0.01)
+            now = time.monotonic()
+            if now - last >= 1 / 30 and self.q is not None:  # at most 30 frames a second
+                last = now
+                with self.server.atomic():
+                    self.draw(self.q, self.q_v)
+                    self.draw_targets(self.targets)
+                self.label.content = ('solid: measured q, blue: q_v, axes: targets; drag a '
+                                      'gizmo to stream a pose target')
+                self.status.content = status_text(self.last_status)
+
+    def close(self):
+        """Stop spinning and serving (and the ROS node this cockpit made)."""
+        self._stop.set()
+        self._spinner.join(timeout=2.0)
+        self.server.stop()
+        if self._own_node:
+            self.node.destroy_node()
+            self._ros.shutdown()
+
+
+def main(argv=None):
+    """``ifc-spg view BAG``."""
+    parser = argparse.ArgumentParser(prog='ifc-spg view', description=__doc__.split('\n')[0])
+    parser.add_argument('bag', nargs='?', help='bag directory (ifc-spg run / bag record)')
+    parser.add_argument('--live', metavar='ROBOT', default=None,
+                        help='instead of a bag: the running SPG of robot ROBOT, from its '
+                             'topics (drag a gizmo to stream a target)')
+    parser.add_argument('--host', default='127.0.0.1',
+                        help='interface to serve on (default loopback; 0.0.0.0 exposes it)')
+    parser.add_argument('--port', type=int, default=8080, help='TCP port (default 8080)')
+    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if (opts.bag is None) == (opts.live is None):
+        parser.error('give a bag directory or --live ROBOT')
+    try:
+        cockpit = LiveCockpit(opts.live, None, opts.host, opts.port) if opts.live else \
+            Cockpit(load_bag(opts.bag), opts.host, opts.port)
+    except IfcSpgError as exc:
+        print(f'ifc-spg view: {exc}', file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f'ifc-spg view: cannot serve on {opts.host}:{opts.port}: {exc}', file=sys.stderr)
+        return 2
+    print(f'ifc-spg view: {cockpit.url} (Ctrl-C to stop)', flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        cockpit.close()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""``ifc-spg view``: the viser cockpit of a lockstep bag, through its Python API and in a real
+headless browser (Debian's chromium, where installed)."""
+
+import shutil
+import socket
+import subprocess
+import urllib.request
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ifc_spg.model import RobotModel
+from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
+
+viser = pytest.importorskip('viser', reason='viser (requirements.txt) is not installed')
+
+from ifc_spg.tools.view import Cockpit, load_bag  # noqa: E402 - needs viser
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope='module')
+def cockpit(tmp_path_factory):
+    out = tmp_path_factory.mktemp('view')
+    sc = load_scenario(find_config_dir() / 'scenarios' / 'surface_short.yaml',
+                       {'duration': 1.2})
+    c = Cockpit(load_bag(run_scenario(sc, out, quiet=True).bag), port=_free_port())
+    yield c
+    c.close()
+
+
+def test_robot_ghost_and_targets_follow_the_timeline(cockpit):
+    robot = RobotModel.from_config('lbr_iiwa14')  # FK of the SPG's model, not the URDF's
+    data = robot.create_data()
+    bag = cockpit.data
+    assert {'link1', 'link7'} <= set(cockpit.links)
+    for i in (0, len(bag.t) // 2, len(bag.t) - 1):
+        cockpit.slider.value = i  # as the page's slider does
+        assert cockpit.index == i
+        for tree, q in (('robot', bag.q[i]), ('virtual', bag.q_v[i])):
+            pin.framesForwardKinematics(robot.model, data, q)
+            for link, handle in zip(cockpit.links, cockpit.handles[tree]):
+                M = data.oMf[robot.model.getFrameId(link)]
+                np.testing.assert_allclose(handle.position, M.translation, atol=1e-9)
+                assert abs(abs(np.dot(handle.wxyz, _wxyz(M.rotation))) - 1) < 1e-9
+        # the targets shown are the last /spg/markers at or before that time
+        stamp, items = [x for x in bag.targets if x[0] <= bag.t[i] + 1e-9][-1]
+        for name, p, _ in items:
+            np.testing.assert_allclose(cockpit.target_handles[name].position, p)
+    assert not np.allclose(bag.q[0], bag.q[-1])  # the timeline spans a motion
+    # the status of the time shown: the recorded spg/status at or before it
+    stamp, doc = [x for x in bag.status if x[0] <= bag.t[-1] + 1e-9][-1]
+    assert doc['stack']['name'] == 'circle'
+    assert cockpit.status.content.startswith('stack **circle**, running')
+    assert 'tanks [J]: ' + ' '.join(f'{e:.2f}' for e in doc['tank_energy']) in \
+        cockpit.status.content
+
+
+def _wxyz(R):
+    x, y, z, w = pin.Quaternion(R).coeffs()
+    return np.array([w, x, y, z])
+
+
+def test_page_is_served_without_internet(cockpit):
+    with urllib.request.urlopen(cockpit.url, timeout=10) as r:
+        page = r.read().decode()
+    assert r.status == 200 and '<html' in page.lower()
+
+
+CHROMIUM = shutil.which('chromium') or shutil.which('chromium-browser')
+
+
+def _screenshot(url, path):
+    subprocess.run([CHROMIUM, '--headless=new', '--no-sandbox', '--disable-gpu',
+                    '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+                    '--window-size=800,600', '--hide-scrollbars',
+                    '--virtual-time-budget=3000', f'--screenshot={path}', url],
+                   check=True, timeout=120, capture_output=True)
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert('RGB'), dtype=float)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason='no chromium (apt-get install chromium)')
+def test_a_real_browser_draws_the_robot_and_it_moves(cockpit, tmp_path):
+    cockpit.slider.value = 0
+    cockpit.playing.value = False
+    robots = [_screenshot(cockpit.url, tmp_path / 'first.png')]
+    cockpit.slider.value = len(cockpit.data.t) - 1
+    robots.append(_screenshot(cockpit.url, tmp_path / 'last.png'))
+    for img in robots:  # not a blank canvas: the scene has shaded, coloured pixels
+        assert img.std() > 10, img.std()
+    diff = np.abs(robots[0] - robots[1]).max(axis=2)
+    assert (diff > 30).mean() > 0.001  # the robot moved between the two times
+
+
+@pytest.mark.dds
+@pytest.mark.ros
+def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, monkeypatch):
+    """``ifc-spg view --live``: spg_node (the README's streamed stack) and a lockstep bridge
+    run as processes; a drag of the tool task's gizmo (through the viewer's Python API)
+    publishes the target and the simulated robot's tool reaches it."""
+    import time
+
+    from helpers import CONFIG, use_loopback
+
+    from ifc_spg.ros.testing import ProcessGroup
+    from ifc_spg.tools.view import LiveCockpit
+
+    env = use_loopback(monkeypatch)
+    robot = RobotModel.from_config('lbr_iiwa14')
+    data, tool = robot.create_data(), robot.frame_id('tool')
+    procs = ProcessGroup(tmp_path, env)
+    cockpit = None
+    try:
+        procs.start('spg_node', '--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
+                    '-p', f"task_stack_file:={CONFIG / 'examples' / 'teleop_pose_stream.yaml'}")
+        cockpit = LiveCockpit('lbr_iiwa14', port=_free_port())
+        bridge = procs.start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
+                             'scene:=free', '-p', 'mode:=lockstep', '-p', 'duration:=8.0',
+                             '-p', 'wait_for_subscribers:=2')
+
+        def wait(condition, timeout):
+            deadline = time.monotonic() + timeout
+            while not condition() and time.monotonic() < deadline:
+                time.sleep(0.05)
+            return condition()
+
+        assert wait(lambda: 'tool' in cockpit.gizmos and cockpit.q is not None, 90.0), \
+            procs.log('spg_node') + procs.log('sim_bridge')
+        pin.framesForwardKinematics(robot.model, data, cockpit.q)
+        start = data.oMf[tool].translation.copy()
+        goal = start + [0.0, 0.08, -0.05]
+        cockpit.move_target('tool', goal)  # as a drag of the gizmo in the page
+        wait(lambda: bridge.poll() is not None, 120.0)
+        pin.framesForwardKinematics(robot.model, data, cockpit.q)
+        end = data.oMf[tool].translation
+        # the ghost (q_v) and the drawn robot follow the topics
+        np.testing.assert_allclose(cockpit.handles['robot'][cockpit.links.index('link7')]
+                                   .position, data.oMf[robot.model.getFrameId('link7')]
+                                   .translation, atol=1e-6)
+    finally:
+        if cockpit is not None:
+            cockpit.close()
+        procs.close()
+    assert np.linalg.norm(end - goal) < 0.005, (start, goal, end)
+    assert bridge.returncode == 0
