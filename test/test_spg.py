@@ -228,6 +228,30 @@ def test_nullspace_box_saturation_keeps_the_higher_levels():
     assert inside > 20 and kept > 40, (inside, kept)
 
 
+def test_nullspace_level_spanned_by_the_levels_above_moves_nothing():
+    """A consistent level that the levels above already span (A2 = C A1) leaves A2 N at
+    rounding (1e-14 |A2|), whatever the BLAS: its rank is 0 against |A2|, so it adds no
+    motion and takes no direction from the null space, with or without the box; the
+    levels below are solved as if it were absent (a rank taken against A2 N's own largest
+    rounding value inverted noise: a random direction lost, qdot out of the box)."""
+    rng = np.random.default_rng(5)
+    ns = NullspaceCascade(7, damping=1e-9)
+    for _ in range(40):
+        A1 = rng.normal(size=(int(rng.integers(2, 4)), 7))
+        b1 = rng.normal(size=A1.shape[0])
+        C = rng.normal(size=(int(rng.integers(1, 3)), A1.shape[0]))
+        A3, b3 = rng.normal(size=(2, 7)), rng.normal(size=2)
+        top, low = Level('L1', A1, b1, b1, True), Level('L3', A3, b3, b3, True)
+        mid = Level('L2', C @ A1, C @ b1, C @ b1, True)
+        half = rng.uniform(0.2, 2.0, size=7)
+        for box in (None, VelocityBox(-half, half)):
+            with_mid, _ = ns.mapping([top, mid, low], None, box)
+            without, _ = ns.mapping([top, low], None, box)
+            np.testing.assert_allclose(with_mid, without, atol=1e-9)
+            if box is not None:
+                assert np.all(np.abs(with_mid) <= half + 1e-9)
+
+
 def test_nullspace_with_torque_limits_is_refused_naming_the_fix():
     with pytest.raises(ParameterError, match='torque_limits=False'):
         SetPointGenerator(IIWA, None, solver='nullspace')

@@ -2,7 +2,7 @@
 
 Kept for comparisons, not the default. Equality tasks only::
 
-    qdot = 0, N = I
+    qdot = 0 (with a box: its point nearest 0), N = I
     for each level: A <- A with clamped-joint columns zeroed
                     b <- beta - A qdot;  A <- A N
                     qdot <- qdot + A^{+lambda} b;  N <- N - A^+ A
@@ -20,8 +20,12 @@ the level is scaled down (its correction x - A qdot_above times s in [0, 1], the
 s seen that keeps every joint inside; SNS scales the task velocity, which is the same for
 the first level, and s = 0 leaves the levels above as they are, inside the box). Clipping
 the result per joint afterwards (the baseline before issue 21) instead changes every
-level's solution, the first one's included. The result is still clipped into the box as a
-last guard. The implicit torque-limit level, whose lock the cascades take as hard bounds,
+level's solution, the first one's included. Every rank decision takes its singular values
+against the level's |A| (rcond |A|), never against those of the projected A N, which are
+all rounding when the levels above already span the level: the saturated result is inside
+the box by construction (the saturated joints sit on their bounds, the free ones are
+scaled), not by a rank decision on round-off. The result is still clipped into the box as
+a last guard. The implicit torque-limit level, whose lock the cascades take as hard bounds,
 is not available.
 """
 
@@ -38,19 +42,43 @@ from ifc_spg.tasks.task import Level
 __all__ = ['NullspaceCascade']
 
 
-def _damped_pinv_rank(A: np.ndarray, damping: float, rcond: float
+def _svd_cut(M: np.ndarray, cutoff: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """SVD of M with the singular values at or below the absolute ``cutoff`` marked dropped.
+
+    The cut-off is absolute (the caller scales it by a norm fixed for the level), not
+    relative to M's own largest singular value: a matrix that is all rounding (A P_bar or
+    A N of a level that the levels above and the saturated or clamped joints leave nothing
+    to move: singular values around 1e-14 |A|) then has rank 0 on every BLAS, where a
+    relative cut-off keeps its largest rounding value as rank 1 and inverts noise.
+    """
+    U, sv, Vt = np.linalg.svd(M, full_matrices=False)
+    return U, sv, Vt, sv > cutoff
+
+
+def _pinv(M: np.ndarray, cutoff: float) -> np.ndarray:
+    """Moore-Penrose inverse of M, singular values at or below the absolute ``cutoff`` zero."""
+    U, sv, Vt, keep = _svd_cut(M, cutoff)
+    return (Vt.T * np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)) @ U.T
+
+
+def _damped_pinv_rank(A: np.ndarray, damping: float, cutoff: float
                       ) -> tuple[np.ndarray, int]:
-    """A^T (A A^T + lambda^2 I)^-1 by the SVD, singular values below rcond s_max dropped.
+    """A^T (A A^T + lambda^2 I)^-1 by the SVD and the rank, singular values <= cutoff dropped.
 
     Where saturated or clamped joints leave a level without the columns to span it, its
-    singular values sit at rounding level (1e-17), which the damped gain s / (s^2 +
+    singular values sit at rounding level (1e-14 |A|), which the damped gain s / (s^2 +
     lambda^2) would amplify by up to 1 / (2 lambda); they count as zero, as in the
-    undamped inverse of the projectors.
+    undamped inverse of the projectors. ``cutoff`` is absolute (see :func:`_svd_cut`).
     """
-    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
-    keep = sv > rcond * (sv[0] if sv.size else 0.0)
+    U, sv, Vt, keep = _svd_cut(A, cutoff)
     return ((Vt.T * np.where(keep, sv / (sv ** 2 + damping ** 2), 0.0)) @ U.T,
             int(np.count_nonzero(keep)))
+
+
+def _norm2(A: np.ndarray) -> float:
+    """The spectral norm of A (0 for an empty A)."""
+    return float(np.linalg.norm(A, 2)) if A.size else 0.0
 
 
 def _scaling(a: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
@@ -86,7 +114,9 @@ class NullspaceCascade:
         q_max: Upper joint position limits in [rad] of checklimits (None: unlimited).
         damping: lambda of the damped inverse used for the step (2.17/2.18).
         critical_distance: dl_crit in [rad] of checklimits.
-        rcond: Relative cut-off of the undamped pseudo-inverse used for N (3.48).
+        rcond: Cut-off of the singular values, relative to the level's |A| (the damped
+            inverse, its rank, the undamped inverse used for N (3.48)) or to 1 (the rows of
+            the projector N of the saturated joints).
     """
 
     name = 'nullspace'
@@ -136,14 +166,18 @@ class NullspaceCascade:
         if box is None:  # no joint leaves an unbounded box: the plain steps of Alg. C.1
             box = VelocityBox(np.full(n, -np.inf), np.full(n, np.inf))
         clamped = np.zeros(n, dtype=bool)
+        # The start is the box point nearest zero (zero itself whenever the box holds it):
+        # the first level's s = 0, inside the box.
+        start = np.minimum(np.maximum(0.0, box.lower), box.upper)
         for _ in range(n + 1):
-            qdot = np.zeros(n)
+            qdot = start
             N = np.eye(n)
             for lev in levels:
                 A = lev.A * ~clamped
-                qdot = self._sns_level(A, lev.lower, qdot, N, box)
+                cutoff = self.rcond * _norm2(A)  # rank decisions against |A|, not |A N|
+                qdot = self._sns_level(A, lev.lower, qdot, N, box, cutoff)
                 AN = A @ N
-                N = N - np.linalg.pinv(AN, rcond=self.rcond) @ AN
+                N = N - _pinv(AN, cutoff) @ AN
             if q_v is None:
                 break
             near_hi = (self.q_max - q_v < self.critical_distance) & (qdot > 0)
@@ -155,18 +189,24 @@ class NullspaceCascade:
         return qdot, np.flatnonzero(clamped)
 
     def _sns_level(self, A: np.ndarray, x: np.ndarray, qdot_prev: np.ndarray, P: np.ndarray,
-                   box: VelocityBox) -> np.ndarray:
+                   box: VelocityBox, cutoff: float) -> np.ndarray:
         """One level of SNS (Alg. 3): qdot inside ``box`` solving the level, scaled if need be.
 
-        ``qdot_prev`` is the solution of the levels above and ``P`` the projector onto
-        their null space; the increments that take saturated joints to their bounds go
-        through P, so those levels keep their solution.
+        ``qdot_prev`` is the solution of the levels above (inside the box) and ``P`` the
+        projector onto their null space; the increments that take saturated joints to
+        their bounds go through P, so those levels keep their solution. ``cutoff`` is the
+        absolute singular-value cut-off of the level's rank decisions.
+
+        Every candidate returned is inside the box: the unscaled solution when it is, else
+        s a + b with s from :func:`_scaling` over the free joints, the saturated ones
+        sitting exactly on their bounds (a = 0 there), or s = 0 of the first step, which
+        is ``qdot_prev``.
         """
         lower, upper, tol = box.lower, box.upper, self.lock_tolerance
         free = np.ones(self.n, dtype=bool)
         qdot_n = np.zeros(self.n)  # increments that take the saturated joints to their bounds
-        a, b, rank0 = self._sns_terms(A, x, qdot_prev, P, free, qdot_n)
-        best = (0.0, free.copy(), qdot_n.copy())  # (s, free, qdot_n): best scaled so far
+        a, b, rank0 = self._sns_terms(A, x, qdot_prev, P, free, qdot_n, cutoff)
+        best = (0.0, np.zeros(self.n), qdot_prev)  # (s, a, b): best scaled so far
         for _ in range(self.n):
             qdot = a + b
             out = free & ((qdot < lower - tol) | (qdot > upper + tol))
@@ -174,25 +214,29 @@ class NullspaceCascade:
                 return qdot
             scale, j = _scaling(a, b, lower, upper, free)
             if scale > best[0]:
-                best = (scale, free.copy(), qdot_n.copy())
+                best = (scale, a, b)
             if j < 0:  # no scale fits: saturate the joint farthest outside
                 j = int(np.argmax(np.where(free, np.maximum(qdot - upper, lower - qdot),
                                            -np.inf)))
             free[j] = False
             qdot_n[j] = (upper[j] if qdot[j] > upper[j] else lower[j]) - qdot_prev[j]
-            a, b, rank = self._sns_terms(A, x, qdot_prev, P, free, qdot_n)
-            reached = np.abs(b - qdot_prev - qdot_n)[~free] <= 1e-9 * (1.0 + np.abs(qdot_n[~free]))
+            a, b, rank = self._sns_terms(A, x, qdot_prev, P, free, qdot_n, cutoff)
+            target = (qdot_prev + qdot_n)[~free]
+            reached = np.abs(b[~free] - target) <= 1e-9 * (1.0 + np.abs(qdot_n[~free]))
             if rank < rank0 or not np.any(free) or not np.all(reached):
                 # The free joints cannot solve the level, or the levels above leave no
                 # motion that takes the saturated joints to their bounds: the best scaled
                 # solution so far.
                 break
-        s, free, qdot_n = best
-        a, b, _ = self._sns_terms(A, x, qdot_prev, P, free, qdot_n)
+            # The saturated joints sit on their bounds and do not move with s (their
+            # columns are out of A P_bar): rounding removed, so the scaling over the free
+            # joints keeps every joint inside.
+            a[~free], b[~free] = 0.0, target
+        s, a, b = best
         return s * a + b
 
     def _sns_terms(self, A: np.ndarray, x: np.ndarray, qdot_prev: np.ndarray, P: np.ndarray,
-                   free: np.ndarray, qdot_n: np.ndarray
+                   free: np.ndarray, qdot_n: np.ndarray, cutoff: float
                    ) -> tuple[np.ndarray, np.ndarray, int]:
         """(a, b, rank of A P_bar) of SNS: the level's solution is s a + b.
 
@@ -201,9 +245,9 @@ class NullspaceCascade:
         """
         if free.all():  # nothing saturated: the plain step of Alg. C.1
             P_bar, sat = P, np.zeros(self.n)
-        else:
-            S_pinv = np.linalg.pinv(P * ~free[:, None], rcond=self.rcond)  # ((I - W) P)^+
+        else:  # ((I - W) P)^+, P's norm is 1 (an orthogonal projector): cut-off rcond
+            S_pinv = _pinv(P * ~free[:, None], self.rcond)
             P_bar = P - S_pinv @ P
             sat = S_pinv @ qdot_n
-        JP_pinv, rank = _damped_pinv_rank(A @ P_bar, self.damping, self.rcond)
+        JP_pinv, rank = _damped_pinv_rank(A @ P_bar, self.damping, cutoff)
         return JP_pinv @ (x - A @ qdot_prev), qdot_prev + sat - JP_pinv @ (A @ sat), rank
