@@ -104,11 +104,11 @@ def _command_order(config, joint_names):
 
 
 class PeriodCounter:
-    """Periods of a timer that fired late or not at all (``tick: timer``).
+    """Periods of a timer that passed without a callback (``tick: timer``).
 
     A timer driven by the executor cannot fire while the process has no CPU: on a loaded
-    machine some periods pass without a callback. Each callback books the periods since the
-    previous one; ``missed`` counts those that had no callback of their own.
+    machine periods pass without a callback (rcl skips them rather than catching up). The
+    counter compares the callbacks with the periods elapsed since the first one.
 
     Args:
         period: The timer's period [s].
@@ -119,30 +119,28 @@ class PeriodCounter:
         self.first: float | None = None
         self.last: float | None = None
         self.calls = 0
-        self.missed = 0
 
-    def book(self, now: float) -> int:
-        """Book a callback at ``now`` [s, monotonic]; the periods it missed since the last."""
-        missed = 0
-        if self.last is None:
+    def book(self, now: float) -> None:
+        """Book a callback at ``now`` [s, monotonic]."""
+        if self.first is None:
             self.first = now
-        else:
-            missed = max(0, round((now - self.last) / self.period) - 1)
         self.last = now
         self.calls += 1
-        self.missed += missed
-        return missed
 
     def summary(self) -> dict:
         """The periods, callbacks, missed periods and the callback rate.
 
         Returns:
-            ``{'periods', 'calls', 'missed', 'rate'}``: periods since the first call, the
-            callbacks, the periods without one, and the callback rate [Hz] (0 before two).
+            ``{'periods', 'calls', 'missed', 'rate'}``: periods from the first callback to
+            the last (both included), the callbacks, the periods without one, and the
+            callback rate [Hz] (0 before two).
         """
-        span = 0.0 if self.first is None or self.last is None else self.last - self.first
-        periods = round(span / self.period) + (1 if self.calls else 0)
-        return {'periods': periods, 'calls': self.calls, 'missed': self.missed,
+        if self.first is None or self.last is None:
+            return {'periods': 0, 'calls': 0, 'missed': 0, 'rate': 0.0}
+        span = self.last - self.first
+        periods = round(span / self.period) + 1
+        return {'periods': periods, 'calls': self.calls,
+                'missed': max(0, periods - self.calls),
                 'rate': (self.calls - 1) / span if span > 0 else 0.0}
 
 
