@@ -158,11 +158,12 @@ def _joints(mj, robot):
                              'joint per body')
         if int(mj.body_jntnum[b]) == 1:
             j = int(mj.body_jntadr[b])
-            kind = kinds.get(int(mj.jnt_type[j]))
-            if kind is None:
+            joint_kind = kinds.get(int(mj.jnt_type[j]))
+            if joint_kind is None:
                 raise ModelError(f"robot '{robot.name}': the joint of body '{body_name[b]}' is "
                                  'not a hinge or slide joint; URDF export writes revolute and '
                                  'prismatic joints only')
+            kind = joint_kind
             name = mujoco.mj_id2name(mj, obj.mjOBJ_JOINT, j)
             axis = np.asarray(mj.jnt_axis[j], float).copy()
             link_offset[b] = np.asarray(mj.jnt_pos[j], float).copy()

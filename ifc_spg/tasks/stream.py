@@ -90,7 +90,7 @@ class StreamReference:
         """Take one message received at ``now_ns`` [ns]; True if accepted."""
         self.received += 1
         value, reason = self._parse(msg)
-        if value is None:
+        if reason is not None:
             self.rejected[reason[0]] += 1
             self.last_reject = reason[1]
             return False
@@ -103,6 +103,7 @@ class StreamReference:
     def _parse(self, msg: Any) -> tuple[Any, tuple[str, str] | None]:
         kind = self.task.kind
         frame = str(msg.header.frame_id) if kind != 'joint_position' else ''
+        nums: tuple[Any, ...]
         if kind == 'cartesian_pose':
             p, o = msg.pose.position, msg.pose.orientation
             nums = (p.x, p.y, p.z, o.x, o.y, o.z, o.w)
@@ -211,16 +212,19 @@ class StreamBound(Bound):
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The latest reference in task coordinates (or the ``init`` value), rate zero."""
-        ref = self.reference
+        ref, rate = self.reference, self._rate
+        if rate is None:
+            raise ValueError('a streamed bound is not bound to a task (bind it first)')
         if ref is None or ref.latest is None:
             if self._init is None:
                 raise ValueError('a streamed bound has no value before activation')
-            return self._init, self._rate
-        if ref.version != self._version:
-            self._value = np.asarray(self._to_value(ref.latest), dtype=float)
-            self._value.setflags(write=False)
-            self._version = ref.version
-        return self._value, self._rate
+            return self._init, rate
+        if ref.version != self._version or self._value is None:
+            value = np.asarray(self._to_value(ref.latest), dtype=float)
+            value.setflags(write=False)
+            self._value, self._version = value, ref.version
+            return value, rate
+        return self._value, rate
 
     def _to_value(self, latest: Any) -> np.ndarray:
         task = self.task
