@@ -44,6 +44,7 @@ import numpy as np
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.model import JOINT_IMPEDANCE, RobotModel
 from ifc_spg.node.config import SpgConfig
+from ifc_spg.ros.stamps import join_ns, split_ns
 from ifc_spg.spg import Activation, SetPointGenerator, SpgState
 from ifc_spg.task_stack import TaskStack
 from ifc_spg.tasks.stream import streams_of
@@ -595,7 +596,7 @@ class SpgRunner:
         """
         snap = self.spg.snapshot()
         nan = np.full(self._n, np.nan)
-        sec, nsec = divmod(int(self._last_stamp or 0), 1_000_000_000)
+        sec, nsec = split_ns(self._last_stamp or 0)
         return np.concatenate((
             [float(self.ticks), float(sec), float(nsec)], self._last_q, snap.q_v, snap.qdot_v,
             nan if snap.tank_energy is None else snap.tank_energy,
@@ -665,7 +666,7 @@ class SpgRunner:
                                   None if tanks is None else parts['shuffled'],
                                   parts.get('warm_start')),
                          parts['q'], acts)
-        stamp = int(parts['stamp_sec'][0]) * 1_000_000_000 + int(parts['stamp_nanosec'][0])
+        stamp = join_ns(parts['stamp_sec'][0], parts['stamp_nanosec'][0])
         if stack:
             self.stack_id, self.stack_name = int(stack['id']), str(stack['name'])
             self.stack_text, self._stack_since = stack['text'], stack.get('since')

@@ -13,6 +13,8 @@ wrench task's commanded force (green) and the measured contact force (orange).
 import numpy as np
 import pinocchio as pin
 
+from ifc_spg.ros.stamps import set_stamp
+
 __all__ = ['MarkerPublisher', 'cartesian_targets', 'marker_array', 'wrench_arrows']
 
 # an ARROW points along its pose's x axis: the y and z arrows are x turned onto them
@@ -51,7 +53,7 @@ def cartesian_targets(tasks, kin, t):
 
 def _marker(classes, stamp_ns, frame, ns, i, kind, p, R, scale, rgba):
     mk = classes.Marker()
-    mk.header.stamp.sec, mk.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    set_stamp(mk.header.stamp, stamp_ns)
     mk.header.frame_id = frame
     mk.ns, mk.id, mk.type = ns, int(i), int(kind)
     mk.action = int(classes.Marker.ADD)

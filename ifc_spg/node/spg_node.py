@@ -56,6 +56,7 @@ from ifc_spg.node.core import SpgRunner, status_json
 from ifc_spg.node.markers import MarkerPublisher
 from ifc_spg.node.stream_subscriptions import StreamSubscriptions
 from ifc_spg.ros import msg
+from ifc_spg.ros.stamps import set_stamp, stamp_to_ns
 
 __all__ = ['SpgNode', 'main']
 
@@ -63,7 +64,7 @@ _LEVELS = {'OK': 0, 'WARN': 1, 'ERROR': 2, 'STALE': 3}
 
 
 def _stamp_ns(stamp):
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    return stamp_to_ns(stamp)
 
 
 #: Parameters that may change while the node runs (applied from the next tick): how often it
@@ -335,7 +336,7 @@ class SpgNode:
         self._last_tick_ns = stamp_ns
         self._ages.append(age)
         stamp = msg.Time()
-        stamp.sec, stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        set_stamp(stamp, stamp_ns)
         self._tick(message, stamp)
 
     def _tick(self, message, stamp):
@@ -424,8 +425,7 @@ class SpgNode:
         point = msg.JointTrajectoryPoint()
         point.positions = [float(position[i]) for i in order]
         point.velocities = [float(velocity[i]) for i in order]
-        point.time_from_start.sec, nanosec = divmod(round(self.config.dt * 1e9), 1_000_000_000)
-        point.time_from_start.nanosec = nanosec
+        set_stamp(point.time_from_start, round(self.config.dt * 1e9))
         out.points = [point]
         self.pub_command.publish(out)
 
@@ -476,7 +476,7 @@ class SpgNode:
         status.values = [msg.KeyValue(key=k, value=v) for k, v in item.values.items()]
         array = msg.DiagnosticArray()
         now = time.time_ns()
-        array.header.stamp.sec, array.header.stamp.nanosec = divmod(now, 1_000_000_000)
+        set_stamp(array.header.stamp, now)
         array.status = [status]
         self.pub_diag.publish(array)
 

@@ -56,6 +56,7 @@ from ifc_spg.ros.qos import (
     latched,
     qos_profile_sensor_data,
 )
+from ifc_spg.ros.stamps import stamp_to_ns
 
 __all__ = [
     'TOPICS',
@@ -92,7 +93,7 @@ _INFINITE_NS = (9223372036, 854775807)  # rmw's "infinite" duration as Jazzy wri
 
 def stamp_ns(stamp):
     """A ``builtin_interfaces/Time`` as integer nanoseconds."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    return stamp_to_ns(stamp)
 
 
 def to_rosbags_qos(qos):

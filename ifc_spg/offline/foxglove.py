@@ -26,6 +26,7 @@ import pinocchio as pin
 from ifc_spg.model.urdf import urdf_from_robot
 from ifc_spg.node.markers import cartesian_targets, marker_array
 from ifc_spg.ros.qos import QoSProfile, latched
+from ifc_spg.ros.stamps import stamp_to_ns
 
 __all__ = ['VIRTUAL_PREFIX', 'FoxgloveTopics', 'RecordingObserver', 'cartesian_targets',
            'tf_transforms']
@@ -224,5 +225,5 @@ class RecordingObserver:
             js = messages.deserialize(messages.JointState, data)
         except (IfcSpgError, ValueError):
             return
-        stamp = js.header.stamp.sec * 1_000_000_000 + js.header.stamp.nanosec
+        stamp = stamp_to_ns(js.header.stamp)
         self.topics.joint_state(t_ns, stamp, js.name, js.position, virtual)

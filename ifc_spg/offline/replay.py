@@ -55,6 +55,7 @@ from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params
 from ifc_spg.offline.bag import BagReader, stamp_ns
 from ifc_spg.offline.runner import CONFIG_KEY, ROBOT_PARAMS_KEY
+from ifc_spg.ros.stamps import join_ns
 
 __all__ = ['ReplayResult', 'main', 'read_robot_params', 'read_spg_config', 'replay',
            'replay_robot']
@@ -272,7 +273,7 @@ def _activation_times(stack_msgs, statuses, accepted):
 
 def _snapshot_stamp(vec):
     """The stamp [ns] of the tick a recorded ``spg/state`` vector follows."""
-    return int(vec[1]) * 1_000_000_000 + int(vec[2])
+    return join_ns(vec[1], vec[2])
 
 
 def _resume_point(snapshots, state_stamps):

@@ -21,6 +21,8 @@ import signal
 import subprocess
 import sys
 
+from ifc_spg.ros.stamps import stamp_to_ns
+
 __all__ = ['LOOPBACK_CONFIG', 'LOOPBACK_KEYS', 'ProcessGroup', 'loopback_env',
            'raise_priority', 'random_domain_id', 'stamp_ns', 'stop_process']
 
@@ -134,7 +136,7 @@ def stop_process(proc, timeout=5.0, sig=signal.SIGTERM):
 
 def stamp_ns(msg):
     """The ``header.stamp`` of a stamped message as an int [ns]."""
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    return stamp_to_ns(msg.header.stamp)
 
 
 class ProcessGroup:

@@ -27,6 +27,7 @@ from ifc_spg.errors import IfcSpgError
 from ifc_spg.ros import messages
 from ifc_spg.ros import msg as msgs
 from ifc_spg.ros.msg import JointState
+from ifc_spg.ros.stamps import stamp_to_ns
 
 __all__ = ['main', 'talker', 'listener', 'echo', 'bench']
 
@@ -136,7 +137,7 @@ def listener(argv):
 
         def callback(msg):
             now = time.time_ns()
-            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            stamp = stamp_to_ns(msg.header.stamp)
             latencies.append((now - stamp) * 1e-6)
             if msg.header.frame_id.isdigit():
                 seqs.add(int(msg.header.frame_id))

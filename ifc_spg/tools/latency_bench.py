@@ -28,6 +28,7 @@ import time
 from ifc_spg import ros
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.ros import dds, messages
+from ifc_spg.ros.stamps import stamp_to_ns
 from ifc_spg.ros.testing import loopback_env, random_domain_id, stop_process
 
 __all__ = ['PAIRS', 'main', 'run']
@@ -44,7 +45,7 @@ tasks:
 
 
 def _stamp(msg):
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    return stamp_to_ns(msg.header.stamp)
 
 
 class _Listener:

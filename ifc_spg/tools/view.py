@@ -27,6 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.ros.stamps import stamp_to_sec
 
 __all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'main', 'status_text']
 
@@ -55,7 +56,7 @@ class ViewData:
 
 
 def _stamp(msg):
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    return stamp_to_sec(msg.header.stamp)
 
 
 def _markers(data):
