@@ -39,8 +39,9 @@ import numpy as np
 
 from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
-from ifc_spg.node.config import declare_checked, robot_gains_of
+from ifc_spg.model import robot_gains
 from ifc_spg.ros import msg
+from ifc_spg.ros.parameters import declare_checked
 from sim_bridge.pacing import DeadlinePacer
 from sim_bridge.simulation import SimConfig, Simulation
 
@@ -118,7 +119,7 @@ def declare(node):
         if name == 'q0':
             default = [0.0]  # typed as a double array; [] would be untyped
         elif name in ('stiffness', 'damping', 'command_joints'):  # the robot's own values
-            gains = gains or robot_gains_of(values['robot'])
+            gains = gains or robot_gains(values['robot'])
             default = gains[name]
         desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
         values[name] = declare_checked(node, name, default, desc)

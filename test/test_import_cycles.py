@@ -118,3 +118,17 @@ def test_no_import_cycle(package):
     graph = import_graph()
     cycle = find_cycle(graph)
     assert cycle is None, 'import cycle: ' + ' -> '.join(cycle)
+
+
+# The simulator sits beside the library, not inside its layers: it may use the robot models,
+# the ROS layer and the error types, nothing of the SPG (ARCHITECTURE.md, "Who may import whom").
+SIM_BRIDGE_MAY_IMPORT = ('ifc_spg.errors', 'ifc_spg.model', 'ifc_spg.ros')
+
+
+def test_sim_bridge_imports_only_models_ros_and_errors_of_ifc_spg():
+    graph = import_graph()
+    bad = sorted((mod, dep) for mod, deps in graph.items() if mod.startswith('sim_bridge')
+                 for dep in deps if dep.split('.')[0] == 'ifc_spg' and dep != 'ifc_spg'
+                 and not any(dep == a or dep.startswith(a + '.') for a in SIM_BRIDGE_MAY_IMPORT))
+    assert not bad, f'sim_bridge imports library layers above the models: {bad}'
+

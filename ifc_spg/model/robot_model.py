@@ -18,7 +18,8 @@ from ifc_spg.errors import ModelError, ParameterError, UnknownFrame, UnknownJoin
 from ifc_spg.model import registry
 from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance
 
-__all__ = ['CartesianAdmittance', 'RobotModel', 'JOINT_IMPEDANCE', 'CARTESIAN_ADMITTANCE']
+__all__ = ['CartesianAdmittance', 'RobotModel', 'JOINT_IMPEDANCE', 'CARTESIAN_ADMITTANCE',
+           'robot_gains']
 
 
 def _readonly(x: Any, n: int, what: str) -> np.ndarray:
@@ -282,3 +283,18 @@ def _reduce(model: pin.Model, joints: Sequence[str] | None,
         order = list(reduced.names[1:])
         raise ModelError(f'joints must be listed in model order: {order}')
     return reduced
+
+
+def robot_gains(robot: str) -> dict:
+    """``{'stiffness': K, 'damping': D, 'command_joints': names}`` of a robot configuration.
+
+    Lists of floats (and the joint names): the declared defaults of the gain parameters, so
+    that ``ros2 param get`` shows what the node computes with (spg_node, sim_bridge).
+
+    Args:
+        robot: The robot configuration's name.
+    """
+    model = RobotModel.from_config(robot)  # an unknown robot: the error names the choices
+    out = {key: [float(v) for v in getattr(model, key)] for key in ('stiffness', 'damping')}
+    out['command_joints'] = list(model.joint_names)
+    return out

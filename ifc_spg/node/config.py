@@ -13,7 +13,6 @@ ROS parameter names are grouped with dots (``pspm.initial_energy``, ``topics.com
 in a params file they are nested mappings under ``ros__parameters``.
 """
 
-import array
 from dataclasses import dataclass, fields
 import math
 import os
@@ -21,7 +20,7 @@ import sys
 from typing import NamedTuple
 
 from ifc_spg.errors import ParameterError, did_you_mean
-from ifc_spg.model import RobotModel
+from ifc_spg.model import robot_gains
 from ifc_spg.pspm import PspmConfig
 
 __all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
@@ -286,57 +285,6 @@ def _check_value(p, value):
                              f'[{p.range[0]}, {p.range[1]}] ({p.description})')
 
 
-def overrides(node):
-    """``{name: value}`` of the -p / --params-file values given to ``node``.
-
-    The built-in backend's node offers them as ``parameter_overrides()``. Used to refuse
-    parameters nobody declares and to check a value with the same messages on both backends
-    before rclpy sees it.
-
-    Args:
-        node: An rclpy node or one of the built-in backend.
-    """
-    if hasattr(node, 'parameter_overrides'):
-        return node.parameter_overrides()
-    # rclpy 7 (Jazzy) has no public accessor for a node's overrides (-p, --params-file):
-    table = getattr(node, '_parameter_overrides', None) or {}
-    out = {}
-    for name, param in table.items():
-        value = getattr(param, 'value', param)
-        out[name] = list(value) if isinstance(value, array.array) else value
-    return out
-
-
-def declare_checked(node, name, default, descriptor):
-    """``node.declare_parameter(name, default, descriptor).value``, an override checked first.
-
-    The override's type and range are checked with
-    :func:`~ifc_spg.ros.parameters.check_parameter_value`, so that a bad value gives the same
-    clear message on rclpy and on the built-in backend.
-
-    Args:
-        node: The node to declare the parameter on.
-        name: The parameter's name.
-        default: Its default value (also gives its type).
-        descriptor: Its ``ParameterDescriptor`` (description, range).
-
-    Raises:
-        ParameterError: A bad type or range.
-    """
-    # ifc_spg.ros selects the backend (imports rclpy) on import: not for ROS-free users
-    from ifc_spg.ros.parameters import ParameterType, check_parameter_value
-
-    given = overrides(node)
-    if name in given:
-        check_parameter_value(name, given[name], descriptor, ParameterType.of(default))
-    try:
-        return node.declare_parameter(name, default, descriptor).value
-    except ParameterError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - rclpy's InvalidParameter*Exception and friends
-        raise ParameterError(f"parameter '{name}': {exc}") from None
-
-
 def declare_parameters(node):
     """Declare every parameter of :data:`PARAMETERS` on ``node``; return the SpgConfig.
 
@@ -349,13 +297,14 @@ def declare_parameters(node):
             are re-raised as ParameterError with their message).
     """
     from ifc_spg import ros  # imports rclpy: only where a node is given
+    from ifc_spg.ros.parameters import declare_checked, overrides
 
     values = {}
     gains = None
     for p in PARAMETERS:
         default = _DEFAULTS[p.field]
         if isinstance(default, tuple):  # per joint: declared with the robot's own values
-            gains = gains or robot_gains_of(values['robot'])
+            gains = gains or robot_gains(values['robot'])
             default = gains[p.field]
         values[p.name] = declare_checked(node, p.name, default, _descriptor(ros, p, default))
         if isinstance(_DEFAULTS[p.field], tuple) and list(values[p.name]) == default:
@@ -367,22 +316,6 @@ def declare_parameters(node):
                              f'{did_you_mean(unknown[0], _BY_NAME)}; valid: '
                              f"{', '.join(_BY_NAME)}")
     return config_from_parameters(values)
-
-
-def robot_gains_of(robot):
-    """``{'stiffness': K, 'damping': D, 'command_joints': names}`` of a robot configuration.
-
-    Lists of floats (and the joint names): the declared defaults of the gain parameters, so
-    that ``ros2 param get`` shows what the node computes with (spg_node, sim_bridge).
-
-    Args:
-        robot: The robot configuration's name.
-    """
-    SpgConfig(robot=robot)  # an unknown robot: the error names the choices
-    model = RobotModel.from_config(robot)
-    out = {key: [float(v) for v in getattr(model, key)] for key in ('stiffness', 'damping')}
-    out['command_joints'] = list(model.joint_names)
-    return out
 
 
 def config_file(robot):

@@ -470,7 +470,7 @@ class Node:
     def parameter_overrides(self):
         """``{name: value}`` of the parameter values given (-p, --params-file, the argument).
 
-        rclpy keeps these private; :func:`ifc_spg.node.config.overrides` reads both.
+        rclpy keeps these private; :func:`ifc_spg.ros.parameters.overrides` reads both.
         """
         return dict(self._overrides)
 

@@ -5,6 +5,7 @@ equal the default's type (rclpy does not coerce ``1`` to ``1.0``), ranges and ``
 the descriptor are enforced.
 """
 
+from array import array as _array
 import dataclasses
 import enum
 import math
@@ -12,7 +13,7 @@ import math
 from ifc_spg.errors import ParameterError
 
 __all__ = ['Parameter', 'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange',
-           'ParameterType', 'check_parameter_value']
+           'ParameterType', 'check_parameter_value', 'declare_checked', 'overrides']
 
 
 class ParameterType(enum.IntEnum):
@@ -146,3 +147,51 @@ def check_parameter_value(name, value, descriptor, expected_type=None):
                     f"parameter '{name}': value {value!r} is outside its range "
                     f'[{r.from_value}, {r.to_value}]' + (f' step {r.step}' if r.step else '') +
                     (f' ({descriptor.description})' if descriptor.description else ''))
+
+
+def overrides(node):
+    """``{name: value}`` of the -p / --params-file values given to ``node``.
+
+    The built-in backend's node offers them as ``parameter_overrides()``. Used to refuse
+    parameters nobody declares and to check a value with the same messages on both backends
+    before rclpy sees it.
+
+    Args:
+        node: An rclpy node or one of the built-in backend.
+    """
+    if hasattr(node, 'parameter_overrides'):
+        return node.parameter_overrides()
+    # rclpy 7 (Jazzy) has no public accessor for a node's overrides (-p, --params-file):
+    table = getattr(node, '_parameter_overrides', None) or {}
+    out = {}
+    for name, param in table.items():
+        value = getattr(param, 'value', param)
+        out[name] = list(value) if isinstance(value, _array) else value
+    return out
+
+
+def declare_checked(node, name, default, descriptor):
+    """``node.declare_parameter(name, default, descriptor).value``, an override checked first.
+
+    The override's type and range are checked with
+    :func:`~ifc_spg.ros.parameters.check_parameter_value`, so that a bad value gives the same
+    clear message on rclpy and on the built-in backend.
+
+    Args:
+        node: The node to declare the parameter on.
+        name: The parameter's name.
+        default: Its default value (also gives its type).
+        descriptor: Its ``ParameterDescriptor`` (description, range).
+
+    Raises:
+        ParameterError: A bad type or range.
+    """
+    given = overrides(node)
+    if name in given:
+        check_parameter_value(name, given[name], descriptor, ParameterType.of(default))
+    try:
+        return node.declare_parameter(name, default, descriptor).value
+    except ParameterError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rclpy's InvalidParameter*Exception and friends
+        raise ParameterError(f"parameter '{name}': {exc}") from None
