@@ -26,16 +26,14 @@ pytestmark = [pytest.mark.dds, pytest.mark.ros]
 TOLERANCE = 1e-9  # [rad]
 
 
-def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
-    from ifc_spg.offline.replay import main, replay
 
-    env = use_loopback(monkeypatch)
-    first = tmp_path / 'first.yaml'
-    first.write_text(reach_stack('lbr_iiwa14', name='reach'))
-    second = tmp_path / 'second.yaml'
-    second.write_text(reach_stack('lbr_iiwa14', name='reach_again'))
-    bag = tmp_path / 'bag'
-    procs = ProcessGroup(tmp_path, env)
+def _listener():
+    """This test's node on spg/status and joint_states (after ``ros.init``).
+
+    Returns:
+        (the node, status documents, [the bridge's latest sim time s],
+        spin_until(condition, timeout), accepted(n): True once n stacks were accepted).
+    """
     ros.init(['test'])
     node = ros.Node('listener')
     status, sim_t = [], [0.0]
@@ -49,6 +47,20 @@ def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsy
 
     def accepted(n):
         return sum(s.get('event', {}).get('type') == 'stack_accepted' for s in status) >= n
+
+    return node, status, sim_t, spin_until, accepted
+
+def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
+    from ifc_spg.offline.replay import main, replay
+
+    env = use_loopback(monkeypatch)
+    first = tmp_path / 'first.yaml'
+    first.write_text(reach_stack('lbr_iiwa14', name='reach'))
+    second = tmp_path / 'second.yaml'
+    second.write_text(reach_stack('lbr_iiwa14', name='reach_again'))
+    bag = tmp_path / 'bag'
+    procs = ProcessGroup(tmp_path, env)
+    node, status, sim_t, spin_until, accepted = _listener()
 
     try:
         spg = procs.start('spg_node', '--ros-args', '--params-file',
@@ -203,19 +215,7 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
                                       posture_gain=', gain: 1.0'))
     bags = tmp_path / 'stall', tmp_path / 'switch'
     procs = ProcessGroup(tmp_path, env)
-    ros.init(['test'])
-    node = ros.Node('listener')
-    status, sim_t = [], [0.0]
-    node.create_subscription(ros_msg.String, 'spg/status',
-                             lambda m: status.append(json.loads(m.data)), 10000)
-    node.create_subscription(ros_msg.JointState, 'joint_states',
-                             lambda m: sim_t.__setitem__(0, stamp_ns(m) * 1e-9), 100)
-
-    def spin_until(condition, timeout):
-        return ros.spin_until(condition, timeout, nodes=node)
-
-    def accepted(n):
-        return sum(s.get('event', {}).get('type') == 'stack_accepted' for s in status) >= n
+    node, status, sim_t, spin_until, accepted = _listener()
 
     def stalled():
         return any((s.get('pspm') or {}).get('stall') for s in status[-5:])
