@@ -1,0 +1,159 @@
+"""Collision avoidance: an inequality task on distances of shape pairs (velocity damper).
+
+For every listed pair closer than the influence distance d_i the level asks (Faverjon and
+Tournassoud; Kanoun et al.)::
+
+    d_dot >= -xi (d - d_s) / (d_i - d_s)
+
+with d the signed distance at the virtual configuration q_v, d_dot = row qdot_v (the
+distance Jacobian row of :class:`~ifc_spg.geometry.PairQuery`), d_s the margin and xi
+[m/s] the approach speed allowed at d = d_i. The bound goes to zero as d reaches the
+margin, so the virtual robot slows down and stops there (and is pushed back out where it
+starts closer). Pairs beyond d_i keep a zero row with open bounds: the level always has
+one row per pair (fixed size, so the cascade's models are prepared once per stack).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+import math
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from ifc_spg.errors import IfcSpgError
+from ifc_spg.geometry import CollisionGeometry, Distances, PairQuery
+from ifc_spg.tasks.task import Level, Task
+
+if TYPE_CHECKING:
+    from ifc_spg.kinematics import Kinematics
+    from ifc_spg.model.robot_model import RobotModel
+
+__all__ = ['DEFAULT_GAIN', 'DEFAULT_INFLUENCE', 'DEFAULT_MARGIN', 'CollisionAvoidanceTask',
+           'DistanceReport']
+
+DEFAULT_MARGIN = 0.01  # d_s [m]
+DEFAULT_INFLUENCE = 0.10  # d_i [m]
+DEFAULT_GAIN = 0.5  # xi [m/s]
+
+
+class DistanceReport(NamedTuple):
+    """The distances of one collision-avoidance task at one tick (for ``spg.info``).
+
+    Attributes:
+        task: Task name.
+        groups: ``[(group name, pair indices)]``.
+        names: ``[(shape a, shape b)]`` per pair.
+        distances: The tick's :class:`~ifc_spg.geometry.Distances` at q_v.
+        margin: d_s [m]; influence: d_i [m].
+    """
+
+    task: str
+    groups: list
+    names: list
+    distances: Distances
+    margin: float
+    influence: float
+
+    def as_dict(self) -> dict[str, Any]:
+        """Minimum distance per group, the pair and how many pairs are within d_i.
+
+        A group whose pairs are all farther than the influence distance reports
+        ``min_distance`` None (the cull did not compute them exactly).
+        """
+        d, exact = self.distances.distance, self.distances.exact
+        out: dict[str, Any] = {}
+        for group, idx in self.groups:
+            sel = idx[exact[idx]]
+            if not sel.size:
+                out[group] = {'min_distance': None, 'pair': None, 'within_influence': 0}
+                continue
+            k = int(sel[np.argmin(d[sel])])
+            out[group] = {'min_distance': float(d[k]), 'pair': list(self.names[k]),
+                          'within_influence': int(np.count_nonzero(d[sel] < self.influence))}
+        return {'task': self.task, 'margin': self.margin, 'influence': self.influence,
+                'groups': out}
+
+
+class CollisionAvoidanceTask(Task):
+    """Keep listed shape pairs at least ``margin`` apart (an inequality task).
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel`.
+        geometry: The :class:`~ifc_spg.geometry.CollisionGeometry` (robot and obstacles).
+        groups: ``[(group name, [(shape a, shape b), ...])]``; a pair listed twice is kept
+            once (in its first group).
+        margin: d_s [m], the distance never to come closer than (>= 0).
+        influence: d_i [m] > margin: rows only for pairs closer than this.
+        gain: xi [m/s] > 0, the approach speed allowed at d = d_i.
+        name: Task name.
+    """
+
+    kind = 'collision_avoidance'
+    has_gamma = False
+
+    def __init__(self, robot: RobotModel, *, geometry: CollisionGeometry,
+                 groups: Sequence[tuple[str, Sequence[tuple[int, int]]]],
+                 margin: float = DEFAULT_MARGIN, influence: float = DEFAULT_INFLUENCE,
+                 gain: float = DEFAULT_GAIN, name: str | None = None) -> None:
+        margin, influence, gain = float(margin), float(influence), float(gain)
+        label = name or self.kind
+        if not (math.isfinite(margin) and margin >= 0):
+            raise IfcSpgError(f"task '{label}': margin must be finite and >= 0 m, got {margin}")
+        if not (math.isfinite(influence) and influence > margin):
+            raise IfcSpgError(f"task '{label}': influence ({influence:g} m) must be finite and "
+                              f'greater than margin ({margin:g} m)')
+        if not (math.isfinite(gain) and gain > 0):
+            raise IfcSpgError(f"task '{label}': gain must be finite and > 0 m/s, got {gain}")
+        pairs: list[tuple[int, int]] = []
+        index: dict[tuple[int, int], int] = {}
+        self.groups: list[tuple[str, np.ndarray]] = []
+        for group, group_pairs in groups:
+            idx = []
+            for a, b in group_pairs:
+                key = (min(a, b), max(a, b))
+                if key not in index:
+                    index[key] = len(pairs)
+                    pairs.append((int(a), int(b)))
+                idx.append(index[key])
+            self.groups.append((str(group), np.array(sorted(set(idx)), dtype=int)))
+        if not pairs:
+            raise IfcSpgError(f"task '{label}': no pairs to keep apart")
+        super().__init__(robot, dim=len(pairs), name=name, lower=margin,
+                         gain=gain / (influence - margin))
+        self.geometry = geometry
+        self.query = PairQuery(geometry, pairs)
+        self.pairs = pairs
+        self.names = [(geometry.shape_name(a), geometry.shape_name(b)) for a, b in pairs]
+        self.margin, self.influence, self.xi = margin, influence, gain
+        self._k = gain / (influence - margin)
+        self._open = np.full(self.dim, np.inf)
+        self._open.setflags(write=False)
+        self.last: Distances | None = None
+
+    def compute_value(self, kin: Kinematics) -> np.ndarray:
+        """Signed distance of every pair at q_v [m] (exact, no cull)."""
+        return self.query.compute(kin.data(virtual=True), jacobians=False).distance
+
+    def compute_jacobian(self, kin: Kinematics) -> np.ndarray:
+        """d(distance)/d(q_v) of every pair (m, n), no cull."""
+        return self.query.compute(kin.data(virtual=True)).rows
+
+    def level(self, kin: Kinematics, t: float) -> Level:
+        """The velocity damper rows at q_v (pairs beyond the influence distance open)."""
+        res = self.query.compute(kin.data(virtual=True), self.influence)
+        self.last = res
+        d = res.distance
+        active = res.exact & (d < self.influence)
+        lower = np.full(self.dim, -np.inf)
+        lower[active] = -self._k * (d[active] - self.margin)
+        A = res.rows
+        A[~active] = 0.0
+        return Level(self.name, A, lower, self._open, False)
+
+    def report(self) -> DistanceReport | None:
+        """The last tick's :class:`DistanceReport` (None before the first tick)."""
+        if self.last is None:
+            return None
+        return DistanceReport(self.name, self.groups, self.names, self.last, self.margin,
+                              self.influence)
