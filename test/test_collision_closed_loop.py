@@ -8,7 +8,10 @@ test_collision_geometry.py. Most runs use a tracking plant (q = q_v: the SPG alo
 run the MuJoCo robot (the FRI emulation under joint impedance) in lockstep.
 """
 
+import os
+
 import coal
+import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -202,3 +205,70 @@ def test_impedance_plant_runs_keep_the_margin(iiwa):
         (worst, _), inside, _ = _run(iiwa, q0, _stack(obstacle, target, params), query, 300,
                                      data, plant)
         assert inside and worst >= params[0] - 1e-3, worst
+
+
+# -- MuJoCo: the physical robot (FRI emulation, joint impedance) in lockstep ---------------
+POST_STACK = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                          'config', 'tasks', 'table_4_1_collision_avoidance_post.yaml')
+
+
+def _mujoco_run(stack, position, ticks):
+    """The shipped post stack against the MuJoCo iiwa in the ``post`` scene.
+
+    Returns (min distance of q_v, of the measured q, MuJoCo contacts with the post, final
+    tool position, margin).
+    """
+    from sim_bridge.simulation import Simulation
+
+    sim = Simulation(robot='lbr_iiwa14', scene='post',
+                     scene_options={'position': list(position), 'radius': 0.04,
+                                    'height': 1.2})
+    robot = sim.robot
+    task = _post_stack(position).build(robot)[0]  # the listed pairs, the post where it is
+    query = PairQuery(task.geometry, task.pairs)
+    spg = SetPointGenerator(robot, stack, dt=DT)
+    data = robot.create_data()
+    post = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_GEOM, 'post')
+    worst_v = worst_q = np.inf
+    contacts = 0
+    for _ in range(ticks):
+        s = sim.read_state()
+        q_v = spg.step(s.q, s.qd, s.t)
+        assert np.all(q_v >= robot.q_min) and np.all(q_v <= robot.q_max)
+        sim.write_command(q_v)
+        sim.step(2)
+        for q, which in ((q_v, 0), (s.q, 1)):
+            pin.forwardKinematics(robot.model, data, q)
+            d = query.compute(data, 0.05, jacobians=False).distance.min()
+            worst_v, worst_q = (min(worst_v, d), worst_q) if which == 0 else \
+                (worst_v, min(worst_q, d))
+        contacts += sum(post in (c.geom1, c.geom2) for c in sim.data.contact[:sim.data.ncon])
+    tool = _tool(robot, data, sim.read_state().q)
+    return worst_v, worst_q, contacts, tool, task.margin
+
+
+def _post_stack(position, avoid=True):
+    stack = TaskStack.from_file(POST_STACK).to_dict()
+    stack['obstacles'][0]['position'][:2] = list(position)
+    if not avoid:
+        stack['tasks'] = stack['tasks'][1:]
+    return TaskStack.from_dict(stack)
+
+
+@pytest.mark.parametrize('position', [(0.4, 0.25), (0.42, 0.2), (0.38, 0.3)])
+def test_mujoco_post_elbow_held_off_and_tool_arrives(position):
+    worst_v, worst_q, contacts, tool, margin = _mujoco_run(_post_stack(position), position,
+                                                           2000)
+    assert worst_v >= margin - 1e-3
+    assert contacts == 0 and worst_q > 0.0
+    # the tool slid past the post (it starts at y = 0, the post stands at y = 0.2-0.3)
+    assert tool[1] > 0.45, tool
+    if position == (0.4, 0.25):  # the shipped scene: the tool arrives
+        assert np.linalg.norm(tool - [0.61, 0.5, 0.5]) < 0.01, tool
+
+
+def test_mujoco_post_without_the_level_hits_it():
+    position = (0.4, 0.25)
+    worst_v, _, contacts, tool, _ = _mujoco_run(_post_stack(position, avoid=False), position,
+                                                2000)
+    assert worst_v < 0 and contacts > 0
