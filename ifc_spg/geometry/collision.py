@@ -272,7 +272,8 @@ class Distances:
             lower bound (the bounding spheres' gap), see ``exact``.
         exact: True where coal computed the distance (the pair was not culled).
         rows: d(distance)/dq per pair (m, n); zero rows for culled pairs.
-        point_a, point_b: Witness points (m, 3) in the base frame (NaN for culled pairs).
+        point_a, point_b: Witness points (m, 3) in the base frame (NaN for culled pairs
+            and pairs beyond the influence distance).
     """
 
     distance: np.ndarray
@@ -312,6 +313,8 @@ class PairQuery:
         self._ia, self._ib = ia, ib
         self._rsum = geometry.radius[ia] + geometry.radius[ib]
         self._unbounded = ~np.isfinite(self._rsum)
+        self._any_unbounded = bool(self._unbounded.any())
+        self._rsum[self._unbounded] = 0.0
         support = geometry.support
         self._mask_a = support[geometry.parent_joint[ia]]
         self._mask_b = support[geometry.parent_joint[ib]]
@@ -328,9 +331,10 @@ class PairQuery:
     def _gaps(self) -> np.ndarray:
         """The bounding spheres' gaps of the placed shapes (-inf where a half-space)."""
         c = np.array([M.translation for M in self._gd.oMg])
-        with np.errstate(invalid='ignore'):
-            gap = np.sqrt(np.square(c[self._ia] - c[self._ib]).sum(axis=1)) - self._rsum
-        gap[self._unbounded] = -np.inf
+        diff = c[self._ia] - c[self._ib]
+        gap = np.sqrt(np.einsum('ij,ij->i', diff, diff)) - self._rsum
+        if self._any_unbounded:
+            gap[self._unbounded] = -np.inf
         return gap
 
     # -- exact distances -------------------------------------------------------------------
@@ -351,7 +355,9 @@ class PairQuery:
             data: pinocchio ``Data`` after ``computeJointJacobians`` (or
                 ``forwardKinematics`` when ``jacobians`` is False) at the configuration.
             influence: Pairs whose bounding spheres are farther apart than this [m] are
-                culled (their distance is a lower bound, their row zero).
+                culled (their distance is a lower bound, their row zero); pairs farther
+                than this get their exact distance but no witness points (NaN) and a zero
+                row.
             jacobians: Compute the rows (``data`` must hold the joint Jacobians).
         """
         m, n = self.m, self._n
@@ -362,22 +368,25 @@ class PairQuery:
         rows = np.zeros((m, n))
         pa = np.full((m, 3), np.nan)
         pb = np.full((m, 3), np.nan)
-        k = near.size
-        if k:
-            normal = np.empty((k, 3))
+        if near.size:
             gm, gd = self._gm, self._gd
-            for i, p in enumerate(near.tolist()):
+            normal = []
+            within = []  # witness points and rows only where d <= influence
+            for p in near.tolist():
                 res = pin.computeDistance(gm, gd, p)
-                dist[p] = res.min_distance
-                pa[p] = res.getNearestPoint1()
-                pb[p] = res.getNearestPoint2()
-                normal[i] = res.normal
+                d = dist[p] = res.min_distance
+                if d <= influence:
+                    within.append(p)
+                    pa[p] = res.getNearestPoint1()
+                    pb[p] = res.getNearestPoint2()
+                    normal.append(res.normal)
             exact[near] = True
-            if jacobians:
-                rows[near] = self._rows(data, near, pa[near], pb[near], normal)
+            if jacobians and within:
+                rows[within] = self._rows(data, within, pa[within], pb[within],
+                                          np.array(normal))
         return Distances(dist, exact, rows, pa, pb)
 
-    def _rows(self, data: pin.Data, near: np.ndarray, pa: np.ndarray, pb: np.ndarray,
+    def _rows(self, data: pin.Data, near: list, pa: np.ndarray, pb: np.ndarray,
               normal: np.ndarray) -> np.ndarray:
         """n^T (J_b(p_b) - J_a(p_a)) of the pairs ``near`` (vectorized).
 
