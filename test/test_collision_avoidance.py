@@ -160,3 +160,31 @@ def test_info_reports_min_distance_per_group(iiwa):
             assert groups[name]['min_distance'] is None or \
                 groups[name]['min_distance'] == pytest.approx(d[k], abs=1e-9)
     json.dumps(spg.info.as_dict())
+
+
+def test_status_document_carries_the_distances():
+    from ifc_spg.node.config import SpgConfig
+    from ifc_spg.node.core import SpgRunner, status_json
+
+    runner = SpgRunner(SpgConfig(robot='lbr_iiwa14'))
+    assert runner.handle_task_stack(STACK).accepted
+    names, q = list(runner.robot.joint_names), list(runner.robot.q_home)
+    for k in range(3):
+        runner.handle_joint_state(names, q, [0.0] * 7, k * 2_000_000)
+    (doc,) = json.loads(status_json(runner.status()))['collision']
+    assert doc['task'] == 'avoid' and doc['margin'] == 0.02
+    assert set(doc['groups']) == {'self', 'arm_ball', 'pairs[2]'}
+
+
+def test_bad_stack_is_refused_and_the_running_one_continues():
+    from ifc_spg.node.config import SpgConfig
+    from ifc_spg.node.core import SpgRunner
+
+    runner = SpgRunner(SpgConfig(robot='lbr_iiwa14'))
+    assert runner.handle_task_stack(STACK).accepted
+    names, q = list(runner.robot.joint_names), list(runner.robot.q_home)
+    runner.handle_joint_state(names, q, [0.0] * 7, 0)
+    event = runner.handle_task_stack(_edit('radius: 0.06', 'radius: -0.06'))
+    assert not event.accepted and 'obstacles[0].radius' in event.message
+    cmd = runner.handle_joint_state(names, q, [0.0] * 7, 2_000_000)
+    assert cmd is not None and runner.spg.info.collision[0]['task'] == 'avoid'
