@@ -216,3 +216,31 @@ def test_unknown_names_suggest():
         geometry.link_shapes('lnk5')
     with pytest.raises(ParameterError, match="did you mean 'ball'"):
         geometry.obstacle_shape('bal')
+
+
+def test_cull_across_calls_keeps_every_pair_within_influence(setup):
+    """The motion bound (last distances minus lever x |dq|) along a random walk with jumps."""
+    robot, geometry, obstacles, query = setup
+    coherent = PairQuery(geometry, query.pairs)
+    rng = np.random.default_rng(8)
+    data = robot.create_data()
+    q = robot.q_home.copy()
+    skipped = rows_differ = rows_total = 0
+    for k in range(300):
+        step = rng.normal(0, 0.5 if k % 50 == 49 else 0.01, robot.n)  # a jump now and then
+        q = np.clip(q + step, robot.q_min, robot.q_max)
+        pin.computeJointJacobians(robot.model, data, q)
+        exact = query.compute(data)
+        res = coherent.compute(data, 0.1, q=q)
+        assert np.all(res.distance <= exact.distance + 1e-7)  # GJK: 1e-9 m tolerance
+        within = exact.distance <= 0.1
+        assert np.all(res.exact[within])
+        np.testing.assert_allclose(res.distance[within], exact.distance[within], atol=1e-7)
+        # witness points of parallel faces are not unique (GJK warm starts differ): both
+        # rows are valid; they differ on a few pairs only
+        differ = np.abs(res.rows[within] - exact.rows[within]).max(axis=1) > 1e-5
+        rows_differ += np.count_nonzero(differ)
+        rows_total += np.count_nonzero(within)
+        skipped += np.count_nonzero(~res.exact)
+    assert skipped > 0  # the bound does cull
+    assert rows_differ <= 0.03 * rows_total, (rows_differ, rows_total)

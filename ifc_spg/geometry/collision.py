@@ -183,7 +183,27 @@ class CollisionGeometry:
         for j in range(1, robot.model.njoints):
             for s in list(robot.model.supports[j])[1:]:
                 self.support[j, robot.model.joints[s].idx_v] = 1.0
+        self.lever = self._lever_bound()
         self._self_pairs, self.excluded = self._find_self_pairs()
+
+    def _lever_bound(self) -> float:
+        """A bound [m] on the distance of any point of a moving shape from any joint axis.
+
+        Twice the largest reach from the base over the kinematic chain (joint offsets, the
+        shape's offset and bounding radius), at any configuration; a joint moved by dq
+        moves no point of the shapes by more than ``lever * |dq|`` (prismatic: ``|dq|``,
+        and ``lever >= 1``). Capped at 1e6 (a half-space fixed to a link).
+        """
+        model = self.robot.model
+        chain = np.zeros(model.njoints)
+        for j in range(1, model.njoints):
+            chain[j] = chain[model.parents[j]] + np.linalg.norm(
+                model.jointPlacements[j].translation)
+        moving = self.parent_joint > 0
+        if not moving.any():
+            return 1.0
+        reach = chain[self.parent_joint] + np.linalg.norm(self.center, axis=1) + self.radius
+        return float(min(max(2.0 * reach[moving].max(), 1.0), 1e6))
 
     def _add_obstacle(self, obs: Obstacle) -> None:
         if obs.name in self.obstacles or obs.name in self.bodies:
@@ -318,6 +338,10 @@ class PairQuery:
         support = geometry.support
         self._mask_a = support[geometry.parent_joint[ia]]
         self._mask_b = support[geometry.parent_joint[ib]]
+        # joints that move one shape of a pair but not the other, times the lever bound
+        self._lever = np.abs(self._mask_a - self._mask_b) * geometry.lever
+        self._last_q: np.ndarray | None = None
+        self._last_bound = np.zeros(self.m)
 
     # -- the cull --------------------------------------------------------------------------
     def lower_bounds(self, data: pin.Data) -> np.ndarray:
@@ -348,7 +372,7 @@ class PairQuery:
                          for k in range(self.m)])
 
     def compute(self, data: pin.Data, influence: float = math.inf,
-                jacobians: bool = True) -> Distances:
+                jacobians: bool = True, q: np.ndarray | None = None) -> Distances:
         """Distances, witness points and rows at the configuration of ``data``.
 
         Args:
@@ -359,10 +383,21 @@ class PairQuery:
                 than this get their exact distance but no witness points (NaN) and a zero
                 row.
             jacobians: Compute the rows (``data`` must hold the joint Jacobians).
+            q: The configuration of ``data``, for the cull across calls (a sequence of
+                configurations, one query per sequence): a pair's distance changes by at
+                most ``sum_k lever |q_k - q_prev,k|`` over the joints k that move one of
+                its shapes but not the other, so the last call's distances (exact or
+                bounds) minus that stay lower bounds, and the bounding spheres are not
+                needed. None: the bounding-sphere cull only, nothing kept.
         """
         m, n = self.m, self._n
         self._place(data)
-        dist = self._gaps() if math.isfinite(influence) else np.full(m, -np.inf)
+        if not math.isfinite(influence):
+            dist = np.full(m, -np.inf)
+        elif q is not None and self._last_q is not None:
+            dist = self._last_bound - self._lever @ np.abs(q - self._last_q)
+        else:
+            dist = self._gaps()
         near = np.flatnonzero(dist <= influence)
         exact = np.zeros(m, dtype=bool)
         rows = np.zeros((m, n))
@@ -384,6 +419,9 @@ class PairQuery:
             if jacobians and within:
                 rows[within] = self._rows(data, within, pa[within], pb[within],
                                           np.array(normal))
+        if q is not None:
+            self._last_q = np.array(q, dtype=float)
+            self._last_bound = dist.copy()
         return Distances(dist, exact, rows, pa, pb)
 
     def _rows(self, data: pin.Data, near: list, pa: np.ndarray, pb: np.ndarray,

@@ -141,7 +141,7 @@ class CollisionAvoidanceTask(Task):
 
     def level(self, kin: Kinematics, t: float) -> Level:
         """The velocity damper rows at q_v (pairs beyond the influence distance open)."""
-        res = self.query.compute(kin.data(virtual=True), self.influence)
+        res = self.query.compute(kin.data(virtual=True), self.influence, q=kin.q_v)
         self.last = res
         d = res.distance
         active = res.exact & (d < self.influence)
