@@ -49,6 +49,8 @@ OBSTACLE_SHAPES = {
 }
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _MAX_SIZE = 1e3  # [m]
+#: Below this distance [m] the normal is coal's, above it (p_b - p_a) / d.
+_NORMAL_FROM_POINTS = 1e-6
 #: GJK/EPA tolerance of the distance queries [m].
 GJK_TOLERANCE = 1e-9
 
@@ -404,25 +406,43 @@ class PairQuery:
         pa = np.full((m, 3), np.nan)
         pb = np.full((m, 3), np.nan)
         if near.size:
-            gm, gd = self._gm, self._gd
-            normal = []
-            within = []  # witness points and rows only where d <= influence
-            for p in near.tolist():
-                res = pin.computeDistance(gm, gd, p)
-                d = dist[p] = res.min_distance
-                if d <= influence:
-                    within.append(p)
-                    pa[p] = res.getNearestPoint1()
-                    pb[p] = res.getNearestPoint2()
-                    normal.append(res.normal)
+            self._narrowphase(near, influence, dist, pa, pb, rows, data, jacobians)
             exact[near] = True
-            if jacobians and within:
-                rows[within] = self._rows(data, within, pa[within], pb[within],
-                                          np.array(normal))
         if q is not None:
             self._last_q = np.array(q, dtype=float)
             self._last_bound = dist.copy()
         return Distances(dist, exact, rows, pa, pb)
+
+    def _narrowphase(self, near: np.ndarray, influence: float, dist: np.ndarray,
+                     pa: np.ndarray, pb: np.ndarray, rows: np.ndarray, data: pin.Data,
+                     jacobians: bool) -> list:
+        """Distances of the pairs ``near`` (coal); witness points and rows where d <= d_i.
+
+        Writes ``dist``, ``pa``, ``pb`` and ``rows`` in place; returns the pairs within.
+        """
+        gm, gd, distance = self._gm, self._gd, pin.computeDistance
+        values, within, p1, p2, touching = [], [], [], [], {}
+        for p in near.tolist():
+            res = distance(gm, gd, p)
+            d = res.min_distance
+            values.append(d)
+            if d <= influence:
+                if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
+                    touching[len(within)] = res.normal
+                within.append(p)
+                p1.append(res.getNearestPoint1())
+                p2.append(res.getNearestPoint2())
+        dist[near] = values
+        if within:
+            a, b = np.array(p1), np.array(p2)
+            pa[within], pb[within] = a, b
+            if jacobians:
+                normal = b - a
+                normal /= np.maximum(dist[within], _NORMAL_FROM_POINTS)[:, None]
+                for i, n in touching.items():
+                    normal[i] = n
+                rows[within] = self._rows(data, within, a, b, normal)
+        return within
 
     def _rows(self, data: pin.Data, near: list, pa: np.ndarray, pb: np.ndarray,
               normal: np.ndarray) -> np.ndarray:
