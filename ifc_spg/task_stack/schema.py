@@ -53,8 +53,8 @@ def _param(kind):
         return {'$ref': '#/$defs/vector'}
     if kind in ('anchor', 'anchor_to'):
         return {'$ref': '#/$defs/anchor'}
-    if kind == 'anchor2':
-        return {'anyOf': [_INIT, {'type': 'array', 'items': {'anyOf': [_NUM, _INIT]},
+    if kind == 'anchor2':  # the parser also takes one number for both components
+        return {'anyOf': [_INIT, _NUM, {'type': 'array', 'items': {'anyOf': [_NUM, _INIT]},
                                   'minItems': 2, 'maxItems': 2}]}
     if kind == 'offsets':
         return {'type': 'array', 'items': {'$ref': '#/$defs/vector'}, 'minItems': 2,
