@@ -19,6 +19,7 @@ import pytest
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack
 from ifc_spg.geometry import CollisionGeometry, PairQuery
 from ifc_spg.offline.plants import JointImpedancePlant
+from ifc_spg.pspm import PspmConfig
 from ifc_spg.task_stack.collision import ObstacleSpec
 
 INFLUENCE = 0.13  # the largest influence distance drawn
@@ -226,7 +227,8 @@ def _mujoco_run(stack, position, ticks):
     robot = sim.robot
     task = _post_stack(position).build(robot)[0]  # the listed pairs, the post where it is
     query = PairQuery(task.geometry, task.pairs)
-    spg = SetPointGenerator(robot, stack, dt=DT)
+    # the iiwa's shipped ceiling (config/lbr_iiwa14.yaml): the stack asks for 1 W
+    spg = SetPointGenerator(robot, stack, dt=DT, pspm=PspmConfig(max_power=2.0))
     data = robot.create_data()
     post = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_GEOM, 'post')
     worst_v = worst_q = np.inf
