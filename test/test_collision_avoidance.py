@@ -188,3 +188,23 @@ def test_bad_stack_is_refused_and_the_running_one_continues():
     assert not event.accepted and 'obstacles[0].radius' in event.message
     cmd = runner.handle_joint_state(names, q, [0.0] * 7, 2_000_000)
     assert cmd is not None and runner.spg.info.collision[0]['task'] == 'avoid'
+
+
+def test_info_reports_distances_at_the_measured_q_too(iiwa):
+    spg = SetPointGenerator(iiwa, _stack())
+    q0 = iiwa.q_home.copy()
+    spg.step(q0, np.zeros(iiwa.n), 0.0)
+    q1 = q0 + np.array([0.3, 0.2, 0.0, -0.3, 0.0, 0.4, 0.0])  # far from q_v
+    spg.step(q1, np.zeros(iiwa.n), 0.002)
+    (report,) = spg.info.collision
+    task = spg.tasks[0]
+    full = PairQuery(task.geometry, task.pairs)
+    data = iiwa.create_data()
+    pin.forwardKinematics(iiwa.model, data, q1)
+    d = full.distances_only(data)
+    for name, idx in task.groups:
+        k = idx[np.argmin(d[idx])]
+        got = report['measured'][name]['min_distance']
+        if d[k] < task.influence:
+            assert got == pytest.approx(d[k], abs=1e-7)
+    assert report['groups'] != report['measured']  # q_v (one tick from q0) is not q1

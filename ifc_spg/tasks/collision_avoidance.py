@@ -20,6 +20,7 @@ import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.geometry import CollisionGeometry, Distances, PairQuery
@@ -46,6 +47,9 @@ class DistanceReport(NamedTuple):
         names: ``[(shape a, shape b)]`` per pair.
         distances: The tick's :class:`~ifc_spg.geometry.Distances` at q_v.
         margin: d_s [m]; influence: d_i [m].
+        q: The tick's measured joint positions [rad] (a copy).
+        measure: ``measure(q) -> Distances`` at a measured configuration (computed only
+            when :meth:`as_dict` asks, e.g. at the status rate).
     """
 
     task: str
@@ -54,14 +58,11 @@ class DistanceReport(NamedTuple):
     distances: Distances
     margin: float
     influence: float
+    q: np.ndarray | None = None
+    measure: Any = None
 
-    def as_dict(self) -> dict[str, Any]:
-        """Minimum distance per group, the pair and how many pairs are within d_i.
-
-        A group whose pairs are all farther than the influence distance reports
-        ``min_distance`` None (the cull did not compute them exactly).
-        """
-        d, exact = self.distances.distance, self.distances.exact
+    def _groups(self, res: Distances) -> dict[str, Any]:
+        d, exact = res.distance, res.exact
         out: dict[str, Any] = {}
         for group, idx in self.groups:
             sel = idx[exact[idx]]
@@ -71,8 +72,20 @@ class DistanceReport(NamedTuple):
             k = int(sel[np.argmin(d[sel])])
             out[group] = {'min_distance': float(d[k]), 'pair': list(self.names[k]),
                           'within_influence': int(np.count_nonzero(d[sel] < self.influence))}
-        return {'task': self.task, 'margin': self.margin, 'influence': self.influence,
-                'groups': out}
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        """Per group: minimum distance, its pair and the pairs within d_i, at q_v and q.
+
+        ``groups`` is at the virtual q_v (what the level constrains), ``measured`` at the
+        measured q. A group whose pairs are all farther than the influence distance
+        reports ``min_distance`` None (the cull did not compute them exactly).
+        """
+        out = {'task': self.task, 'margin': self.margin, 'influence': self.influence,
+               'groups': self._groups(self.distances)}
+        if self.measure is not None and self.q is not None:
+            out['measured'] = self._groups(self.measure(self.q))
+        return out
 
 
 class CollisionAvoidanceTask(Task):
@@ -130,6 +143,9 @@ class CollisionAvoidanceTask(Task):
         self._open = np.full(self.dim, np.inf)
         self._open.setflags(write=False)
         self.last: Distances | None = None
+        self._last_q: np.ndarray | None = None
+        self._measured_query = PairQuery(geometry, pairs)  # stateless: its own data
+        self._measured_data = robot.create_data()
 
     def compute_value(self, kin: Kinematics) -> np.ndarray:
         """Signed distance of every pair at q_v [m] (exact, no cull)."""
@@ -143,6 +159,7 @@ class CollisionAvoidanceTask(Task):
         """The velocity damper rows at q_v (pairs beyond the influence distance open)."""
         res = self.query.compute(kin.data(virtual=True), self.influence, q=kin.q_v)
         self.last = res
+        self._last_q = kin.q
         d = res.distance
         active = res.exact & (d < self.influence)
         lower = np.full(self.dim, -np.inf)
@@ -156,4 +173,11 @@ class CollisionAvoidanceTask(Task):
         if self.last is None:
             return None
         return DistanceReport(self.name, self.groups, self.names, self.last, self.margin,
-                              self.influence)
+                              self.influence, None if self._last_q is None
+                              else self._last_q.copy(), self._measure)
+
+    def _measure(self, q: np.ndarray) -> Distances:
+        """Distances at a measured configuration (bounding-sphere cull at d_i, no rows)."""
+        data = self._measured_data
+        pin.forwardKinematics(self.robot.model, data, q)
+        return self._measured_query.compute(data, self.influence, jacobians=False)
