@@ -426,6 +426,8 @@ class SetPointGenerator:
 
         energy_step = stall = None
         message = tick.message
+        if self._reporting and tick.status == 'ok' and not message:
+            message = self._collision_message(tick)
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, tick.qdot_v)
             stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, tick.task_levels,
@@ -447,6 +449,16 @@ class SetPointGenerator:
             joint_names=self.robot.joint_names,
             distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None))
         return self.q_v.copy()
+
+    def _collision_message(self, tick: '_Tick') -> str:
+        """The pair a collision-avoidance level could not keep this tick (its slack), or ''."""
+        top = len(tick.levels) - len(tick.task_levels)
+        for i, task in enumerate(self.tasks):
+            if task in self._reporting and top + i < len(tick.slacks):
+                text = task.slack_message(tick.slacks[top + i])
+                if text:
+                    return text
+        return ''
 
     def _measurement(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``q`` and ``qdot`` as contiguous float arrays of n entries (or ParameterError)."""

@@ -208,3 +208,15 @@ def test_info_reports_distances_at_the_measured_q_too(iiwa):
         if d[k] < task.influence:
             assert got == pytest.approx(d[k], abs=1e-7)
     assert report['groups'] != report['measured']  # q_v (one tick from q0) is not q1
+
+
+def test_an_infeasible_row_is_reported_with_its_pair(iiwa):
+    """The ball overlaps link 5 at q_home: pushing out at once exceeds the acceleration box."""
+    spg = SetPointGenerator(iiwa, _stack())
+    spg.step(iiwa.q_home, np.zeros(iiwa.n), 0.0)
+    assert spg.info.status == 'ok'
+    msg = spg.info.message
+    assert "collision_avoidance 'avoid'" in msg and 'obstacle:ball' in msg, msg
+    assert 'link5_geom' in msg and 'margin 20.0 mm' in msg
+    slack = spg.info.slacks[spg.info.level_names.index('avoid')]
+    assert np.max(np.abs(slack)) > 1e-3

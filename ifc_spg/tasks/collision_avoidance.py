@@ -176,6 +176,23 @@ class CollisionAvoidanceTask(Task):
                               self.influence, None if self._last_q is None
                               else self._last_q.copy(), self._measure)
 
+    def slack_message(self, slack: Any) -> str:
+        """Name the pair whose row the cascade could not meet (slack > 1e-6 m/s), or ''.
+
+        The velocity box (joint limits, passivity, acceleration limit) did not allow the
+        velocity the damper asks: q_v moves as the box allows (braking within the
+        acceleration limit) and may come closer than the margin.
+        """
+        s = np.abs(np.asarray(slack if slack is not None else (), dtype=float)).reshape(-1)
+        if s.size != self.dim or self.last is None or not s.size or s.max() <= 1e-6:
+            return ''
+        k = int(np.argmax(s))
+        a, b = self.names[k]
+        return (f"collision_avoidance '{self.name}': the velocity box cannot keep {a} and {b} "
+                f'apart as asked (distance {self.last.distance[k] * 1e3:.1f} mm, margin '
+                f'{self.margin * 1e3:.1f} mm, short by {s[k]:.3g} m/s); q_v moves as the '
+                'box allows and may come closer than the margin')
+
     def _measure(self, q: np.ndarray) -> Distances:
         """Distances at a measured configuration (bounding-sphere cull at d_i, no rows)."""
         data = self._measured_data
