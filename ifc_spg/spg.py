@@ -454,8 +454,9 @@ class SetPointGenerator:
         """The pair a collision-avoidance level could not keep this tick (its slack), or ''."""
         top = len(tick.levels) - len(tick.task_levels)
         for i, task in enumerate(self.tasks):
-            if task in self._reporting and top + i < len(tick.slacks):
-                text = task.slack_message(tick.slacks[top + i])
+            slack_message = getattr(task, 'slack_message', None)
+            if slack_message is not None and top + i < len(tick.slacks):
+                text = slack_message(tick.slacks[top + i])
                 if text:
                     return text
         return ''

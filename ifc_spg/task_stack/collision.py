@@ -212,7 +212,7 @@ def parse_options(p: Any, path: tuple, x: dict[str, Any]) -> MappingProxyType:
 
 def options_to_data(options: Any) -> dict[str, Any]:
     """Plain data of a collision_avoidance task's options."""
-    groups = []
+    groups: list[Any] = []
     for g in options['pairs']:
         if g.get('self'):
             groups.append('self')
