@@ -113,30 +113,41 @@ def test_undeclared_obstacle_says_where_to_declare(iiwa):
         _stack(text).validate(iiwa)
 
 
-def test_level_is_the_velocity_damper(iiwa):
-    """Rows and bounds against the formula, on distances computed without the cull."""
-    task = _stack().build(iiwa)[0]
+@pytest.mark.parametrize('max_rows', [24, 3])
+def test_level_is_the_velocity_damper(iiwa, max_rows):
+    """Rows and bounds against the formula, on distances computed without the cull: the
+    closest pairs within the influence distance (at most max_rows), then open rows."""
+    task = _stack(_edit('    gain: 0.4\n', f'    gain: 0.4\n    max_rows: {max_rows}\n')) \
+        .build(iiwa)[0]
+    assert task.dim == max_rows
     full = PairQuery(task.geometry, task.pairs)
     kin = Kinematics(iiwa)
     data = iiwa.create_data()
     rng = np.random.default_rng(2)
-    active_seen = 0
+    active_seen = dropped_seen = 0
     for _ in range(30):
         q = rng.uniform(iiwa.q_min, iiwa.q_max)
         kin.update(q, np.zeros(iiwa.n), q)
         level = task.level(kin, 0.0)
         pin.computeJointJacobians(iiwa.model, data, q)
         ref = full.compute(data)
-        near = ref.distance < task.influence
-        expect = -task.xi * (ref.distance - task.margin) / (task.influence - task.margin)
-        np.testing.assert_allclose(level.lower[near], expect[near], atol=1e-9)
+        near = np.flatnonzero(ref.distance < task.influence)
+        closest = near[np.argsort(ref.distance[near], kind='stable')][:task.dim]
+        order = task.row_pairs  # the pair of each row
+        assert sorted(order.tolist()) == sorted(closest.tolist())
+        k = order.size
+        expect = -task.xi * (ref.distance[order] - task.margin) / (task.influence - task.margin)
+        np.testing.assert_allclose(level.lower[:k], expect, atol=1e-7)
         # witness points of parallel faces are not unique: GJK's warm start may pick another
-        np.testing.assert_allclose(level.A[near], ref.rows[near], atol=1e-5)
-        assert np.all(np.isneginf(level.lower[~near])) and np.all(level.A[~near] == 0)
+        np.testing.assert_allclose(level.A[:k], ref.rows[order], atol=1e-4)
+        assert np.all(np.isneginf(level.lower[k:])) and np.all(level.A[k:] == 0)
         assert np.all(np.isposinf(level.upper)) and not level.equality
         assert level.A.shape == (task.dim, iiwa.n)
-        active_seen += near.sum()
+        assert task.rows_dropped == max(0, near.size - task.dim)
+        active_seen += k
+        dropped_seen += task.rows_dropped
     assert active_seen > 30
+    assert (dropped_seen > 0) == (max_rows == 3)
 
 
 def test_info_reports_min_distance_per_group(iiwa):

@@ -18,6 +18,7 @@
         margin: 0.01                 # d_s [m], never closer (default 0.01)
         influence: 0.10              # d_i [m], rows only closer than this (default 0.10)
         gain: 0.5                    # xi [m/s] approach speed allowed at d_i (default 0.5)
+        max_rows: 24                 # rows of the level: the closest pairs within d_i
 
 A plane is the half-space below the plane z = 0 of its pose (the robot stays on the +z
 side). ``links`` are MJCF body names (every shape of the body) or shape names, or ``all``.
@@ -39,6 +40,7 @@ from ifc_spg.tasks.collision_avoidance import (
     DEFAULT_GAIN,
     DEFAULT_INFLUENCE,
     DEFAULT_MARGIN,
+    DEFAULT_MAX_ROWS,
     CollisionAvoidanceTask,
 )
 
@@ -49,7 +51,9 @@ if TYPE_CHECKING:
 __all__ = ['COLLISION_FIELDS', 'MAX_OBSTACLES', 'OBSTACLE_FIELDS', 'PAIR_FIELDS',
            'ObstacleSpec', 'build', 'obstacle_to_data', 'parse_obstacles', 'parse_options']
 
-COLLISION_FIELDS = ('name', 'type', 'description', 'pairs', 'margin', 'influence', 'gain')
+COLLISION_FIELDS = ('name', 'type', 'description', 'pairs', 'margin', 'influence', 'gain',
+                    'max_rows')
+MAX_ROWS = 1000
 OBSTACLE_FIELDS = ('name', 'shape', 'size', 'radius', 'length', 'frame', 'position', 'rpy',
                    'description')
 PAIR_FIELDS = ('name', 'links', 'obstacles')
@@ -179,6 +183,16 @@ def _group(p: Any, path: tuple, x: Any, index: int) -> MappingProxyType:
         'obstacles': _names(p, path + ('obstacles',), x['obstacles'], 'obstacle', False)})
 
 
+def _max_rows(p: Any, path: tuple, x: dict[str, Any]) -> int:
+    if 'max_rows' not in x:
+        return DEFAULT_MAX_ROWS
+    v = x['max_rows']
+    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_ROWS:
+        raise p.err(path + ('max_rows',), f'max_rows must be an integer in [1, {MAX_ROWS}] '
+                                          f'(rows of the level), got {v!r}'[:200])
+    return v
+
+
 def parse_options(p: Any, path: tuple, x: dict[str, Any]) -> MappingProxyType:
     """``pairs``, ``margin``, ``influence`` and ``gain`` of a collision_avoidance task."""
     p.fields(path, x, COLLISION_FIELDS, 'a collision_avoidance task')
@@ -202,6 +216,7 @@ def parse_options(p: Any, path: tuple, x: dict[str, Any]) -> MappingProxyType:
         if lo is None and v <= 0:
             raise p.err(path + (k,), f'{k} must be > 0, got {v:g}')
         vals[k] = v
+    vals['max_rows'] = _max_rows(p, path, x)
     if vals['influence'] <= vals['margin']:
         raise p.err(path + ('influence',), f"influence ({vals['influence']:g} m) must be "
                                            f"greater than margin ({vals['margin']:g} m): rows "
@@ -222,7 +237,7 @@ def options_to_data(options: Any) -> dict[str, Any]:
                            'links': links if isinstance(links, str) else list(links),
                            'obstacles': list(g['obstacles'])})
     return {'pairs': groups, 'margin': options['margin'], 'influence': options['influence'],
-            'gain': options['gain']}
+            'gain': options['gain'], 'max_rows': options['max_rows']}
 
 
 # -- building (with the robot) -------------------------------------------------------------
@@ -293,7 +308,8 @@ def build(stack: TaskStack, robot: RobotModel, spec: Any,
     try:
         return [CollisionAvoidanceTask(robot, geometry=geometry, groups=groups,
                                        margin=opts['margin'], influence=opts['influence'],
-                                       gain=opts['gain'], name=spec.name)]
+                                       gain=opts['gain'], max_rows=opts['max_rows'],
+                                       name=spec.name)]
     except TaskStackError:
         raise
     except IfcSpgError as exc:

@@ -99,6 +99,9 @@ def _collision_task(common):
                                          '(default 0.1).'}
     props['gain'] = {'type': 'number', 'exclusiveMinimum': 0,
                      'description': 'xi [m/s]: approach speed allowed at d_i (default 0.5).'}
+    props['max_rows'] = {'type': 'integer', 'minimum': 1, 'maximum': 1000,
+                         'description': 'Rows of the level: the closest pairs within d_i '
+                                        '(default 24).'}
     extra = set(props) ^ set(TASK_FIELDS['collision_avoidance'])
     if extra:
         raise RuntimeError(f'schema and parser disagree on collision_avoidance: {extra}')

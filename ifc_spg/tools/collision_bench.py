@@ -91,7 +91,8 @@ def bench_tick(name, ticks):
     task = spgs[0].tasks[0]
     near = task.report().as_dict()['groups']
     with_, without = _stats(times[0]), _stats(times[1])
-    return {'robot': name, 'pairs': task.dim, 'groups': {g: len(i) for g, i in task.groups},
+    return {'robot': name, 'pairs': len(task.pairs), 'rows': task.dim,
+            'groups': {g: len(i) for g, i in task.groups},
             'with': with_, 'without': without,
             'added_p50_us': with_['p50_us'] - without['p50_us'],
             'added_p99_us': with_['p99_us'] - without['p99_us'],
@@ -172,7 +173,7 @@ def bench_mink(result, repeats=1):
         gc.enable()
     ours, theirs = _stats(times[0]), _stats(times[1])
     n = len(times[0])
-    return {'robot': robot.name, 'pairs': task.dim, 'mink_pairs': len(limit.geom_id_pairs),
+    return {'robot': robot.name, 'pairs': len(task.pairs), 'mink_pairs': len(limit.geom_id_pairs),
             'ours': ours, 'mink': theirs, 'ratio_p50': ours['p50_us'] / theirs['p50_us'],
             'ratio_p99': ours['p99_us'] / theirs['p99_us'],
             'active_rows_per_tick': (rows[0] / n, rows[1] / n)}
@@ -203,7 +204,8 @@ def format_collision(res):
              'without the level, two closed loops interleaved:']
     for r in res['tick']:
         a, b = r['with'], r['without']
-        lines.append(f"  {r['robot']:<16} {r['pairs']:>4} pairs {r['groups']}: with p50 "
+        lines.append(f"  {r['robot']:<16} {r['pairs']:>4} pairs {r['groups']}, {r['rows']} rows: "
+                     f"with p50 "
                      f"{a['p50_us']:.1f} / p99 {a['p99_us']:.1f} / max {a['max_us']:.0f} us, "
                      f"without {b['p50_us']:.1f} / {b['p99_us']:.1f} / {b['max_us']:.0f} us; "
                      f"added p50 {r['added_p50_us']:.1f} us, p99 {r['added_p99_us']:.1f} us")
