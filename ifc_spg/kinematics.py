@@ -72,6 +72,14 @@ class Kinematics:
             pin.updateFramePlacements(self._model, self._data_m)
             self._valid_m = True
 
+    def data(self, virtual: bool) -> pin.Data:
+        """The pinocchio ``Data`` of q_v (True) or q with joint placements and Jacobians.
+
+        Read only: it is shared by the tasks of this tick.
+        """
+        self._ensure(virtual)
+        return self._data_v if virtual else self._data_m
+
     def frame(self, frame_id: int, virtual: bool) -> FrameQuantities:
         """Return ``(position (3,), rotation (3, 3), jacobian (6, n))`` of a frame.
 

@@ -101,6 +101,9 @@ class SpgInfo:
         box: The tick's :class:`~ifc_spg.limits.VelocityBox` on qdot_v.
         tanks: The :class:`~ifc_spg.pspm.EnergyTanks` (None without PSPM).
         joint_names: The robot's joint names (model order).
+        distances: The tick's :class:`~ifc_spg.tasks.collision_avoidance.DistanceReport`
+            per collision-avoidance task (at q_v); ``collision`` gives them as dicts
+            (minimum distance per pair group).
     """
 
     status: str | None = None
@@ -121,10 +124,16 @@ class SpgInfo:
     power_budget: float | None = None
     tanks: EnergyTanks | None = None
     joint_names: tuple | None = None
+    distances: tuple = ()
 
     _FIELDS = ('status', 'solver', 'level_names', 'slacks', 'residuals', 'at_limit',
                'tank_energy', 'spring_energy_step', 'solve_time', 'tick_time', 'task_time',
-               'qdot_v', 'message', 'failed_level', 'pspm')
+               'qdot_v', 'message', 'failed_level', 'pspm', 'collision')
+
+    @property
+    def collision(self) -> list[dict] | None:
+        """Minimum distance per pair group of each collision-avoidance task (None: none)."""
+        return [r.as_dict() for r in self.distances] or None
 
     @property
     def level_names(self) -> list[str]:
@@ -238,6 +247,7 @@ class SetPointGenerator:
         self.q_v: np.ndarray | None = None
         self.qdot_v = np.zeros(n)
         self.tasks: list[Task] = []
+        self._reporting: list = []  # tasks with a report() for info.distances
         self._pending: tuple | None = None
         self._t0: float | None = None
         self.stack: Any = None
@@ -408,6 +418,7 @@ class SetPointGenerator:
     def _take_pending(self) -> None:
         if self._pending is not None:
             self.stack, self.tasks, budget = self._pending
+            self._reporting = [t for t in self.tasks if hasattr(t, 'report')]
             self._pending = None
             self._t0 = None
             self.activations = []
@@ -454,6 +465,8 @@ class SetPointGenerator:
 
         energy_step = stall = None
         message = tick.message
+        if self._reporting and tick.status == 'ok' and not message:
+            message = self._collision_message(tick)
         if self.tanks is not None:
             energy_step = self.tanks.update(q, q_v, tick.qdot_v)
             stall = self._watch_stall(q, qdot, q_v, qd_prev, limits_box, tick.task_levels,
@@ -472,8 +485,20 @@ class SetPointGenerator:
             qdot_v=tick.qdot_v, message=message, failed_level=tick.failed, stall=stall,
             stall_new=stall is not None and self._stall is not None and self._stall.new,
             power_budget=0.0 if self.tanks is None else self.tanks.power, tanks=self.tanks,
-            joint_names=self.robot.joint_names)
+            joint_names=self.robot.joint_names,
+            distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None))
         return self.q_v.copy()
+
+    def _collision_message(self, tick: '_Tick') -> str:
+        """The pair a collision-avoidance level could not keep this tick (its slack), or ''."""
+        top = len(tick.levels) - len(tick.task_levels)
+        for i, task in enumerate(self.tasks):
+            slack_message = getattr(task, 'slack_message', None)
+            if slack_message is not None and top + i < len(tick.slacks):
+                text = slack_message(tick.slacks[top + i])
+                if text:
+                    return text
+        return ''
 
     def _measurement(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``q`` and ``qdot`` as contiguous float arrays of n entries (or ParameterError)."""

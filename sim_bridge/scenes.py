@@ -16,6 +16,9 @@ scene                     what
                           obstacle box on it, ``obstacle_offset`` (x, y) [m] from the
                           tool start, half sizes ``obstacle_size`` [m]
 ``obstacle``              a box ``offset`` [m] (world frame) from the tool
+``post``                  a vertical cylinder (``radius``, ``height`` [m]) on the floor at
+                          ``position`` (x, y) [m] in the base frame; every robot geom has
+                          a contact pair with it (collision avoidance)
 ``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel;
                           optional break-away latch ``breakaway`` [N] (default 0: none)
 ``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel;
@@ -309,6 +312,31 @@ def _obstacle(spec, anchor, offset=(0.0, 0.15, 0.0), half_size=(0.04, 0.04, 0.1)
     return {}
 
 
+def _post(spec, anchor, position=(0.45, 0.3), radius=0.04, height=1.2, friction=0.3,
+          solref=(0.01, 1.0)):
+    """A vertical post (cylinder) on the floor at ``position`` (x, y) [m] of the base frame.
+
+    Every robot geom gets an explicit contact pair with it, so MuJoCo reports (and
+    resolves) any contact of the robot with the post.
+    """
+    xy = _xy(position, 'position')
+    for name, v in (('radius', radius), ('height', height)):
+        if not (np.isfinite(v) and v > 0):
+            raise ParameterError(f"scene 'post': {name} must be > 0 m, got {v!r}")
+    robot_bodies = [b for top in spec.worldbody.bodies for b in _subtree(top)]
+    body = spec.worldbody.add_body(name='post', pos=[xy[0], xy[1], height / 2])
+    _scene_geom(body, name='post', type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                size=[radius, height / 2, 0.0], rgba=(0.8, 0.2, 0.2, 1))
+    mu = float(friction)
+    for b in robot_bodies:
+        for i, geom in enumerate(b.geoms):
+            if not geom.name:
+                geom.name = f'{b.name}_geom{i}'
+            spec.add_pair(name=f'{geom.name}_post', geomname1=geom.name, geomname2='post',
+                          condim=3, friction=[mu, mu, 0.005, 1e-4, 1e-4], solref=list(solref))
+    return {}
+
+
 def _latch(spec, joint, force, lever):
     """A joint equality ``latch`` holding ``joint`` at 0 (see the module doc); its Latch."""
     eq = spec.add_equality(name='latch', type=mujoco.mjtEq.mjEQ_JOINT, name1=joint,
@@ -397,6 +425,7 @@ SCENES = {
     'free': _free,
     'table': _table,
     'obstacle': _obstacle,
+    'post': _post,
     'drawer_horizontal': _drawer_horizontal,
     'drawer_vertical': _drawer_vertical,
     'crank': _crank,

@@ -513,7 +513,10 @@ class SpgRunner:
         {timeout, trips, resumes}, pspm {power_budget and max_power [W], refilled [J] per
         joint, stall: None or {joints, requested_power [W] per joint, total_power and
         robot_power [W], since [s], fix, message}, stalls (reports, once per episode and
-        joint)} (None without PSPM), errors (the last few), event {type, message} (when given)
+        joint)} (None without PSPM), collision (per collision_avoidance task: margin,
+        influence and per pair group the minimum distance of q_v [m], its pair and the pairs
+        within the influence distance; None without such a task), errors (the last few),
+        event {type, message} (when given)
         config (the :class:`SpgConfig` as a dict) and robot_params (:func:`robot_params`: the
         K, D and limits the SPG uses), both in the first document and every event.
 
@@ -542,6 +545,7 @@ class SpgRunner:
             'watchdog': {'timeout': self.config.watchdog_timeout,
                          'trips': self.watchdog_trips, 'resumes': self.resumes},
             'pspm': self._pspm_status(info),
+            'collision': info.collision,
             'errors': list(self.errors),
         }
         streams = streams_of(self.spg.tasks)

@@ -265,6 +265,9 @@ class _Builder:
         path = ('tasks', spec.index)
         if spec.type == 'constrained_manipulation':
             return self._constrained(spec, path, construct)
+        if spec.type == 'collision_avoidance':
+            from ifc_spg.task_stack import collision
+            return list(collision.build(self.stack, self.robot, spec, construct))
         if spec.type in ('cartesian_pose', 'wrench'):
             self.frame(spec, path)
         comp = self.components(spec, path)

@@ -11,6 +11,8 @@ import os
 import sys
 from typing import Any
 
+from ifc_spg.geometry.collision import OBSTACLE_SHAPES
+from ifc_spg.task_stack.collision import MAX_OBSTACLES, OBSTACLE_FIELDS
 from ifc_spg.task_stack.spec import (
     BOUND_FIELDS,
     MAX_DIM,
@@ -52,8 +54,8 @@ def _param(kind):
         return {'$ref': '#/$defs/vector'}
     if kind in ('anchor', 'anchor_to'):
         return {'$ref': '#/$defs/anchor'}
-    if kind == 'anchor2':
-        return {'anyOf': [_INIT, {'type': 'array', 'items': {'anyOf': [_NUM, _INIT]},
+    if kind == 'anchor2':  # the parser also takes one number for both components
+        return {'anyOf': [_INIT, _NUM, {'type': 'array', 'items': {'anyOf': [_NUM, _INIT]},
                                   'minItems': 2, 'maxItems': 2}]}
     if kind == 'offsets':
         return {'type': 'array', 'items': {'$ref': '#/$defs/vector'}, 'minItems': 2,
@@ -80,12 +82,61 @@ def _trajectory(kind):
             'additionalProperties': False, 'title': f'{kind} trajectory'}
 
 
+def _collision_task(common):
+    names = {'anyOf': [{'type': 'string'}, {'type': 'array', 'items': {'type': 'string'},
+                                             'minItems': 1}]}
+    group = {'anyOf': [{'const': 'self'}, {
+        'type': 'object', 'additionalProperties': False, 'required': ['links', 'obstacles'],
+        'properties': {'name': {'type': 'string', 'minLength': 1}, 'links': names,
+                       'obstacles': names}}]}
+    props = dict(common)
+    props['pairs'] = {'anyOf': [group, {'type': 'array', 'items': group, 'minItems': 1}],
+                      'description': "'self' (the model's self-collision pairs) and/or "
+                                     '{links: [...] or all, obstacles: [...]}.'}
+    props['margin'] = {'type': 'number', 'minimum': 0,
+                       'description': 'd_s [m]: never closer (default 0.01).'}
+    props['influence'] = {'type': 'number', 'exclusiveMinimum': 0,
+                          'description': 'd_i [m] > margin: rows for pairs closer than this '
+                                         '(default 0.1).'}
+    props['gain'] = {'type': 'number', 'exclusiveMinimum': 0,
+                     'description': 'xi [m/s]: approach speed allowed at d_i (default 0.5).'}
+    props['max_rows'] = {'type': 'integer', 'minimum': 1, 'maximum': 1000,
+                         'description': 'Rows of the level: the closest pairs within d_i '
+                                        '(default 24).'}
+    extra = set(props) ^ set(TASK_FIELDS['collision_avoidance'])
+    if extra:
+        raise RuntimeError(f'schema and parser disagree on collision_avoidance: {extra}')
+    return {'type': 'object', 'properties': props, 'required': ['type', 'pairs'],
+            'additionalProperties': False, 'title': 'collision_avoidance task',
+            'description': 'Velocity damper d_dot >= -gain (d - margin) / (influence - '
+                           'margin) on every listed pair closer than influence (an '
+                           'inequality level).'}
+
+
+def _obstacle():
+    num3 = {'type': 'array', 'items': _NUM, 'minItems': 3, 'maxItems': 3}
+    size = {'type': 'number', 'exclusiveMinimum': 0}
+    props = {'name': {'type': 'string', 'minLength': 1},
+             'shape': {'enum': list(OBSTACLE_SHAPES)},
+             'size': {'type': 'array', 'items': size, 'minItems': 3, 'maxItems': 3,
+                      'description': 'box: full edge lengths [m].'},
+             'radius': size, 'length': size,
+             'frame': {'type': 'string', 'description': 'base (default) or a chain id.'},
+             'position': num3, 'rpy': num3, 'description': {'type': ['string', 'null']}}
+    if set(props) != set(OBSTACLE_FIELDS):
+        raise RuntimeError('schema and parser disagree on obstacles')
+    return {'type': 'object', 'properties': props, 'required': ['name', 'shape'],
+            'additionalProperties': False}
+
+
 def _task(ttype):
     common = {
         'name': {'type': 'string', 'minLength': 1, 'description': 'Task name (unique).'},
         'type': {'const': ttype},
         'description': {'type': ['string', 'null']},
     }
+    if ttype == 'collision_avoidance':
+        return _collision_task(common)
     if ttype == 'constrained_manipulation':
         common['frame'] = {'type': 'string', 'description': 'Chain id grasping the mechanism.'}
         return {'type': 'object', 'properties': common, 'required': ['type', 'frame'],
@@ -188,6 +239,10 @@ def schema() -> dict[str, Any]:
                              'stack needs to do work on its environment (sliding a tool, '
                              'lifting a drawer); at most the node parameter pspm.max_power. '
                              'Absent or 0: strictly passive.'},
+            'obstacles': {'type': ['array', 'null'], 'items': _obstacle(),
+                          'maxItems': MAX_OBSTACLES,
+                          'description': 'Known obstacles (box, sphere, capsule, cylinder, '
+                                         'plane) for collision_avoidance tasks.'},
             'tasks': {'type': 'array', 'minItems': 1, 'maxItems': MAX_TASKS,
                       'items': {'$ref': '#/$defs/task'}},
         },

@@ -21,6 +21,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ifc_spg.errors import did_you_mean
+from ifc_spg.task_stack.collision import (
+    COLLISION_FIELDS,
+    options_to_data,
+    parse_obstacles,
+    parse_options,
+)
 from ifc_spg.task_stack.errors import TaskStackError
 from ifc_spg.tasks.subspace import AXES, SUBSPACE_FRAMES, WRENCH_AXES
 
@@ -50,8 +56,8 @@ MAX_DIM = 64
 MAX_NAME = 128
 
 TASK_TYPES = ('joint_position', 'cartesian_pose', 'joint_torque', 'wrench',
-              'constrained_manipulation')
-TOP_FIELDS = ('version', 'name', 'robot', 'description', 'power_budget', 'tasks')
+              'constrained_manipulation', 'collision_avoidance')
+TOP_FIELDS = ('version', 'name', 'robot', 'description', 'power_budget', 'obstacles', 'tasks')
 #: Largest power_budget [W] a stack may declare (the node's pspm.max_power caps it further).
 MAX_POWER_BUDGET = 1e4
 BOUND_FIELDS = ('equal', 'lower', 'upper')
@@ -63,6 +69,7 @@ TASK_FIELDS = {
     'cartesian_pose': _COMMON + ('frame', 'subspace', 'orientation', 'relative'),
     'wrench': _COMMON + ('frame', 'subspace', 'include_damping'),
     'constrained_manipulation': ('name', 'type', 'description', 'frame'),  # + free options
+    'collision_avoidance': COLLISION_FIELDS,
 }
 SUBSPACE_FIELDS = ('axes', 'columns', 'frame')
 
@@ -237,15 +244,23 @@ def _thaw(x):
     return x
 
 
+def _options_to_data(t: TaskSpec, out: dict[str, Any]) -> dict[str, Any]:
+    """Plain data of the task types that keep their fields in ``options``."""
+    if t.type == 'collision_avoidance':
+        out.update(options_to_data(t.options))
+        return out
+    out['frame'] = t.frame
+    out.update(_thaw(t.options))
+    return out
+
+
 def task_to_data(t: TaskSpec) -> dict[str, Any]:
     """Plain data of a :class:`TaskSpec` (every field explicit, defaults filled in)."""
     out: dict[str, Any] = {'name': t.name, 'type': t.type}
     if t.description is not None:
         out['description'] = t.description
-    if t.type == 'constrained_manipulation':
-        out['frame'] = t.frame
-        out.update(_thaw(t.options))
-        return out
+    if t.type in ('constrained_manipulation', 'collision_avoidance'):
+        return _options_to_data(t, out)
     if t.type in ('cartesian_pose', 'wrench'):
         out['frame'] = t.frame
         sub = t.subspace
@@ -378,7 +393,8 @@ class _Parser:
         budget = self.power_budget(data['power_budget']) if data.get('power_budget') \
             is not None else None
         return {'version': VERSION, 'name': name, 'robot': robot, 'description': desc,
-                'power_budget': budget, 'tasks': self.tasks(data)}
+                'power_budget': budget, 'obstacles': parse_obstacles(self, data.get('obstacles')),
+                'tasks': self.tasks(data)}
 
     def version(self, data: dict[str, Any]) -> None:
         if 'version' not in data:
@@ -439,6 +455,8 @@ class _Parser:
             kw['options'] = MappingProxyType({
                 k: _freeze(v) for k, v in x.items() if k not in TASK_FIELDS[ttype]})
             return TaskSpec(**kw)
+        if ttype == 'collision_avoidance':
+            return TaskSpec(options=parse_options(self, path, x), **kw)
         self.fields(path, x, TASK_FIELDS[ttype], f'a {ttype} task')
         kw.update(self.task_geometry(path, x, ttype))
         kw.update(self.task_bounds(path, x))

@@ -43,6 +43,8 @@ class TaskStack:
             author knows it does work on the environment: slides a tool, lifts a drawer);
             None: strictly passive. The SPG rejects a stack asking for more than its
             ``pspm.max_power``.
+        obstacles: Tuple of :class:`~ifc_spg.task_stack.collision.ObstacleSpec` (the
+            ``obstacles:`` that ``collision_avoidance`` tasks keep the robot from).
         version: Format version (1).
         source: Where the text came from (file name), or None.
     """
@@ -52,6 +54,7 @@ class TaskStack:
     robot: str | None = None
     description: str | None = None
     power_budget: float | None = None
+    obstacles: tuple = ()
     version: int = VERSION
     source: str | None = field(default=None, compare=False)
     _doc: Document | None = field(default=None, compare=False, repr=False)
@@ -67,7 +70,7 @@ class TaskStack:
         kw = parse_document(doc)
         return cls(name=kw['name'], tasks=kw['tasks'], robot=kw['robot'],
                    description=kw['description'], power_budget=kw['power_budget'],
-                   version=kw['version'], source=doc.source,
+                   obstacles=kw['obstacles'], version=kw['version'], source=doc.source,
                    _doc=doc)
 
     @classmethod
@@ -131,6 +134,9 @@ class TaskStack:
             out['description'] = self.description
         if self.power_budget is not None:
             out['power_budget'] = self.power_budget
+        if self.obstacles:
+            from ifc_spg.task_stack.collision import obstacle_to_data
+            out['obstacles'] = [obstacle_to_data(o) for o in self.obstacles]
         out['tasks'] = [task_to_data(t) for t in self.tasks]
         return out
 

@@ -1,0 +1,469 @@
+"""Collision geometry of a robot model and its obstacles: distances, witness points, rows.
+
+The geometry comes from the same MJCF file pinocchio loads (``pin.buildGeomFromMJCF``:
+capsules stay capsules, cylinders cylinders) and the distances from coal (GJK/EPA, signed:
+negative when two shapes overlap). Obstacles (box, sphere, capsule, cylinder, plane) are
+added to the same ``GeometryModel``, fixed to the base or to a frame of the robot.
+
+For a pair (a, b) with witness points p_a on a and p_b on b and the unit normal n from a
+to b, the distance rate is
+
+    d_dot = n^T (J_b(p_b) - J_a(p_a)) qdot,     J_x(p) = J_lin - [p - o_x]_x J_ang
+
+(J of the parent joint x, LOCAL_WORLD_ALIGNED), one row per pair. A cheap cull runs
+first: each shape has a bounding sphere in its joint frame, and a pair whose spheres are
+farther apart than the asked influence distance is not passed to coal at all.
+
+Self pairs (:meth:`CollisionGeometry.self_pairs`) are all pairs of the robot's shapes
+except those on the same joint (their distance never changes), those on adjacent bodies
+(a body and its parent body), and those in contact at the model's reference pose
+``robot.q_home`` (:attr:`CollisionGeometry.excluded` lists each with its reason).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+import math
+from typing import TYPE_CHECKING, Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from ifc_spg.errors import ModelError, ParameterError, did_you_mean
+
+if TYPE_CHECKING:
+    from ifc_spg.model.robot_model import RobotModel
+
+__all__ = ['OBSTACLE_SHAPES', 'CollisionGeometry', 'Distances', 'Obstacle', 'PairQuery',
+           'rpy_matrix']
+
+#: Obstacle shapes and their size fields [m].
+OBSTACLE_SHAPES = {
+    'box': ('size',),  # full edge lengths (x, y, z)
+    'sphere': ('radius',),
+    'capsule': ('radius', 'length'),  # length of the axis (z) between the cap centers
+    'cylinder': ('radius', 'length'),  # along z
+    'plane': (),  # the half-space z <= 0 of its pose; the robot is on the +z side
+}
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_MAX_SIZE = 1e3  # [m]
+#: Below this distance [m] the normal is coal's, above it (p_b - p_a) / d.
+_NORMAL_FROM_POINTS = 1e-6
+#: GJK/EPA tolerance of the distance queries [m].
+GJK_TOLERANCE = 1e-9
+
+
+def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
+    """Rotation matrix of roll-pitch-yaw angles [rad] (R = Rz(yaw) Ry(pitch) Rx(roll))."""
+    return pin.rpy.rpyToMatrix(*(float(a) for a in rpy))
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A known obstacle.
+
+    Attributes:
+        name: Unique name (used in pairs and reports).
+        shape: One of :data:`OBSTACLE_SHAPES`.
+        size: The shape's sizes [m]: box (x, y, z) full edge lengths; sphere (radius,);
+            capsule and cylinder (radius, length) along the local z axis; plane ().
+        frame: 'base' or a chain id of the robot the pose is given in (the obstacle moves
+            with that frame).
+        position: Position of the shape's center [m] in ``frame``.
+        rotation: Orientation (3 x 3, rows) in ``frame``.
+    """
+
+    name: str
+    shape: str
+    size: tuple = ()
+    frame: str = 'base'
+    position: tuple = (0.0, 0.0, 0.0)
+    rotation: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+    def __post_init__(self) -> None:
+        """Check shape, sizes and pose (ParameterError naming the obstacle and field)."""
+        if self.shape not in OBSTACLE_SHAPES:
+            raise ParameterError(f"obstacle '{self.name}': unknown shape {self.shape!r}"
+                                 f'{did_you_mean(self.shape, OBSTACLE_SHAPES)}; shapes: '
+                                 f"{', '.join(OBSTACLE_SHAPES)}")
+        want = 3 if self.shape == 'box' else len(OBSTACLE_SHAPES[self.shape])
+        size = np.asarray(self.size, dtype=float).reshape(-1)
+        if size.size != want or not np.all(np.isfinite(size)) or np.any(size <= 0) \
+                or np.any(size > _MAX_SIZE):
+            raise ParameterError(f"obstacle '{self.name}': a {self.shape} needs {want} finite "
+                                 f'size(s) in (0, {_MAX_SIZE:g}] m '
+                                 f"({', '.join(OBSTACLE_SHAPES[self.shape]) or 'none'}), got "
+                                 f'{list(self.size)}')
+        p = np.asarray(self.position, dtype=float)
+        R = np.asarray(self.rotation, dtype=float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ParameterError(f"obstacle '{self.name}': position must be 3 finite numbers, "
+                                 f'got {list(self.position)}')
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or \
+                np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+            raise ParameterError(f"obstacle '{self.name}': rotation must be a rotation matrix")
+
+    def geometry(self) -> Any:
+        """The coal shape (centered at the obstacle's pose)."""
+        s = [float(x) for x in self.size]
+        if self.shape == 'box':
+            return coal.Box(*s)
+        if self.shape == 'sphere':
+            return coal.Sphere(s[0])
+        if self.shape == 'capsule':
+            return coal.Capsule(s[0], s[1])
+        if self.shape == 'cylinder':
+            return coal.Cylinder(s[0], s[1])
+        return coal.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0)
+
+    def placement(self) -> pin.SE3:
+        """The pose in :attr:`frame`."""
+        return pin.SE3(np.asarray(self.rotation, dtype=float),
+                       np.asarray(self.position, dtype=float))
+
+
+def _bounding_radius(geom: Any) -> float:
+    """Radius of a sphere around the shape's origin containing it (inf for a half-space)."""
+    if isinstance(geom, coal.Sphere):
+        return float(geom.radius)
+    if isinstance(geom, coal.Capsule):
+        return float(geom.radius + geom.halfLength)
+    if isinstance(geom, coal.Cylinder):
+        return float(math.hypot(geom.radius, geom.halfLength))
+    if isinstance(geom, coal.Box):
+        return float(np.linalg.norm(geom.halfSide))
+    if isinstance(geom, (coal.Halfspace, coal.Plane)):
+        return math.inf
+    geom.computeLocalAABB()
+    return float(np.linalg.norm(geom.aabb_center) + geom.aabb_radius)
+
+
+class CollisionGeometry:
+    """The collision shapes of a robot (from its MJCF) and of its obstacles.
+
+    Args:
+        robot: The :class:`~ifc_spg.model.RobotModel` (its ``model_file`` an MJCF file).
+        obstacles: :class:`Obstacle` objects (unique names, frames 'base' or chain ids).
+
+    Attributes:
+        model: The pinocchio ``GeometryModel`` (robot shapes first, then the obstacles).
+        robot_geoms: Names of the robot's shapes, in model order.
+        bodies: Body (link) name -> indices of its shapes.
+        obstacles: Obstacle name -> index of its shape.
+        excluded: ``[(shape a, shape b, reason)]`` of the robot pairs left out of
+            :meth:`self_pairs`.
+    """
+
+    def __init__(self, robot: RobotModel, obstacles: Iterable[Obstacle] = ()) -> None:
+        self.robot = robot
+        path = robot.model_file
+        if path is None or not str(path).lower().endswith(('.xml', '.mjcf')):
+            raise ModelError(f"robot '{robot.name}': collision geometry is read from an MJCF "
+                             f'model file; this model was loaded from {path!r}')
+        try:
+            gm = pin.buildGeomFromMJCF(robot.model, str(path), pin.GeometryType.COLLISION)
+        except (RuntimeError, ValueError) as exc:
+            raise ModelError(f"robot '{robot.name}': cannot read the collision geometry of "
+                             f"'{path}': {exc}") from exc
+        self.model = gm
+        model = robot.model
+        self.robot_geoms = tuple(o.name for o in gm.geometryObjects)
+        self.bodies: dict[str, list[int]] = {}
+        for i, o in enumerate(gm.geometryObjects):
+            self.bodies.setdefault(model.frames[o.parentFrame].name, []).append(i)
+        self.obstacles: dict[str, int] = {}
+        for obs in obstacles:
+            self._add_obstacle(obs)
+        objs = gm.geometryObjects
+        self.parent_joint = np.array([o.parentJoint for o in objs], dtype=int)
+        self.center = np.array([o.placement.translation for o in objs], dtype=float)
+        self.radius = np.array([_bounding_radius(o.geometry) for o in objs], dtype=float)
+        #: ``support[j, k]``: 1.0 where velocity k moves the body of joint j
+        self.support = np.zeros((robot.model.njoints, robot.n))
+        for j in range(1, robot.model.njoints):
+            for s in list(robot.model.supports[j])[1:]:
+                self.support[j, robot.model.joints[s].idx_v] = 1.0
+        self.lever = self._lever_bound()
+        self._self_pairs, self.excluded = self._find_self_pairs()
+
+    def _lever_bound(self) -> float:
+        """A bound [m] on the distance of any point of a moving shape from any joint axis.
+
+        Twice the largest reach from the base over the kinematic chain (joint offsets, the
+        shape's offset and bounding radius), at any configuration; a joint moved by dq
+        moves no point of the shapes by more than ``lever * |dq|`` (prismatic: ``|dq|``,
+        and ``lever >= 1``). Capped at 1e6 (a half-space fixed to a link).
+        """
+        model = self.robot.model
+        chain = np.zeros(model.njoints)
+        for j in range(1, model.njoints):
+            chain[j] = chain[model.parents[j]] + np.linalg.norm(
+                model.jointPlacements[j].translation)
+        moving = self.parent_joint > 0
+        if not moving.any():
+            return 1.0
+        reach = chain[self.parent_joint] + np.linalg.norm(self.center, axis=1) + self.radius
+        return float(min(max(2.0 * reach[moving].max(), 1.0), 1e6))
+
+    def _add_obstacle(self, obs: Obstacle) -> None:
+        if obs.name in self.obstacles or obs.name in self.bodies:
+            raise ParameterError(f"obstacle '{obs.name}': the name is used twice (obstacle and "
+                                 'link names must be unique)')
+        model = self.robot.model
+        if obs.frame == 'base':
+            joint, frame, placement = 0, 0, obs.placement()
+        else:
+            fid = self.robot.frame_id(obs.frame)  # UnknownFrame with the choices
+            f = model.frames[fid]
+            joint, frame, placement = f.parentJoint, fid, f.placement * obs.placement()
+        go = pin.GeometryObject(f'obstacle:{obs.name}', joint, frame, placement,
+                                obs.geometry())
+        self.obstacles[obs.name] = self.model.addGeometryObject(go)
+
+    # -- pairs -----------------------------------------------------------------------------
+    def _parent_body(self, frame_id: int) -> str | None:
+        frames = self.robot.model.frames
+        f = frames[frame_id].parentFrame
+        while f > 0 and frames[f].type != pin.FrameType.BODY:
+            f = frames[f].parentFrame
+        return frames[f].name if f > 0 else None
+
+    def _find_self_pairs(self) -> tuple[list[tuple[int, int]], list[tuple[str, str, str]]]:
+        objs = self.model.geometryObjects
+        frames = self.robot.model.frames
+        n_robot = len(self.robot_geoms)
+        body = [frames[objs[i].parentFrame].name for i in range(n_robot)]
+        parent = [self._parent_body(objs[i].parentFrame) for i in range(n_robot)]
+        pairs, excluded, candidates = [], [], []
+        for a in range(n_robot):
+            for b in range(a + 1, n_robot):
+                names = (objs[a].name, objs[b].name)
+                if objs[a].parentJoint == objs[b].parentJoint:
+                    excluded.append(names + ('same joint (fixed to each other)',))
+                elif parent[a] == body[b] or parent[b] == body[a]:
+                    excluded.append(names + ('adjacent bodies',))
+                else:
+                    candidates.append((a, b))
+        query = PairQuery(self, candidates)
+        data = self.robot.create_data()
+        pin.forwardKinematics(self.robot.model, data, np.asarray(self.robot.q_home))
+        dist = query.distances_only(data)
+        for (a, b), d in zip(candidates, dist):
+            if d <= 0.0:
+                excluded.append((objs[a].name, objs[b].name,
+                                 f'in contact at the reference pose q_home ({d * 1e3:.1f} mm)'))
+            else:
+                pairs.append((a, b))
+        return pairs, excluded
+
+    def self_pairs(self) -> list[tuple[int, int]]:
+        """The robot's self-collision pairs (shape indices), see the module doc."""
+        return list(self._self_pairs)
+
+    def link_shapes(self, link: str) -> list[int]:
+        """Shape indices of a link (MJCF body name) or of one shape by its name."""
+        if link in self.bodies:
+            return list(self.bodies[link])
+        if link in self.robot_geoms:
+            return [self.robot_geoms.index(link)]
+        raise ParameterError(f"'{link}' is not a link of robot '{self.robot.name}'"
+                             f'{did_you_mean(link, list(self.bodies) + list(self.robot_geoms))}'
+                             f"; links: {', '.join(self.bodies)}")
+
+    def obstacle_shape(self, name: str) -> int:
+        """Shape index of obstacle ``name``."""
+        if name not in self.obstacles:
+            raise ParameterError(f"'{name}' is not a declared obstacle"
+                                 f'{did_you_mean(name, self.obstacles)}; obstacles: '
+                                 f"{', '.join(self.obstacles) or '(none declared)'}")
+        return self.obstacles[name]
+
+    def shape_name(self, i: int) -> str:
+        """Name of shape ``i`` (obstacles as ``obstacle:NAME``)."""
+        return self.model.geometryObjects[i].name
+
+
+@dataclass(frozen=True)
+class Distances:
+    """Distances of a pair set at one configuration.
+
+    Attributes:
+        distance: Signed distance per pair [m] (negative: overlap); for culled pairs a
+            lower bound (the bounding spheres' gap), see ``exact``.
+        exact: True where coal computed the distance (the pair was not culled).
+        rows: d(distance)/dq per pair (m, n); zero rows for culled pairs.
+        point_a, point_b: Witness points (m, 3) in the base frame (NaN for culled pairs
+            and pairs beyond the influence distance).
+    """
+
+    distance: np.ndarray
+    exact: np.ndarray
+    rows: np.ndarray
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+
+class PairQuery:
+    """Distances and distance Jacobian rows of a fixed list of shape pairs.
+
+    Owns its own ``GeometryModel`` pairs and ``GeometryData`` (one per task and thread).
+
+    Args:
+        geometry: The :class:`CollisionGeometry`.
+        pairs: ``[(a, b)]`` shape indices.
+    """
+
+    def __init__(self, geometry: CollisionGeometry, pairs: Sequence[tuple[int, int]]) -> None:
+        self.geometry = geometry
+        self.pairs = [(int(a), int(b)) for a, b in pairs]
+        self.m = len(self.pairs)
+        gm = geometry.model.copy()
+        gm.removeAllCollisionPairs()
+        for a, b in self.pairs:
+            gm.addCollisionPair(pin.CollisionPair(a, b))
+        self._gm = gm
+        self._gd = pin.GeometryData(gm)
+        for req in self._gd.distanceRequests:
+            req.enable_signed_distance = True
+            req.gjk_tolerance = GJK_TOLERANCE  # coal's default 1e-6 m leaves ~2e-7 m noise
+        self._model = geometry.robot.model
+        self._n = geometry.robot.n
+        ia = np.array([a for a, _ in self.pairs], dtype=int)
+        ib = np.array([b for _, b in self.pairs], dtype=int)
+        self._ia, self._ib = ia, ib
+        self._rsum = geometry.radius[ia] + geometry.radius[ib]
+        self._unbounded = ~np.isfinite(self._rsum)
+        self._any_unbounded = bool(self._unbounded.any())
+        self._rsum[self._unbounded] = 0.0
+        support = geometry.support
+        self._mask_a = support[geometry.parent_joint[ia]]
+        self._mask_b = support[geometry.parent_joint[ib]]
+        # joints that move one shape of a pair but not the other, times the lever bound
+        self._lever = np.abs(self._mask_a - self._mask_b) * geometry.lever
+        self._last_q: np.ndarray | None = None
+        self._last_bound = np.zeros(self.m)
+
+    # -- the cull --------------------------------------------------------------------------
+    def lower_bounds(self, data: pin.Data) -> np.ndarray:
+        """Lower bounds on each pair's distance from the bounding spheres (cheap).
+
+        ``data`` holds the joint placements (``forwardKinematics``) of the configuration.
+        """
+        self._place(data)
+        return self._gaps()
+
+    def _gaps(self) -> np.ndarray:
+        """The bounding spheres' gaps of the placed shapes (-inf where a half-space)."""
+        c = np.array([M.translation for M in self._gd.oMg])
+        diff = c[self._ia] - c[self._ib]
+        gap = np.sqrt(np.einsum('ij,ij->i', diff, diff)) - self._rsum
+        if self._any_unbounded:
+            gap[self._unbounded] = -np.inf
+        return gap
+
+    # -- exact distances -------------------------------------------------------------------
+    def _place(self, data: pin.Data) -> None:
+        pin.updateGeometryPlacements(self._model, data, self._gm, self._gd)
+
+    def distances_only(self, data: pin.Data) -> np.ndarray:
+        """Exact signed distances of every pair (no cull, no rows); ``data`` has oMi."""
+        self._place(data)
+        return np.array([pin.computeDistance(self._gm, self._gd, k).min_distance
+                         for k in range(self.m)])
+
+    def compute(self, data: pin.Data, influence: float = math.inf,
+                jacobians: bool = True, q: np.ndarray | None = None) -> Distances:
+        """Distances, witness points and rows at the configuration of ``data``.
+
+        Args:
+            data: pinocchio ``Data`` after ``computeJointJacobians`` (or
+                ``forwardKinematics`` when ``jacobians`` is False) at the configuration.
+            influence: Pairs whose bounding spheres are farther apart than this [m] are
+                culled (their distance is a lower bound, their row zero); pairs farther
+                than this get their exact distance but no witness points (NaN) and a zero
+                row.
+            jacobians: Compute the rows (``data`` must hold the joint Jacobians).
+            q: The configuration of ``data``, for the cull across calls (a sequence of
+                configurations, one query per sequence): a pair's distance changes by at
+                most ``sum_k lever |q_k - q_prev,k|`` over the joints k that move one of
+                its shapes but not the other, so the last call's distances (exact or
+                bounds) minus that stay lower bounds, and the bounding spheres are not
+                needed. None: the bounding-sphere cull only, nothing kept.
+        """
+        m, n = self.m, self._n
+        self._place(data)
+        if not math.isfinite(influence):
+            dist = np.full(m, -np.inf)
+        elif q is not None and self._last_q is not None:
+            dist = self._last_bound - self._lever @ np.abs(q - self._last_q)
+        else:
+            dist = self._gaps()
+        near = np.flatnonzero(dist <= influence)
+        exact = np.zeros(m, dtype=bool)
+        rows = np.zeros((m, n))
+        pa = np.full((m, 3), np.nan)
+        pb = np.full((m, 3), np.nan)
+        if near.size:
+            self._narrowphase(near, influence, dist, pa, pb, rows, data, jacobians)
+            exact[near] = True
+        if q is not None:
+            self._last_q = np.array(q, dtype=float)
+            self._last_bound = dist.copy()
+        return Distances(dist, exact, rows, pa, pb)
+
+    def _narrowphase(self, near: np.ndarray, influence: float, dist: np.ndarray,
+                     pa: np.ndarray, pb: np.ndarray, rows: np.ndarray, data: pin.Data,
+                     jacobians: bool) -> list:
+        """Distances of the pairs ``near`` (coal); witness points and rows where d <= d_i.
+
+        Writes ``dist``, ``pa``, ``pb`` and ``rows`` in place; returns the pairs within.
+        """
+        gm, gd, distance = self._gm, self._gd, pin.computeDistance
+        values, within, p1, p2, touching = [], [], [], [], {}
+        for p in near.tolist():
+            res = distance(gm, gd, p)
+            d = res.min_distance
+            values.append(d)
+            if d <= influence:
+                if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
+                    touching[len(within)] = res.normal
+                within.append(p)
+                p1.append(res.getNearestPoint1())
+                p2.append(res.getNearestPoint2())
+        dist[near] = values
+        if within:
+            a, b = np.array(p1), np.array(p2)
+            pa[within], pb[within] = a, b
+            if jacobians:
+                normal = b - a
+                normal /= np.maximum(dist[within], _NORMAL_FROM_POINTS)[:, None]
+                for i, n in touching.items():
+                    normal[i] = n
+                rows[within] = self._rows(data, within, a, b, normal)
+        return within
+
+    def _rows(self, data: pin.Data, near: list, pa: np.ndarray, pb: np.ndarray,
+              normal: np.ndarray) -> np.ndarray:
+        """n^T (J_b(p_b) - J_a(p_a)) of the pairs ``near`` (vectorized).
+
+        With the joint Jacobians in the world frame (``data.J``, spatial velocity at the
+        origin), the velocity of a point p of joint j's body is the columns of j's support
+        of v + w x p, so n^T J(p) = (n^T J_v + (p x n)^T J_w) on those columns.
+        """
+        J = data.J
+        Jv, Jw = J[:3], J[3:]
+        nv = normal @ Jv
+        mask_a, mask_b = self._mask_a[near], self._mask_b[near]
+        return nv * (mask_b - mask_a) + (_cross(pb, normal) @ Jw) * mask_b \
+            - (_cross(pa, normal) @ Jw) * mask_a
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (k, 3) arrays (np.cross costs ~20 us on small arrays)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
