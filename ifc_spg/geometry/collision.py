@@ -421,7 +421,8 @@ class PairQuery:
         Writes ``dist``, ``pa``, ``pb`` and ``rows`` in place; returns the pairs within.
         """
         gm, gd, distance = self._gm, self._gd, pin.computeDistance
-        values, within, p1, p2, touching = [], [], [], [], {}
+        within: list[int] = []
+        values, p1, p2, touching = [], [], [], {}
         for p in near.tolist():
             res = distance(gm, gd, p)
             d = res.min_distance
