@@ -51,7 +51,10 @@ TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/command/joint_position': 'sensor_msgs/msg/JointState',
          '/spg/task_stack': 'std_msgs/msg/String', '/spg/status': 'std_msgs/msg/String',
          '/spg/config': 'std_msgs/msg/String', '/spg/state': 'std_msgs/msg/Float64MultiArray',
-         '/sim/contact_wrench': 'geometry_msgs/msg/WrenchStamped'}
+         '/sim/contact_wrench': 'geometry_msgs/msg/WrenchStamped',
+         # written by the recorder for Foxglove (README: "Seeing the robot in Foxglove")
+         '/robot_description': 'std_msgs/msg/String', '/tf': 'tf2_msgs/msg/TFMessage',
+         '/tf_static': 'tf2_msgs/msg/TFMessage'}
 
 
 def _demo_stacks():

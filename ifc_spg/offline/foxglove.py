@@ -57,9 +57,11 @@ class FoxgloveTopics:
         writer: The :class:`~ifc_spg.offline.bag.BagWriter`.
         robot: The :class:`~ifc_spg.model.RobotModel` whose joint states are recorded.
         tf_period: Least stamp time [s] between two ``/tf`` (and marker) messages of a tree.
+        markers: Declare (and write) ``/spg/markers``; a live recording records the node's own
+            ``spg/markers`` instead, if asked to.
     """
 
-    def __init__(self, writer, robot, tf_period=0.01):
+    def __init__(self, writer, robot, tf_period=0.01, markers=True):
         from rosbags.typesys import Stores, get_typestore
 
         self.writer, self.robot = writer, robot
@@ -70,10 +72,11 @@ class FoxgloveTopics:
         store = get_typestore(Stores.ROS2_JAZZY)
         self._store = store
         self._T = store.types
-        for topic, msgtype, qos in (('/robot_description', _STRING, latched(1)),
-                                    ('/tf_static', _TF, latched(1)),
-                                    ('/tf', _TF, QoSProfile(depth=100)),
-                                    ('/spg/markers', _MARKERS, QoSProfile(depth=10))):
+        topics = [('/robot_description', _STRING, latched(1)), ('/tf_static', _TF, latched(1)),
+                  ('/tf', _TF, QoSProfile(depth=100))]
+        if markers:
+            topics.append(('/spg/markers', _MARKERS, QoSProfile(depth=10)))
+        for topic, msgtype, qos in topics:
             writer.add_topic(topic, msgtype, qos)
 
     # -- message construction (rosbags dataclasses) ---------------------------------------
@@ -172,7 +175,7 @@ class RecordingObserver:
 
         try:
             self.topics = FoxgloveTopics(self.writer, RobotModel.from_config(name),
-                                         self.tf_period)
+                                         self.tf_period, markers=False)
         except IfcSpgError as exc:
             if t_ns is None:  # --robot given: the caller's error
                 raise
