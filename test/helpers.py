@@ -108,3 +108,26 @@ def finish_run(procs, bridge, timeout):
     wait_for(lambda: False, 1.0)
     assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
     assert procs.stop('spg_node') == 0, procs.log('spg_node')
+
+
+def start_cli(args, env):
+    """``python -m ifc_spg.tools.cli ARGS`` with ``env``, its output piped as text."""
+    import subprocess
+
+    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_cli_line(proc, word, timeout=20.0):
+    """The first stdout line of ``proc`` containing ``word``; fails the test after ``timeout``
+    [s] or when ``proc`` ends without one."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if word in line:
+            return line
+        if not line and proc.poll() is not None:
+            break
+    raise AssertionError(f'no "{word}" from {proc.args}: {proc.stderr.read()}')

@@ -2,10 +2,9 @@
 
 import os
 import signal
-import subprocess
-import sys
 import time
 
+from helpers import start_cli, wait_cli_line
 import numpy as np
 import pytest
 
@@ -87,22 +86,6 @@ def test_writer_refuses_existing_directory(tmp_path):
         BagWriter(tmp_path)
 
 
-def _start(args, env):
-    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def _wait_line(proc, word, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        if word in line:
-            return line
-        if not line and proc.poll() is not None:
-            break
-    raise AssertionError(f'no "{word}" from {proc.args}: {proc.stderr.read()}')
-
-
 @pytest.fixture()
 def dds_env(tmp_path):
     return loopback_env()
@@ -111,12 +94,12 @@ def dds_env(tmp_path):
 @pytest.mark.ros
 def test_record_over_dds_counts_match_and_sigterm_closes(tmp_path, dds_env):
     path = tmp_path / 'rec'
-    rec = _start(['bag', 'record', '-o', str(path), 'joint_states'], dds_env)
+    rec = start_cli(['bag', 'record', '-o', str(path), 'joint_states'], dds_env)
     talker = None
     try:
-        _wait_line(rec, 'recording')
-        talker = _start(['ros', 'talker', '--ros-args', '-p', 'rate:=1000.0', '-p', 'count:=400',
-                         '-p', 'wait_for_subscribers:=1'], dds_env)
+        wait_cli_line(rec, 'recording')
+        talker = start_cli(['ros', 'talker', '--ros-args', '-p', 'rate:=1000.0', '-p',
+                            'count:=400', '-p', 'wait_for_subscribers:=1'], dds_env)
         # the talker waited for acks: everything is in the reader, and the recorder writes
         # what arrived before it closes the bag
         assert talker.wait(60) == 0, talker.stderr.read()
@@ -143,14 +126,14 @@ def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     src = tmp_path / 'src'
     _write_sample(src, n=100)
     dst = tmp_path / 'dst'
-    rec = _start(['bag', 'record', '-o', str(dst)], dds_env)
+    rec = start_cli(['bag', 'record', '-o', str(dst)], dds_env)
     try:
-        _wait_line(rec, 'recording')
+        wait_cli_line(rec, 'recording')
         t0 = time.monotonic()
         # a fixed delay is not enough on rclpy: Fast DDS' discovery of two processes took
         # longer than 2 s in half of the tries here (the next announcement, 3 s, finds it)
-        player = _start(['bag', 'play', str(src), '--rate', '0.5', '--delay', '2.0',
-                         '--wait-for-subscribers', '1'], dds_env)
+        player = start_cli(['bag', 'play', str(src), '--rate', '0.5', '--delay', '2.0',
+                            '--wait-for-subscribers', '1'], dds_env)
         assert player.wait(60) == 0, player.stderr.read()
         elapsed = time.monotonic() - t0
         rec.send_signal(signal.SIGINT)

@@ -6,10 +6,8 @@ pinocchio's FK of the bag's own URDF at the recorded joint positions.
 
 import os
 import signal
-import subprocess
-import sys
-import time
 
+from helpers import start_cli, wait_cli_line
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -135,11 +133,11 @@ def test_recorded_bag_gets_tf_of_the_robot_spg_status_names(bag, tmp_path):
     env = loopback_env()
     dst = tmp_path / 'live'
     topics = ['/joint_states', '/command/joint_position', '/spg/status']
-    rec = _start(['bag', 'record', '-o', str(dst), *topics], env)
+    rec = start_cli(['bag', 'record', '-o', str(dst), *topics], env)
     try:
-        _wait_line(rec, 'recording')
-        player = _start(['bag', 'play', str(bag), '--rate', '2', '--topics', *topics,
-                         '--wait-for-subscribers', '1'], env)
+        wait_cli_line(rec, 'recording')
+        player = start_cli(['bag', 'play', str(bag), '--rate', '2', '--topics', *topics,
+                            '--wait-for-subscribers', '1'], env)
         assert player.wait(60) == 0, player.stderr.read()
         rec.send_signal(signal.SIGINT)
         assert rec.wait(20) == 0, rec.stderr.read()
@@ -151,22 +149,6 @@ def test_recorded_bag_gets_tf_of_the_robot_spg_status_names(bag, tmp_path):
     msgs = _read(dst)
     assert len(msgs['/joint_states']) == 600
     _check_transforms(msgs, per_tree=100)
-
-
-def _start(args, env):
-    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def _wait_line(proc, word, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        if word in line:
-            return line
-        if not line and proc.poll() is not None:
-            break
-    raise AssertionError(f'no "{word}" from {proc.args}: {proc.stderr.read()}')
 
 
 def test_markers_show_the_cartesian_targets(bag):

@@ -63,10 +63,6 @@ __all__ = ['SpgNode', 'main']
 _LEVELS = {'OK': 0, 'WARN': 1, 'ERROR': 2, 'STALE': 3}
 
 
-def _stamp_ns(stamp):
-    return stamp_to_ns(stamp)
-
-
 #: Parameters that may change while the node runs (applied from the next tick): how often it
 #: reports and when it stops commanding. The rest define the solver, the model, the energy
 #: tanks or the topics, and are refused at run time with the reason.
@@ -330,7 +326,7 @@ class SpgNode:
                 self.log.warning(text)
                 self.publish_status(('watchdog', text))
             return
-        stamp_ns = _stamp_ns(message.header.stamp) + round(age * 1e9)
+        stamp_ns = stamp_to_ns(message.header.stamp) + round(age * 1e9)
         if stamp_ns <= self._last_tick_ns:
             return
         self._last_tick_ns = stamp_ns
@@ -348,7 +344,7 @@ class SpgNode:
         rejected, trips = sum(runner.rejected.values()), runner.watchdog_trips
         was_stale, stalls = runner.stale, runner.pspm_stalls
         cmd = runner.handle_joint_state(message.name, message.position, message.velocity,
-                                        _stamp_ns(stamp))
+                                        stamp_to_ns(stamp))
         if sum(runner.rejected.values()) != rejected:
             self._log_throttled('error', runner.last_error)
         if runner.watchdog_trips != trips:  # a stamp gap tripped it

@@ -91,9 +91,8 @@ TOPICS = {
 _INFINITE_NS = (9223372036, 854775807)  # rmw's "infinite" duration as Jazzy writes it
 
 
-def stamp_ns(stamp):
-    """A ``builtin_interfaces/Time`` as integer nanoseconds."""
-    return stamp_to_ns(stamp)
+#: A ``builtin_interfaces/Time`` as integer nanoseconds (:func:`ifc_spg.ros.stamps.stamp_to_ns`).
+stamp_ns = stamp_to_ns
 
 
 def to_rosbags_qos(qos):
