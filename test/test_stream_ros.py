@@ -1,6 +1,9 @@
-"""A PoseStamped stream over DDS into a running SPG: ``sim_bridge`` (lockstep, free scene) and
-``spg_node`` as processes, this test streams a circle at 100 Hz of sim time with 10 % of the
-messages dropped and some NaN ones, then stops; it also reads ``spg/markers``."""
+"""A PoseStamped stream over DDS into a running SPG: ``spg_node`` as a process; this test plays
+the robot in lockstep (it publishes each joint state, with the stream's message for that
+instant before it, and waits for the SPG's command, which the kinematic robot then takes as
+its next state), so the stream keeps pace with the loop however loaded the machine is. It
+streams a circle at 100 Hz of sim time with 10 % of the messages dropped and some NaN ones,
+then stops; it also reads ``spg/markers``."""
 
 import math
 import signal
@@ -22,6 +25,7 @@ pytestmark = [pytest.mark.dds, pytest.mark.ros]
 SIM_SECONDS = 4.5
 T_START, T_STOP = 0.5, 3.0   # [s] sim time: the stream runs in between
 RADIUS, FREQ = 0.05, 0.25    # [m], [Hz]
+DT = 0.002                   # [s] the SPG's period (config/lbr_iiwa14.yaml)
 STACK = CONFIG / 'examples' / 'teleop_pose_stream.yaml'  # the README's example stack
 
 
@@ -40,136 +44,139 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
     node = ros.Node('streamer')
     states, commands, status = record_spg_topics(node)
     pub = node.create_publisher(ros_msg.PoseStamped, 'spg/reference/tool', 10)
+    state_pub = node.create_publisher(ros_msg.JointState, 'joint_states', 10)
     rng = np.random.default_rng(5)
     sent = {'n': 0, 'dropped': 0, 'nan': 0}
     ref = {}  # sim stamp [ns] -> the pose sent
-    anchor = {}
+    p0, R0 = fk(robot.q_home)
+    quat = pin.Quaternion(R0).coeffs()
 
-    def on_state(message):  # the streamer: one message per 10 ms of sim time
-        t = stamp_ns(message) * 1e-9
-        if 'p0' not in anchor:
-            anchor['p0'], anchor['R0'] = fk(message.position)
-        k = round(t / 0.01)
-        if not T_START <= t < T_STOP or abs(t - k * 0.01) > 1e-6 or k in anchor:
+    def stream(k):  # the streamer: one message per 10 ms of sim time, before state k
+        t = k * DT
+        if not T_START <= t < T_STOP or k % 5:
             return
-        anchor[k] = True
         sent['n'] += 1
         r = rng.random()
         if r < 0.10:
             sent['dropped'] += 1
             return
-        p = _circle(anchor['p0'], t)
+        p = _circle(p0, t)
         out = ros_msg.PoseStamped()
-        out.header.stamp = message.header.stamp
+        out.header.stamp.sec, out.header.stamp.nanosec = divmod(k * round(DT * 1e9), 10**9)
         out.header.frame_id = 'world'
         out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
-        qx, qy, qz, qw = pin.Quaternion(anchor['R0']).coeffs()
         o = out.pose.orientation
-        o.x, o.y, o.z, o.w = float(qx), float(qy), float(qz), float(qw)
+        o.x, o.y, o.z, o.w = (float(v) for v in quat)
         if r < 0.13:
             sent['nan'] += 1
             out.pose.position.z = float('nan')
         else:
-            ref[stamp_ns(message)] = p
+            ref[k * round(DT * 1e9)] = p
         pub.publish(out)
 
-    node.create_subscription(ros_msg.JointState, 'joint_states', on_state, 10000)
+    def answer(k):  # the SPG's command for state k, if it came
+        return next((c for c in reversed(commands[-5:])
+                     if stamp_ns(c) == k * round(DT * 1e9)), None)
+
     markers = []
     if ros_msg.MarkerArray is not None:  # rclpy without visualization_msgs: no markers
         node.create_subscription(ros_msg.MarkerArray, 'spg/markers',
                                  lambda m: markers.append((time.monotonic(), m)), 1000)
     procs = ProcessGroup(tmp_path, env)
+    unanswered = 0
     try:
+        t_spg = time.monotonic()  # no marker can be published before this
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'), '-p', 'status.decimation:=50',
                           '-p', f'task_stack_file:={stack}')
         # the recorder (default topics) records the streamed reference too
         start_recorder(procs, bag)
         assert ros.spin_until(lambda: node.count_publishers('spg/status') >= 1 and
-                              node.count_subscribers('spg/reference/tool') >= 2 or
+                              node.count_subscribers('spg/reference/tool') >= 2 and
+                              node.count_subscribers('joint_states') >= 2 or
                               spg.poll() is not None, 60.0, nodes=node), \
             procs.log('spg_node') + procs.log('recorder')
-        bridge = procs.start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
-                             'scene:=free', '-p', 'mode:=lockstep', '-p',
-                             f'duration:={SIM_SECONDS}', '-p', 'wait_for_subscribers:=2')
-        deadline = time.monotonic() + 120.0
-        while bridge.poll() is None and time.monotonic() < deadline:
-            ros.spin_until(lambda: False, 0.1, nodes=node)
-        assert bridge.returncode == 0, procs.log('sim_bridge')
-        ticks = round(SIM_SECONDS / 0.002)
-        ros.spin_until(lambda: len({stamp_ns(c) for c in commands}) >= ticks, 10.0,
-                       nodes=node)
+        q = np.array(robot.q_home, float)
+        ticks = round(SIM_SECONDS / DT)
+        for k in range(ticks + 60):
+            if k == ticks:  # the stream stopped 1.5 s of sim time ago: let it go stale
+                ros.spin_until(lambda: False, 0.5, nodes=node)
+            stream(k)
+            state = ros_msg.JointState(name=list(robot.joint_names), position=q.tolist(),
+                                       velocity=[0.0] * robot.n, effort=[0.0] * robot.n)
+            state.header.stamp.sec, state.header.stamp.nanosec = divmod(
+                k * round(DT * 1e9), 10**9)
+            state_pub.publish(state)
+            # the SPG answers each state; a lost one (best effort) is not waited for long
+            if ros.spin_until(lambda k=k: answer(k) is not None, 2.0, nodes=node):
+                q = np.array(answer(k).position)
+            else:
+                unanswered += 1
+                assert spg.poll() is None, procs.log('spg_node')
         # a last status after the stream stopped (the node publishes every 50 ticks)
         ros.spin_until(lambda: False, 0.5, nodes=node)
         assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
     finally:
         procs.close()
         ros.shutdown()
+    print(f'DDS stream: {unanswered} of {ticks + 60} states not answered within 2 s')
     assert "following 'spg/reference/tool'" in procs.log('spg_node')
     with BagReader(bag) as reader:
         recorded = {t: c for t, (_, c, _) in reader.topics.items()}
     published = sent['n'] - sent['dropped']
-    # (best effort: the recorder can miss some, as the SPG can)
-    assert published >= recorded.get('/spg/reference/tool', 0) >= 0.5 * published, recorded
+    # (best effort: the recorder can miss some, as the SPG can; a loaded machine loses more)
+    assert published >= recorded.get('/spg/reference/tool', 0) >= 0.2 * published, recorded
     assert recorded.get('/tf', 0) > 100, recorded  # the robot named by spg/config
     q_v = {stamp_ns(c): np.array(c.position) for c in commands}
-    q = {stamp_ns(s): np.array(s.position) for s in states}
-    stamps = sorted(set(q_v) & set(q))
-    # this listener can match the SPG's command topic a little after the run starts (the
-    # first 12 and 84 ticks missed in two runs): the rest of the run is what is checked
-    assert len(stamps) >= 0.9 * ticks
-    p0 = anchor['p0']
+    stamps = sorted(q_v)
+    assert unanswered <= 0.02 * ticks and len(stamps) >= 0.98 * ticks
     center = p0 - [RADIUS, 0.0, 0.0]
-    err_v, err_m, path_v = [], [], []
+    err_v, path_v = [], []
     for s in stamps:
         t = s * 1e-9
         if T_START + 1.0 <= t < T_STOP:
-            target = _circle(p0, t)
             p_v = fk(q_v[s])[0]
-            err_v.append(np.linalg.norm(p_v - target))
-            err_m.append(np.linalg.norm(fk(q[s])[0] - target))
+            err_v.append(np.linalg.norm(p_v - _circle(p0, t)))
             d = p_v - center  # distance from the circle's curve: free of the phase lag
             path_v.append(np.hypot(np.hypot(d[0], d[1]) - RADIUS, d[2]))
     last_status = [d for d in status if d.get('streams')][-1]
     (stream,) = last_status['streams']
-    lat = stream['latency']
-    print(f'DDS stream: commanded tool max {max(err_v) * 1e3:.1f} mm from the circle point '
-          f'of its stamp, {max(path_v) * 1e3:.2f} mm from the circle; measured tool max '
-          f'{max(err_m) * 1e3:.1f} mm; {sent} sent, {stream["received"]} '
-          f'received; receipt -> command tick p50 {lat["p50"] * 1e3:.2f} ms, p99 '
-          f'{lat["p99"] * 1e3:.2f} ms, max {lat["max"] * 1e3:.2f} ms')
-    # q_v stays on the circle (a first-order follower at 10/s shrinks it by 1.2 %: 0.6 mm;
-    # 1.6 mm seen, 3.1 mm on a loaded machine, where a streamer that stalls makes q_v cut a
-    # chord) and lags v / gain = 7.9 mm behind, plus the messages' delay in sim time: a
-    # lockstep loop runs as fast as it can and the streamer is not part of it (11 to 26 mm
-    # seen); the simulated robot lags q_v behind its joint impedance (24 to 34 mm seen)
-    # How closely q_v follows depends on the streamer, which runs outside the lockstep loop:
-    # when this process stalls, the simulation runs ahead of the stream and the target jumps
-    # (q_v then cuts a chord: 1.6 mm to 16.5 mm off the circle's curve, and from 2.4 rad of
-    # the circle covered down to 0.2 rad, in runs on one machine). Printed, not asserted; the
-    # following itself is tested without DDS (test_stream.py: within 9.9 mm of the point).
+    lat = stream['latency'] or {'p50': math.nan, 'p99': math.nan, 'max': math.nan}
+
     def angle(p):
         return math.atan2(p[1] - center[1], p[0] - center[0])
 
     window = [s for s in stamps if T_START + 1.0 <= s * 1e-9 < T_STOP]
     moved = np.unwrap([angle(fk(q_v[s])[0]) for s in window])
-    print(f'DDS stream: {moved[-1] - moved[0]:.2f} rad of the circle covered in the last '
-          f'{T_STOP - T_START - 1.0:g} s of the stream, at most {max(path_v) * 1e3:.1f} mm off '
-          'its curve')
+    print(f'DDS stream: commanded tool max {max(err_v) * 1e3:.1f} mm from the circle point '
+          f'of its stamp, {max(path_v) * 1e3:.2f} mm off the circle, '
+          f'{moved[-1] - moved[0]:.2f} rad of it covered in the last '
+          f'{T_STOP - T_START - 1.0:g} s of the stream; {sent} sent, {stream["received"]} '
+          f'received; receipt -> command tick p50 {lat["p50"] * 1e3:.2f} ms, p99 '
+          f'{lat["p99"] * 1e3:.2f} ms, max {lat["max"] * 1e3:.2f} ms')
+    # q_v follows the circle: a first-order follower at 10/s shrinks it by 1.2 % (0.6 mm) and
+    # lags v / gain = 7.9 mm behind, plus a tick when a message arrives after its state;
+    # 1.5 s of the stream covers 2.36 rad of the circle (a dropped message, a lost one or a
+    # NaN holds the previous target for 10 ms more)
+    assert max(path_v) < 3e-3 and max(err_v) < 15e-3
+    assert 2.0 < moved[-1] - moved[0] < 2.5
     # NaNs counted, the rest accepted (best effort on loopback: nearly all arrive)
-    # (a best-effort sample can be lost on the way, a NaN one too: 4 of 5 seen)
+    # (a best-effort sample can be lost on the way, a NaN one too)
     nan = stream['rejected']['nonfinite']
     assert 0 < nan <= sent['nan'] and sum(stream['rejected'].values()) == nan
     delivered = sent['n'] - sent['dropped']
-    # best effort, depth 10: a streamer that stalls and then bursts loses some (198 of 220)
-    assert 0.5 * delivered <= stream['received'] <= delivered
+    assert 0.8 * delivered <= stream['received'] <= delivered
     assert stream['accepted'] == stream['received'] - nan
-    # the stream stopped at 3 s: stale after stale_after, the last target held (a streamer
-    # that stalls > 0.2 s of wall time mid-stream, e.g. on a loaded machine, is reported too)
+    # the stream stopped at 3 s: stale after stale_after, the last target held: the last
+    # reference the SPG accepted (normally the last one sent; a best-effort sample can be
+    # lost, so: q_v ends still, on one of the references sent)
     assert stream['state'] == 'stale' and stream['stale_episodes'] >= 1
-    last_ref = ref[max(ref)]
     p_end, _ = fk(q_v[stamps[-1]])
-    assert np.linalg.norm(p_end - last_ref) < 1e-3
+    p_before, _ = fk(q_v[stamps[-26]])  # 50 ms earlier
+    held = min(np.linalg.norm(p_end - p) for p in ref.values())
+    print(f'DDS stream: q_v ends {held * 1e3:.3f} mm from the nearest reference sent, '
+          f'{np.linalg.norm(p_end - ref[max(ref)]) * 1e3:.1f} mm from the last one sent')
+    assert held < 1e-3 and np.linalg.norm(p_end - p_before) < 1e-4
     # every command inside the joint limits and never faster than v_max
     traj = np.array([q_v[s] for s in stamps])
     assert np.all(traj >= robot.q_min) and np.all(traj <= robot.q_max)
@@ -180,10 +187,10 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
         assert 'spg/markers is off' in procs.log('spg_node')
         return
     assert len(markers) > 10
-    wall = markers[-1][0] - markers[0][0]
-    # never faster than markers.rate (30 Hz), timed by their arrival here, which bunches
-    # (230 in 7.46 s seen: 30.7 Hz): a second's worth of slack
-    assert len(markers) - 1 <= 30 * (wall + 1.0)
+    # never faster than markers.rate (30 Hz) over the node's life; not timed by their
+    # arrival here, which bunches when this process stalls (867 arrived within 26.3 s)
+    wall = markers[-1][0] - t_spg
+    assert len(markers) <= 30 * wall + 1
     on_circle = []
     for _, arr in markers:
         assert arr.markers[0].action == arr.markers[0].DELETEALL
