@@ -17,6 +17,7 @@ import pytest
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
 from ifc_spg.offline.bag import BagReader
+from ifc_spg.offline.replay import replay
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
@@ -177,6 +178,11 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
     print(f'DDS stream: q_v ends {held * 1e3:.3f} mm from the nearest reference sent, '
           f'{np.linalg.norm(p_end - ref[max(ref)]) * 1e3:.1f} mm from the last one sent')
     assert held < 1e-3 and np.linalg.norm(p_end - p_before) < 1e-4
+    # the bag replays exactly: spg/state records the reference each tick used
+    res = replay(bag)
+    print(f'DDS stream: replay of the bag: max |dq_v| = {res.max_abs_diff:.3g} rad over '
+          f'{res.compared} of {res.ticks} commands')
+    assert res.max_abs_diff == 0.0 and res.compared >= 0.9 * ticks, res
     # every command inside the joint limits and never faster than v_max
     traj = np.array([q_v[s] for s in stamps])
     assert np.all(traj >= robot.q_min) and np.all(traj <= robot.q_max)

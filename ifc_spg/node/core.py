@@ -47,7 +47,7 @@ from ifc_spg.node.config import SpgConfig
 from ifc_spg.ros.stamps import join_ns, split_ns
 from ifc_spg.spg import Activation, SetPointGenerator, SpgState
 from ifc_spg.task_stack import TaskStack
-from ifc_spg.tasks.stream import streams_of
+from ifc_spg.tasks.stream import stream_bounds, streams_of
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
            'parse_task_stack', 'robot_gains', 'robot_params', 'status_json']
@@ -177,6 +177,9 @@ def robot_gains(robot, config):
                              '(its gains come with the robot configuration)')
     return robot.with_gains(stiffness=list(config.stiffness) or None,
                             damping=list(config.damping) or None, where='parameter impedance.')
+
+
+STREAM_FIELD = 'stream:'  # spg/state field of a streamed task: 'stream:<task name>'
 
 
 def _base_layout(n):
@@ -588,7 +591,9 @@ class SpgRunner:
 
     def _state_layout(self):
         n = self._n
-        return _base_layout(n) + (('warm_start', self.spg.snapshot().warm_start.size),)
+        streams = tuple((STREAM_FIELD + b.task.name, b.dim) for b in stream_bounds(self.spg.tasks))
+        return _base_layout(n) + (('warm_start', self.spg.snapshot().warm_start.size),) + \
+            streams
 
     def state_vector(self):
         """The ``spg/state`` data after the last tick.
@@ -596,7 +601,9 @@ class SpgRunner:
         Floats in the layout ``state_layout`` of :meth:`config_doc` (NaN where there are no
         tanks): the tick count, its stamp, the measured q and the SPG's state the next tick
         starts from, with the cascade's working sets (``warm_start``: DAQP's sense flag per
-        constraint of each level model of the running stack).
+        constraint of each level model of the running stack), and per streamed task the
+        reference the tick used (``stream:<task name>``, in task coordinates; NaN before
+        the first tick), which a replay uses instead of the stream's messages and their timing.
         """
         snap = self.spg.snapshot()
         nan = np.full(self._n, np.nan)
@@ -604,7 +611,22 @@ class SpgRunner:
         return np.concatenate((
             [float(self.ticks), float(sec), float(nsec)], self._last_q, snap.q_v, snap.qdot_v,
             nan if snap.tank_energy is None else snap.tank_energy,
-            nan if snap.shuffled is None else snap.shuffled, snap.warm_start))
+            nan if snap.shuffled is None else snap.shuffled, snap.warm_start,
+            *(b.used() for b in stream_bounds(self.spg.tasks))))
+
+    def replay_streams(self, vector, doc):
+        """Make the streamed tasks use the references a recorded ``spg/state`` shows.
+
+        For a replay: call it before the tick whose ``spg/state`` ``vector`` (with its
+        ``spg/config`` ``doc``) was recorded; the running and the pending stack's streamed
+        tasks of the same name use the recorded value from then on (the live SPG's stream
+        messages, and when each arrived, are not needed).
+        """
+        parts = self._state_parts(np.asarray(vector, dtype=float), doc)
+        for bound in stream_bounds(self.spg.tasks) + stream_bounds(self.spg.pending_tasks):
+            value = parts.get(STREAM_FIELD + bound.task.name)
+            if value is not None and value.size == bound.dim:
+                bound.replay_value(value)
 
     def _state_parts(self, vector, doc):
         """Split an ``spg/state`` vector by the ``state_layout`` of its ``spg/config``.
@@ -676,6 +698,7 @@ class SpgRunner:
             self.stack_text, self._stack_since = stack['text'], stack.get('since')
             self._next_id, self._pending_name = self.stack_id, None
             self._activation = self.spg.activations[-1] if self.spg.activations else None
+        self.replay_streams(vector, doc)
         self.ticks = int(parts['tick'][0])
         self.started, self.stale = True, False
         self._last_stamp, self._last_q = stamp, parts['q'].copy()

@@ -557,13 +557,30 @@ def _passed_over(stamp, tally, plan, not_ticked):
     return False
 
 
+def _before_tick(spg, plan, tally, rec, stamp, snapshot):
+    """Prepare the tick at ``stamp`` [ns] as the live SPG ran it.
+
+    Hands over the stacks due; the streamed tasks use the references ``snapshot`` (the
+    recorded ``spg/state`` of this tick, if any) shows the live SPG used.
+    """
+    pending = plan.pending
+    while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
+        _, i = pending.pop(0)
+        spg.handle_task_stack(plan.stack_msgs[i][1])
+        tally.handed += 1
+    if snapshot is not None:
+        doc = _config_at(rec.configs, stamp * 1e-9)
+        if doc is not None:
+            spg.replay_streams(snapshot, doc)
+
+
 def _run_ticks(spg, states, plan, tally, rec):
     """Feed every recorded joint state (once per stamp) to ``spg``, as the live node did.
 
     Returns:
         Warnings (lost ticks the replay could not resynchronise after).
     """
-    pending, trips = plan.pending, plan.trips
+    trips = plan.trips
     snapshots = {}
     for vec in rec.snapshots:
         snapshots.setdefault(_snapshot_stamp(vec), vec)
@@ -572,10 +589,7 @@ def _run_ticks(spg, states, plan, tally, rec):
     for stamp, msg in states:
         if _passed_over(stamp, tally, plan, not_ticked):
             continue
-        while pending and pending[0][0] <= stamp * 1e-9 + 1e-10:
-            _, i = pending.pop(0)
-            spg.handle_task_stack(plan.stack_msgs[i][1])
-            tally.handed += 1
+        _before_tick(spg, plan, tally, rec, stamp, snapshots.get(stamp))
         cmd = spg.handle_joint_state(msg.name, msg.position, msg.velocity, stamp)
         while trips and trips[0] <= spg.ticks:
             if trips.pop(0) == spg.ticks:

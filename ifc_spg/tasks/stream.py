@@ -191,6 +191,8 @@ class StreamBound(Bound):
         self._value: np.ndarray | None = None
         self._version = -1
         self._rate: np.ndarray | None = None
+        self._used: np.ndarray | None = None     # the value the last evaluate returned
+        self._replayed: np.ndarray | None = None  # a recorded value that overrides the stream
 
     def bind(self, task: Any, base_frames: tuple = ('', 'world')) -> StreamReference:
         """Attach to ``task`` (after it is built); returns its :class:`StreamReference`."""
@@ -207,7 +209,7 @@ class StreamBound(Bound):
         self._init = np.array(init_value, dtype=float)
         self._init.setflags(write=False)
         self._version = -1
-        self._value = None
+        self._value = self._used = None  # (a replayed value stays: it may be this tick's)
         return self
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -215,16 +217,43 @@ class StreamBound(Bound):
         ref, rate = self.reference, self._rate
         if rate is None:
             raise ValueError('a streamed bound is not bound to a task (bind it first)')
-        if ref is None or ref.latest is None:
+        if self._replayed is not None:
+            value = self._replayed
+        elif ref is None or ref.latest is None:
             if self._init is None:
                 raise ValueError('a streamed bound has no value before activation')
-            return self._init, rate
-        if ref.version != self._version or self._value is None:
+            value = self._init
+        elif ref.version != self._version or self._value is None:
             value = np.asarray(self._to_value(ref.latest), dtype=float)
             value.setflags(write=False)
             self._value, self._version = value, ref.version
-            return value, rate
-        return self._value, rate
+        else:
+            value = self._value
+        self._used = value
+        return value, rate
+
+    def used(self) -> np.ndarray:
+        """The value (task coordinates) the last tick used; NaN before any tick.
+
+        What ``spg/state`` records so a replay can use the same value
+        (:meth:`replay_value`) without the stream's messages and their timing.
+        """
+        if self._used is None:
+            return np.full(self.dim, np.nan)
+        return self._used
+
+    def replay_value(self, value: np.ndarray) -> None:
+        """From now on, evaluate to ``value`` (a recorded :meth:`used`) instead of the stream.
+
+        NaN values (nothing recorded yet) leave the bound as it is.
+        """
+        value = np.array(value, dtype=float)
+        if value.shape != (self.dim,):
+            raise ValueError(f'a replayed value of task {self.task.name!r} has shape '
+                             f'{value.shape}, expected ({self.dim},)')
+        if np.all(np.isfinite(value)):
+            value.setflags(write=False)
+            self._replayed = value
 
     def _to_value(self, latest: Any) -> np.ndarray:
         task = self.task
@@ -249,6 +278,12 @@ def base_frames(robot: Any) -> tuple:
     roots = [f.name for f in robot.model.frames if f.type == pin.FrameType.BODY
              and f.parentJoint == 0 and f.placement.isIdentity(1e-12)]
     return ('', 'world', *roots)
+
+
+def stream_bounds(tasks: Any) -> list[StreamBound]:
+    """The :class:`StreamBound` of every streamed task in ``tasks`` (bound to a task)."""
+    bounds = (getattr(task, 'upper_bound', None) for task in tasks)
+    return [b for b in bounds if isinstance(b, StreamBound) and b.reference is not None]
 
 
 def streams_of(tasks: Any) -> list[StreamReference]:
