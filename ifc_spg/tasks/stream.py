@@ -239,7 +239,7 @@ class StreamBound(Bound):
         (:meth:`replay_value`) without the stream's messages and their timing.
         """
         if self._used is None:
-            return np.full(self.dim, np.nan)
+            return np.full(self.dim or 0, np.nan)
         return self._used
 
     def replay_value(self, value: np.ndarray) -> None:
