@@ -142,8 +142,18 @@ def _heatmap(plt, spec, ok, metric, y, out_dir):
     return path
 
 
+class _Interrupted(BaseException):
+    """A stop asked for by SIGINT/SIGTERM; no ``except Exception`` (a failed run) catches it.
+
+    Not KeyboardInterrupt itself: CPython and libraries treat that one specially (CPython
+    ends the process with SIGINT once it saw one escape code run through ``PyRun_*``), and
+    once under load the CLI ended with status -2 (SIGINT) after ``main`` had printed its
+    message and returned 130. A private exception goes only where this module sends it.
+    """
+
+
 def _interrupt_on_signals():
-    """SIGINT and SIGTERM raise KeyboardInterrupt: the sweep writes its table, stops Dask.
+    """SIGINT and SIGTERM raise :class:`_Interrupted`: the sweep writes its table, stops Dask.
 
     Returns the handlers to restore (none outside the main thread).
     """
@@ -151,7 +161,7 @@ def _interrupt_on_signals():
         return {}
 
     def interrupt(signum, frame):
-        raise KeyboardInterrupt(signal.Signals(signum).name)
+        raise _Interrupted(signal.Signals(signum).name)
     return {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
 
 
@@ -199,7 +209,7 @@ def main(argv=None):
     except IfcSpgError as exc:
         print(f'ifc-spg sweep: {exc}', file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (_Interrupted, KeyboardInterrupt):
         print(f'\nifc-spg sweep: interrupted; the finished runs are in {out_dir}/runs and '
               f'{out_dir}/results.csv (--resume runs the rest)', file=sys.stderr)
         return 130
