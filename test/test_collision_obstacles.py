@@ -13,11 +13,12 @@ import json
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
 from ifc_spg.geometry import PairQuery
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner, status_json
-from ifc_spg.node.obstacles import obstacle_marker
+from ifc_spg.node.obstacles import OBSTACLE_MARKER_ID, obstacle_marker, obstacle_markers
 from ifc_spg.ros import messages as m
 
 MARGIN, INFLUENCE, GAIN = 0.03, 0.06, 1.0   # [m], [m], [m/s]: k = 33 /s
@@ -111,6 +112,27 @@ def test_markers_are_checked_counted_and_applied_at_the_tick_boundary():
     now = task.query.distances_only(data)
     ball = [i for i, (_, b) in enumerate(task.names) if b == 'obstacle:ball']
     assert np.min(now[ball]) > np.min(declared[ball]) + 0.049
+
+
+def test_the_spg_draws_obstacles_with_the_markers_it_takes():
+    runner = _runner()
+    _tick(runner, 0, np.array(runner.robot.q_home))
+    runner.handle_obstacles([_marker(runner, 'ball', [0.2, 0.3, 0.7],
+                                     (0.0, 0.0, np.sin(0.2), np.cos(0.2)))])
+    _tick(runner, 1, np.array(runner.robot.q_home))
+    drawn = obstacle_markers(m, runner.spg.tasks, 'world', DT_NS)
+    # the base-frame obstacles (not 'held', on the tool), the ball where it was moved
+    assert [(mk.ns, mk.id, mk.type) for mk in drawn] == [
+        ('ball', OBSTACLE_MARKER_ID, m.Marker.SPHERE), ('crate', OBSTACLE_MARKER_ID,
+                                                        m.Marker.CUBE)]
+    p, o = drawn[0].pose.position, drawn[0].pose.orientation
+    assert [p.x, p.y, p.z] == [0.2, 0.3, 0.7] and o.z == pytest.approx(np.sin(0.2))
+    assert [drawn[1].scale.x, drawn[1].scale.y, drawn[1].scale.z] == [0.2, 0.3, 0.1]
+    assert drawn[0].scale.x == 2 * RADIUS
+    # sent back, they are accepted and move nothing
+    assert runner.handle_obstacles(drawn) == []
+    _tick(runner, 2, np.array(runner.robot.q_home))
+    assert runner.obstacles.moved == 1 and runner.obstacles.accepted == 3
 
 
 def _push(no_reset=False, monkeypatch=None, seconds=8.0, speed=0.02):

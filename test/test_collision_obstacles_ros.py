@@ -1,6 +1,7 @@
 """``spg/obstacles`` over DDS: ``spg_node`` as a process, this test plays a resting robot in
 lockstep (each joint state waits for its command). It moves the post nearer the elbow with a
-MarkerArray and sees the distance ``spg/status`` reports drop by as much; then it sends bad
+MarkerArray and sees the distance ``spg/status`` reports drop by as much, and ``spg/markers``
+draw the post where it went; then it sends bad
 markers (wrong shape, unknown name), which are rejected and counted while every joint state
 is still answered. ``IFC_SPG_TEST_DOMAIN_ID`` pins the ROS domain (default: a random one)."""
 
@@ -54,6 +55,9 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
     ros.init(['test'])
     node = ros.Node('obstacle_mover')
     _, commands, status = record_spg_topics(node)
+    drawn = []  # spg/markers: the obstacle markers the SPG draws
+    node.create_subscription(ros_msg.MarkerArray, 'spg/markers', lambda a: drawn.extend(
+        mk for mk in a.markers if mk.ns == 'post'), 1000)
     state_pub = node.create_publisher(ros_msg.JointState, 'joint_states', 10)
     obstacles = node.create_publisher(ros_msg.MarkerArray, 'spg/obstacles', 10)
     moved = np.array(POST.position) - [0.0, 0.05, 0.0]
@@ -114,3 +118,7 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
     # commands continued after the bad markers, to the last state
     assert stamp_ns(commands[-1]) == (TICKS - 1) * DT_NS
     assert last['state'] == 'running' and last['stack']['name'] == 'post_beside_the_elbow'
+    # spg/markers draws the post where the SPG has it: declared, then moved
+    ys = [mk.pose.position.y for mk in drawn]
+    assert ys and ys[-1] == pytest.approx(moved[1]) and drawn[-1].type == drawn[-1].CYLINDER
+    assert set(np.round(ys, 9)) <= {round(POST.position[1], 9), round(moved[1], 9)}

@@ -1,7 +1,9 @@
 """``spg/obstacles``: moving the running stack's obstacles with visualization_msgs/MarkerArray.
 
 Each marker of the array moves one obstacle the running (or pending) stack declares, so RViz
-and Foxglove draw the same message the SPG takes (:func:`obstacle_marker` builds one):
+and Foxglove draw the same message the SPG takes (:func:`obstacle_marker` builds one;
+``spg/markers`` draws the obstacles where the SPG has them with the same markers,
+:func:`obstacle_markers`):
 
 - ``ns`` is the obstacle's name (``id`` is free); ``action`` ADD/MODIFY (0) moves it,
   DELETE and DELETEALL are ignored (counted in ``ignored``: an obstacle leaves with a new
@@ -29,8 +31,9 @@ import math
 
 import numpy as np
 
-__all__ = ['MARKER_TYPES', 'REJECT_REASONS', 'ObstacleInput', 'marker_scale',
-           'obstacle_marker', 'obstacle_poses', 'obstacle_tasks']
+__all__ = ['MARKER_TYPES', 'OBSTACLE_MARKER_ID', 'REJECT_REASONS', 'ObstacleInput',
+           'marker_scale', 'obstacle_marker', 'obstacle_markers', 'obstacle_poses',
+           'obstacle_tasks']
 
 REJECT_REASONS = ('unknown_obstacle', 'unknown_frame', 'attached', 'non_finite',
                   'not_unit_quaternion', 'wrong_shape', 'size_change')
@@ -58,7 +61,7 @@ def marker_scale(obstacle):
 
 
 def obstacle_marker(classes, obstacle, position, quaternion, frame='world', stamp_ns=0,
-                    rgba=(0.6, 0.6, 0.65, 0.8)):
+                    rgba=(0.6, 0.6, 0.65, 0.8), marker_id=0):
     """A Marker that moves ``obstacle`` to ``position`` [m], ``quaternion`` (x, y, z, w).
 
     Args:
@@ -69,19 +72,37 @@ def obstacle_marker(classes, obstacle, position, quaternion, frame='world', stam
         frame: Header frame id (the base frame).
         stamp_ns: Header stamp [ns].
         rgba: Colour.
+        marker_id: The marker's ``id`` (any: the SPG matches ``ns``).
     """
     from ifc_spg.ros.stamps import set_stamp
 
     mk = classes.Marker()
     set_stamp(mk.header.stamp, stamp_ns)
     mk.header.frame_id = frame
-    mk.ns, mk.id, mk.type, mk.action = obstacle.name, 0, MARKER_TYPES[obstacle.shape], _ADD
+    mk.ns, mk.id = obstacle.name, int(marker_id)
+    mk.type, mk.action = MARKER_TYPES[obstacle.shape], _ADD
     p, o = mk.pose.position, mk.pose.orientation
     p.x, p.y, p.z = (float(v) for v in position)
     o.x, o.y, o.z, o.w = (float(v) for v in quaternion)
     mk.scale.x, mk.scale.y, mk.scale.z = marker_scale(obstacle)
     mk.color.r, mk.color.g, mk.color.b, mk.color.a = (float(v) for v in rgba)
     return mk
+
+
+#: ``id`` of the obstacle markers in ``spg/markers`` (clear of a task's markers 0-3, 10, 11
+#: should a task share the obstacle's name)
+OBSTACLE_MARKER_ID = 20
+
+
+def obstacle_markers(classes, tasks, frame='world', stamp_ns=0):
+    """Markers of the base-frame obstacles of ``tasks`` where the SPG has them now.
+
+    ``spg/markers`` draws them; sent to ``spg/obstacles`` they are accepted as they are.
+    """
+    declared = _declared(tasks)
+    return [obstacle_marker(classes, declared[name], pose[:3], pose[3:], frame, stamp_ns,
+                            marker_id=OBSTACLE_MARKER_ID)
+            for name, pose in obstacle_poses(tasks).items() if declared[name].frame == 'base']
 
 
 def obstacle_tasks(tasks):
