@@ -6,8 +6,9 @@ markers (wrong shape, unknown name), which are rejected and counted while every 
 is still answered. ``IFC_SPG_TEST_DOMAIN_ID`` pins the ROS domain (default: a random one)."""
 
 import os
+import signal
 
-from helpers import record_spg_topics, use_loopback
+from helpers import record_spg_topics, start_recorder, use_loopback
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ from ifc_spg import ros
 from ifc_spg.geometry import Obstacle
 from ifc_spg.model import RobotModel
 from ifc_spg.node.obstacles import obstacle_marker
+from ifc_spg.offline.replay import replay
 from ifc_spg.ros import msg as ros_msg
 from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 
@@ -36,7 +38,8 @@ tasks:
     influence: 0.2
   - {{name: posture, type: joint_position, equal: init, gain: 0.5}}
 """
-MOVE, BAD, TICKS = 100, 200, 300   # ticks: the post moves 5 cm at MOVE, bad markers from BAD
+MOVE, PUSH, BAD, TICKS = 100, 150, 200, 300   # ticks: the post moves 5 cm at MOVE, 7 cm more
+# at PUSH (into the margin: the arm gives way), bad markers from BAD
 
 
 def _distance(doc):
@@ -61,23 +64,26 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
     state_pub = node.create_publisher(ros_msg.JointState, 'joint_states', 10)
     obstacles = node.create_publisher(ros_msg.MarkerArray, 'spg/obstacles', 10)
     moved = np.array(POST.position) - [0.0, 0.05, 0.0]
+    pushed = moved - [0.0, 0.07, 0.0]
     procs = ProcessGroup(tmp_path, env)
     unanswered = 0
     try:
         spg = procs.start('spg_node', '--ros-args', '-p', 'robot:=lbr_iiwa14',
                           '-p', 'status.decimation:=10', '-p', f'task_stack_file:={stack}')
+        start_recorder(procs, tmp_path / 'bag')  # (default topics: not spg/obstacles)
         assert ros.spin_until(lambda: node.count_subscribers('spg/obstacles') >= 1 and
-                              node.count_subscribers('joint_states') >= 1 or
+                              node.count_subscribers('joint_states') >= 2 or
                               spg.poll() is not None, 60.0, nodes=node), procs.log('spg_node')
         q = np.array(robot.q_home, float)
         for k in range(TICKS):
             # best effort: the marker goes again with every state (a pose is idempotent)
             if k >= MOVE:
-                markers = [obstacle_marker(ros_msg, POST, moved, (0.0, 0.0, 0.0, 1.0))]
+                where = moved if k < PUSH else pushed
+                markers = [obstacle_marker(ros_msg, POST, where, (0.0, 0.0, 0.0, 1.0))]
                 if k >= BAD:
-                    wrong = obstacle_marker(ros_msg, POST, moved, (0.0, 0.0, 0.0, 1.0))
+                    wrong = obstacle_marker(ros_msg, POST, where, (0.0, 0.0, 0.0, 1.0))
                     wrong.type = wrong.CUBE
-                    unknown = obstacle_marker(ros_msg, POST, moved, (0.0, 0.0, 0.0, 1.0))
+                    unknown = obstacle_marker(ros_msg, POST, where, (0.0, 0.0, 0.0, 1.0))
                     unknown.ns = 'pots'
                     markers += [wrong, unknown]
                 out = ros_msg.MarkerArray()
@@ -92,24 +98,33 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
                 unanswered += 1
                 assert spg.poll() is None, procs.log('spg_node')
         ros.spin_until(lambda: status and status[-1]['tick'] >= TICKS - 10, 2.0, nodes=node)
+        ros.spin_until(lambda: False, 0.5, nodes=node)  # the last state reaches the bag
+        assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
     finally:
         procs.close()
         ros.shutdown()
     log = procs.log('spg_node')
     assert unanswered <= 0.02 * TICKS, log
+    last = [d for d in status if d['state'] == 'running'][-1]  # (then the watchdog trips)
+    assert last['tick'] >= TICKS - 10
     before = [_distance(d) for d in status if 0 < d['tick'] < MOVE - 5]
-    after = [_distance(d) for d in status if MOVE + 20 < d['tick']]
-    last = status[-1]
+    after = [_distance(d) for d in status if MOVE + 20 < d['tick'] < PUSH]
+    end = _distance(last)
+    q_v = {stamp_ns(c) // DT_NS: np.array(c.position) for c in commands}
+    gave_way = np.abs(q_v[TICKS - 1] - robot.q_home).max()
     print(f'DDS obstacles: arm_post {before[-1] * 1e3:.1f} mm before, {after[-1] * 1e3:.1f} mm '
-          f"after the post moved 5 cm; {last['obstacles']}; {unanswered} of {TICKS} states "
-          'unanswered')
-    # the resting arm (the posture holds it; the post stays outside the margin): the
-    # distance drops by the 5 cm the post moved towards it, along y
+          f'after the post moved 5 cm, {end * 1e3:.1f} mm at the end (pushed to 20 mm, margin '
+          f"30 mm: the arm gave way {gave_way:.4f} rad); {last['obstacles']}; {unanswered} "
+          f'of {TICKS} states unanswered')
+    # the resting arm (the posture holds it; the post is still outside the margin): the
+    # distance drops by the 5 cm the post moved towards it, along y; pushed 2 cm into the
+    # margin, the arm gives way (the damper: back towards the margin at 2.9 /s)
     assert before and after and None not in before + after
     assert 0.13 < before[-1] < 0.15 and after[-1] == pytest.approx(before[-1] - 0.05,
                                                                    abs=2e-3)
     counts = last['obstacles']
-    assert counts['moved'] == 1 and counts['accepted'] >= 0.8 * (TICKS - MOVE)
+    assert 0.02 < end < 0.03 and gave_way > 1e-3 and np.allclose(q_v[PUSH - 1], robot.q_home)
+    assert counts['moved'] == 2 and counts['accepted'] >= 0.8 * (TICKS - MOVE)
     rejected = counts['rejected']
     assert rejected['wrong_shape'] >= 0.8 * (TICKS - BAD) - 10
     assert rejected['unknown_obstacle'] == rejected['wrong_shape']
@@ -117,8 +132,13 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
     assert 'obstacle marker rejected (wrong_shape)' in log
     # commands continued after the bad markers, to the last state
     assert stamp_ns(commands[-1]) == (TICKS - 1) * DT_NS
-    assert last['state'] == 'running' and last['stack']['name'] == 'post_beside_the_elbow'
+    assert last['stack']['name'] == 'post_beside_the_elbow'
+    # the bag replays exactly without spg/obstacles: spg/state records the poses each tick used
+    res = replay(tmp_path / 'bag')
+    print(f'DDS obstacles: replay of the bag: max |dq_v| = {res.max_abs_diff:.3g} rad over '
+          f'{res.compared} of {res.ticks} commands')
+    assert res.max_abs_diff == 0.0 and res.compared >= 0.9 * TICKS, res
     # spg/markers draws the post where the SPG has it: declared, then moved
     ys = [mk.pose.position.y for mk in drawn]
-    assert ys and ys[-1] == pytest.approx(moved[1]) and drawn[-1].type == drawn[-1].CYLINDER
-    assert set(np.round(ys, 9)) <= {round(POST.position[1], 9), round(moved[1], 9)}
+    assert ys and ys[-1] == pytest.approx(pushed[1]) and drawn[-1].type == drawn[-1].CYLINDER
+    assert set(np.round(ys, 9)) <= {round(v[1], 9) for v in (POST.position, moved, pushed)}
