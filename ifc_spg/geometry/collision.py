@@ -26,6 +26,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 import math
 from typing import TYPE_CHECKING, Any
+import warnings
 
 import coal
 import numpy as np
@@ -331,8 +332,13 @@ class PairQuery:
         for req in self._gd.distanceRequests:
             req.enable_signed_distance = True
             req.gjk_tolerance = GJK_TOLERANCE  # coal's default 1e-6 m leaves ~2e-7 m noise
-        self._requests = list(self._gd.distanceRequests)
-        self._guess = coal.DistanceRequest().cached_gjk_guess
+            # pinocchio starts GJK from the pair's last solution: the result then depends,
+            # within the GJK tolerance, on what the query computed before (rows by up to
+            # ~5e-6 where the witness points are not unique, e.g. a capsule parallel to a
+            # cylinder), and a replay restored mid-run would not repeat the live ticks
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore', DeprecationWarning)  # coal 3 renamed it
+                req.enable_cached_gjk_guess = False
         self._model = geometry.robot.model
         self._n = geometry.robot.n
         ia = np.array([a for a, _ in self.pairs], dtype=int)
@@ -383,22 +389,11 @@ class PairQuery:
     def _place(self, data: pin.Data) -> None:
         pin.updateGeometryPlacements(self._model, data, self._gm, self._gd)
 
-    def _distance(self, k: int) -> Any:
-        """The coal result of pair ``k``, the same whatever this query computed before.
-
-        pinocchio keeps each pair's last GJK solution as the next query's initial guess:
-        the result then depends on the history within the GJK tolerance (rows by up to
-        ~5e-6 where the witness points are not unique, e.g. parallel capsule and
-        cylinder), and a replay restored mid-run would not repeat the live run's ticks.
-        """
-        res = pin.computeDistance(self._gm, self._gd, k)
-        self._requests[k].cached_gjk_guess = self._guess
-        return res
-
     def distances_only(self, data: pin.Data) -> np.ndarray:
         """Exact signed distances of every pair (no cull, no rows); ``data`` has oMi."""
         self._place(data)
-        return np.array([self._distance(k).min_distance for k in range(self.m)])
+        return np.array([pin.computeDistance(self._gm, self._gd, k).min_distance
+                         for k in range(self.m)])
 
     def compute(self, data: pin.Data, influence: float = math.inf,
                 jacobians: bool = True, q: np.ndarray | None = None) -> Distances:
@@ -448,12 +443,10 @@ class PairQuery:
         Writes ``dist``, ``pa``, ``pb`` and ``rows`` in place; returns the pairs within.
         """
         gm, gd, distance = self._gm, self._gd, pin.computeDistance
-        requests, guess = self._requests, self._guess
         within: list[int] = []
         values, p1, p2, touching = [], [], [], {}
         for p in near.tolist():
             res = distance(gm, gd, p)
-            requests[p].cached_gjk_guess = guess  # see _distance
             d = res.min_distance
             values.append(d)
             if d <= influence:
