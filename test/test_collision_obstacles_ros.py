@@ -71,8 +71,11 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
         spg = procs.start('spg_node', '--ros-args', '-p', 'robot:=lbr_iiwa14',
                           '-p', 'status.decimation:=10', '-p', f'task_stack_file:={stack}')
         start_recorder(procs, tmp_path / 'bag')  # (default topics: not spg/obstacles)
+        # the recorder too: it records spg/state and the commands from the first tick on
         assert ros.spin_until(lambda: node.count_subscribers('spg/obstacles') >= 1 and
-                              node.count_subscribers('joint_states') >= 2 or
+                              node.count_subscribers('joint_states') >= 2 and
+                              node.count_subscribers('spg/state') >= 1 and
+                              node.count_subscribers('command/joint_position') >= 2 or
                               spg.poll() is not None, 60.0, nodes=node), procs.log('spg_node')
         q = np.array(robot.q_home, float)
         for k in range(TICKS):
