@@ -141,7 +141,8 @@ def _push(no_reset=False, monkeypatch=None, seconds=8.0, speed=0.02):
     Returns the smallest exact distance over the ball's pairs at q_v after each tick (the
     ball at the pose that tick used), and how far the elbow moved [m].
     """
-    if no_reset:  # the obstacle moves, the cull keeps its stale lower bounds
+    if no_reset:  # the obstacle moves, the cull keeps its stale lower bounds (the broken
+        # variant of the method has to reach the query's own model: no public way to it)
         def move_shape(self, shape, placement):
             self._gm.geometryObjects[shape].placement = placement
         monkeypatch.setattr(PairQuery, 'move_shape', move_shape)

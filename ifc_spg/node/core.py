@@ -7,6 +7,7 @@ runner and replay reuse the same code::
     runner = SpgRunner(SpgConfig(robot='lbr_iiwa14'))
     event = runner.handle_task_stack(text)              # StackEvent(accepted, ...)
     cmd = runner.handle_joint_state(names, q, qdot, stamp_ns)   # Command or None
+    runner.handle_obstacles(markers)                    # spg/obstacles: next tick's poses
     runner.check_watchdog()                             # from a timer; True when it trips
     runner.status()  /  runner.diagnostics()            # JSON-ready dict / DiagItem
 
