@@ -26,6 +26,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 import math
 from typing import TYPE_CHECKING, Any
+import warnings
 
 import coal
 import numpy as np
@@ -174,6 +175,8 @@ class CollisionGeometry:
         for i, o in enumerate(gm.geometryObjects):
             self.bodies.setdefault(model.frames[o.parentFrame].name, []).append(i)
         self.obstacles: dict[str, int] = {}
+        #: name -> the :class:`Obstacle` as declared
+        self.declared: dict[str, Obstacle] = {}
         for obs in obstacles:
             self._add_obstacle(obs)
         objs = gm.geometryObjects
@@ -221,6 +224,7 @@ class CollisionGeometry:
         go = pin.GeometryObject(f'obstacle:{obs.name}', joint, frame, placement,
                                 obs.geometry())
         self.obstacles[obs.name] = self.model.addGeometryObject(go)
+        self.declared[obs.name] = obs
 
     # -- pairs -----------------------------------------------------------------------------
     def _parent_body(self, frame_id: int) -> str | None:
@@ -328,6 +332,13 @@ class PairQuery:
         for req in self._gd.distanceRequests:
             req.enable_signed_distance = True
             req.gjk_tolerance = GJK_TOLERANCE  # coal's default 1e-6 m leaves ~2e-7 m noise
+            # pinocchio starts GJK from the pair's last solution: the result then depends,
+            # within the GJK tolerance, on what the query computed before (rows by up to
+            # ~5e-6 where the witness points are not unique, e.g. a capsule parallel to a
+            # cylinder), and a replay restored mid-run would not repeat the live ticks
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore', DeprecationWarning)  # coal 3 renamed it
+                req.enable_cached_gjk_guess = False
         self._model = geometry.robot.model
         self._n = geometry.robot.n
         ia = np.array([a for a, _ in self.pairs], dtype=int)
@@ -344,6 +355,17 @@ class PairQuery:
         self._lever = np.abs(self._mask_a - self._mask_b) * geometry.lever
         self._last_q: np.ndarray | None = None
         self._last_bound = np.zeros(self.m)
+
+    def move_shape(self, shape: int, placement: pin.SE3) -> None:
+        """Place shape ``shape`` (an obstacle fixed to the base) at ``placement`` from now on.
+
+        In this query only (it owns a copy of the geometry). The distances kept for the cull
+        across calls (``compute(..., q=...)``) of the pairs with that shape are dropped: the
+        shape moved by an unknown amount, so the last distance minus the joints' motion is
+        no lower bound any more; the next call computes those pairs with coal.
+        """
+        self._gm.geometryObjects[shape].placement = placement
+        self._last_bound[(self._ia == shape) | (self._ib == shape)] = -np.inf
 
     # -- the cull --------------------------------------------------------------------------
     def lower_bounds(self, data: pin.Data) -> np.ndarray:

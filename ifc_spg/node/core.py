@@ -7,6 +7,7 @@ runner and replay reuse the same code::
     runner = SpgRunner(SpgConfig(robot='lbr_iiwa14'))
     event = runner.handle_task_stack(text)              # StackEvent(accepted, ...)
     cmd = runner.handle_joint_state(names, q, qdot, stamp_ns)   # Command or None
+    runner.handle_obstacles(markers)                    # spg/obstacles: next tick's poses
     runner.check_watchdog()                             # from a timer; True when it trips
     runner.status()  /  runner.diagnostics()            # JSON-ready dict / DiagItem
 
@@ -44,10 +45,11 @@ import numpy as np
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.model import JOINT_IMPEDANCE, RobotModel
 from ifc_spg.node.config import SpgConfig
+from ifc_spg.node.obstacles import ObstacleInput, obstacle_poses, obstacle_tasks
 from ifc_spg.ros.stamps import join_ns, split_ns
 from ifc_spg.spg import Activation, SetPointGenerator, SpgState
 from ifc_spg.task_stack import TaskStack
-from ifc_spg.tasks.stream import stream_bounds, streams_of
+from ifc_spg.tasks.stream import base_frames, stream_bounds, streams_of
 
 __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
            'parse_task_stack', 'robot_gains', 'robot_params', 'status_json']
@@ -180,6 +182,7 @@ def robot_gains(robot, config):
 
 
 STREAM_FIELD = 'stream:'  # spg/state field of a streamed task: 'stream:<task name>'
+OBSTACLE_FIELD = 'obstacle:'  # spg/state field of an obstacle's pose: 'obstacle:<name>'
 
 
 def _base_layout(n):
@@ -226,6 +229,8 @@ class SpgRunner:
         self._index = {n: i for i, n in enumerate(self.joint_names)}
         self._perm = {}                 # names tuple -> index array (validated once)
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
+        #: ``spg/obstacles``: checks the markers, moves obstacles at tick boundaries
+        self.obstacles = ObstacleInput(base_frames(self.robot) + (config.markers_frame,))
         self.errors = deque(maxlen=_MAX_ERRORS)
         self.last_error = ''
         self.ticks = 0
@@ -300,6 +305,20 @@ class SpgRunner:
                 ok = stream.feed(message, now_ns) and ok
         return ok
 
+    def handle_obstacles(self, markers):
+        """Markers of ``spg/obstacles`` (:mod:`ifc_spg.node.obstacles`).
+
+        Accepted poses apply from the next tick; each rejected marker is counted by reason
+        (``spg/status`` → ``obstacles``) and recorded as an error.
+
+        Returns:
+            ``[(reason, message)]`` of the rejected markers.
+        """
+        errors = self.obstacles.handle(markers, list(self.spg.tasks) + self.spg.pending_tasks)
+        for reason, message in errors:
+            self._error('obstacles', f'obstacle marker rejected ({reason}): {message}')
+        return errors
+
     def _update_streams(self):
         """Age the running stack's streams; log a stream that went stale (once per episode)."""
         now_ns = int(self.clock() * 1e9)
@@ -341,6 +360,7 @@ class SpgRunner:
         self.stale = False
         if last is not None and not restart:
             self._period.append((stamp_ns - last) * 1e-9)
+        self.obstacles.apply(list(self.spg.tasks) + self.spg.pending_tasks)  # at the tick boundary
         q_v = self.spg.step(q, qdot, stamp_ns * 1e-9)
         self._after_tick(stamp_ns)
         self._last_stamp, self._last_q = stamp_ns, q
@@ -518,7 +538,9 @@ class SpgRunner:
         robot_power [W], since [s], fix, message}, stalls (reports, once per episode and
         joint)} (None without PSPM), collision (per collision_avoidance task: margin,
         influence and per pair group the minimum distance of q_v [m], its pair and the pairs
-        within the influence distance; None without such a task), errors (the last few),
+        within the influence distance; None without such a task), obstacles
+        (``spg/obstacles`` markers: received, accepted, ignored, moved, rejected {reason:
+        count}, :mod:`ifc_spg.node.obstacles`), errors (the last few),
         event {type, message} (when given)
         config (the :class:`SpgConfig` as a dict) and robot_params (:func:`robot_params`: the
         K, D and limits the SPG uses), both in the first document and every event.
@@ -549,6 +571,7 @@ class SpgRunner:
                          'trips': self.watchdog_trips, 'resumes': self.resumes},
             'pspm': self._pspm_status(info),
             'collision': info.collision,
+            'obstacles': self.obstacles.status(),
             'errors': list(self.errors),
         }
         streams = streams_of(self.spg.tasks)
@@ -592,8 +615,9 @@ class SpgRunner:
     def _state_layout(self):
         n = self._n
         streams = tuple((STREAM_FIELD + b.task.name, b.dim) for b in stream_bounds(self.spg.tasks))
+        obstacles = tuple((OBSTACLE_FIELD + name, 7) for name in obstacle_poses(self.spg.tasks))
         return _base_layout(n) + (('warm_start', self.spg.snapshot().warm_start.size),) + \
-            streams
+            streams + obstacles
 
     def state_vector(self):
         """The ``spg/state`` data after the last tick.
@@ -603,7 +627,9 @@ class SpgRunner:
         starts from, with the cascade's working sets (``warm_start``: DAQP's sense flag per
         constraint of each level model of the running stack), and per streamed task the
         reference the tick used (``stream:<task name>``, in task coordinates; NaN before
-        the first tick), which a replay uses instead of the stream's messages and their timing.
+        the first tick), which a replay uses instead of the stream's messages and their timing,
+        and per obstacle of the running stack the pose the tick used (``obstacle:<name>``:
+        x, y, z [m], qx, qy, qz, qw in its frame), which it uses instead of ``spg/obstacles``.
         """
         snap = self.spg.snapshot()
         nan = np.full(self._n, np.nan)
@@ -612,7 +638,8 @@ class SpgRunner:
             [float(self.ticks), float(sec), float(nsec)], self._last_q, snap.q_v, snap.qdot_v,
             nan if snap.tank_energy is None else snap.tank_energy,
             nan if snap.shuffled is None else snap.shuffled, snap.warm_start,
-            *(b.used() for b in stream_bounds(self.spg.tasks))))
+            *(b.used() for b in stream_bounds(self.spg.tasks)),
+            *obstacle_poses(self.spg.tasks).values()))
 
     def replay_streams(self, vector, doc):
         """Make the streamed tasks use the references a recorded ``spg/state`` shows.
@@ -620,13 +647,20 @@ class SpgRunner:
         For a replay: call it before the tick whose ``spg/state`` ``vector`` (with its
         ``spg/config`` ``doc``) was recorded; the running and the pending stack's streamed
         tasks of the same name use the recorded value from then on (the live SPG's stream
-        messages, and when each arrived, are not needed).
+        messages, and when each arrived, are not needed); the obstacles go to the recorded
+        poses (``spg/obstacles`` is not needed either).
         """
         parts = self._state_parts(np.asarray(vector, dtype=float), doc)
-        for bound in stream_bounds(self.spg.tasks) + stream_bounds(self.spg.pending_tasks):
+        tasks = list(self.spg.tasks) + self.spg.pending_tasks
+        for bound in stream_bounds(tasks):
             value = parts.get(STREAM_FIELD + bound.task.name)
             if value is not None and value.size == bound.dim:
                 bound.replay_value(value)
+        for task in obstacle_tasks(tasks):
+            for name in task.obstacle_poses:
+                pose = parts.get(OBSTACLE_FIELD + name)
+                if pose is not None and pose.size == 7 and np.all(np.isfinite(pose)):
+                    task.move_obstacle(name, pose)
 
     def _state_parts(self, vector, doc):
         """Split an ``spg/state`` vector by the ``state_layout`` of its ``spg/config``.
@@ -729,6 +763,8 @@ class SpgRunner:
                   'watchdog_trips': str(self.watchdog_trips), 'resumes': str(self.resumes)}
         for reason, count in self.rejected.items():
             values[f'rejected.{reason}'] = str(count)
+        for reason, count in self.obstacles.rejected.items():
+            values[f'obstacles.rejected.{reason}'] = str(count)
         stall = self.spg.info.stall
         if self.spg.tanks is not None:
             values['pspm.power_budget_w'] = f'{self.spg.tanks.power:g}'
@@ -759,7 +795,8 @@ class SpgRunner:
             return 'ERROR', info.message
         if info.stall is not None:
             return 'WARN', info.message
-        if info.status == 'fallback' or any(self.rejected.values()):
+        if info.status == 'fallback' or any(self.rejected.values()) or \
+                any(self.obstacles.rejected.values()):
             return 'WARN', self.last_error
         if self._period and abs(float(np.median(self._period)) - self.config.dt) > \
                 0.2 * self.config.dt:

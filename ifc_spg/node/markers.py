@@ -6,13 +6,17 @@ generated ones or :mod:`ifc_spg.ros.messages`); the offline bags
 ``markers.rate`` Hz, 0: off) write the same markers: a DELETEALL, then per Cartesian task
 (namespace = task name) its target frame as three arrows x/y/z (red, green, blue, 8 cm) and
 a yellow sphere at its origin (2 cm), in ``frame`` (the robot's base frame, default
-``world``). The bags of ``ifc-spg run`` add force arrows (1 cm per N, labelled in N): each
-wrench task's commanded force (green) and the measured contact force (orange).
+``world``); ``spg_node`` adds the running stack's base-frame obstacles where the SPG has
+them (:func:`~ifc_spg.node.obstacles.obstacle_markers`: ``ns`` the obstacle's name, the
+markers ``spg/obstacles`` takes). The bags of ``ifc-spg run`` add force arrows (1 cm per
+N, labelled in N): each wrench task's commanded force (green) and the measured contact
+force (orange).
 """
 
 import numpy as np
 import pinocchio as pin
 
+from ifc_spg.node.obstacles import obstacle_markers
 from ifc_spg.ros.stamps import set_stamp
 
 __all__ = ['MarkerPublisher', 'cartesian_targets', 'marker_array', 'wrench_arrows']
@@ -190,5 +194,8 @@ class MarkerPublisher:
         t = spg.info.task_time if spg.info.task_time is not None else 0.0
         targets = cartesian_targets(spg.tasks, spg.kin, t)
         stamp = self.runner._last_stamp or 0
-        self.pub.publish(marker_array(self._msg, targets, stamp, self.frame))
+        out = marker_array(self._msg, targets, stamp, self.frame)
+        out.markers = list(out.markers) + obstacle_markers(self._msg, spg.tasks, self.frame,
+                                                           stamp)
+        self.pub.publish(out)
         self.published += 1

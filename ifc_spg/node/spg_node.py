@@ -6,7 +6,10 @@ One tick per ``joint_states`` message, one ``command/joint_position`` per tick (
 q_v, velocity qdot_v, header stamp = the joint state's stamp, so a lockstep bridge matches
 it). It starts from the measured q; task stacks (YAML/JSON text) arrive latched on
 ``spg/task_stack`` — a bad one is rejected with the field named on ``spg/status`` and the
-running one continues. ``spg/status`` (JSON) is published every ``status.decimation``
+running one continues. ``spg/obstacles`` (visualization_msgs/MarkerArray, best effort) moves
+the obstacles the running stack declares from the next tick (:mod:`ifc_spg.node.obstacles`:
+a marker per obstacle, ``ns`` its name; a bad marker is rejected, counted and reported on
+``spg/status`` → ``obstacles``). ``spg/status`` (JSON) is published every ``status.decimation``
 ticks and immediately on stack and watchdog events; ``spg/diagnostics`` every
 ``diagnostics.period`` seconds. Latched (transient local, depth 1), so a recorder started at
 any time has them: ``spg/config`` (JSON: SPG settings, robot K, D and limits, the running
@@ -180,6 +183,14 @@ class SpgNode:
                                                   self.on_task_stack, ros.latched(1))
         self.streams = StreamSubscriptions(node, self.runner)  # streamed task references
         self.markers = MarkerPublisher(node, self.runner, c.markers_rate, c.markers_frame)
+        self.sub_obstacles = None  # spg/obstacles: moving the running stack's obstacles
+        if msg.MarkerArray is not None:
+            self.sub_obstacles = node.create_subscription(
+                msg.MarkerArray, 'spg/obstacles', self.on_obstacles,
+                ros.qos_profile_sensor_data)
+        else:
+            self.log.warning('spg/obstacles is off: rclpy has no visualization_msgs here '
+                             '(install ros-jazzy-visualization-msgs, requirements.txt)')
         self._streams_stack = 0
         self._watchdog_timer = self._diag_timer = None
         self._latest, self._last_tick_ns = None, -1   # tick: timer
@@ -381,6 +392,11 @@ class SpgNode:
         if runner.pspm_stalls != stalls:  # an empty tank clips the stack: once per episode
             self.log.warning(runner.last_stall)
             self.publish_status(('pspm_stall', runner.last_stall))
+
+    def on_obstacles(self, message):
+        """``spg/obstacles`` (MarkerArray): obstacle poses for the next tick; bad ones counted."""
+        for reason, text in self.runner.handle_obstacles(message.markers):
+            self._log_throttled('error', f'obstacle marker rejected ({reason}): {text}')
 
     def on_task_stack(self, message):
         """A new task stack: accept (hot swap at the next tick) or reject with the reason."""

@@ -41,6 +41,12 @@ DEFAULT_GAIN = 0.5  # xi [m/s]
 DEFAULT_MAX_ROWS = 24  # rows of the level (the closest pairs within d_i)
 
 
+def _pose_vector(position: Any, rotation: Any) -> np.ndarray:
+    """[x, y, z, qx, qy, qz, qw] of a position and a rotation matrix."""
+    quat = pin.Quaternion(np.asarray(rotation, dtype=float)).coeffs()
+    return np.concatenate((np.asarray(position, dtype=float), quat))
+
+
 class DistanceReport(NamedTuple):
     """The distances of one collision-avoidance task at one tick (for ``spg.info``).
 
@@ -158,6 +164,34 @@ class CollisionAvoidanceTask(Task):
         self._last_q: np.ndarray | None = None
         self._measured_query = PairQuery(geometry, pairs)  # stateless: its own data
         self._measured_data = robot.create_data()
+        #: obstacle name -> its pose in its frame now: position [m] and unit quaternion
+        #: (x, y, z, w), 7 values (the declared pose until :meth:`move_obstacle`)
+        self.obstacle_poses = {name: _pose_vector(obs.position, obs.rotation)
+                               for name, obs in geometry.declared.items()}
+
+    def move_obstacle(self, name: str, pose: np.ndarray) -> bool:
+        """Put obstacle ``name`` (fixed to the base) at ``pose`` from the next level on.
+
+        Args:
+            name: A declared obstacle (others are ignored: False).
+            pose: Position [m] and unit quaternion (x, y, z, w) in the base frame (7,).
+
+        Returns:
+            True if the pose changed. The cull's kept distances of the pairs with the
+            obstacle are dropped (:meth:`~ifc_spg.geometry.PairQuery.move_shape`), so the
+            level computes them with coal at the next tick.
+        """
+        old = self.obstacle_poses.get(name)
+        pose = np.array(pose, dtype=float)
+        if old is None or np.array_equal(old, pose):
+            return False
+        self.obstacle_poses[name] = pose
+        x, y, z, w = pose[3:]
+        placement = pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), pose[:3])
+        shape = self.geometry.obstacles[name]
+        self.query.move_shape(shape, placement)
+        self._measured_query.move_shape(shape, placement)
+        return True
 
     def _closest(self, distance: np.ndarray) -> np.ndarray:
         """Indices of the ``dim`` closest pairs (closest first)."""
