@@ -59,10 +59,10 @@ def task_publisher() -> int:
 
 
 def ifc_spg() -> int:
-    """``ifc-spg``: :func:`ifc_spg.tools.cli.main`.
+    """``ifc-spg``: :func:`ifc_spg.cli.main`.
 
     ``ifc-spg bag`` (record, play) ends with status 0 on a signal like the nodes; the other
     verbs, interrupted before they install handlers of their own, with 128 + the signal.
     """
     long_running = len(sys.argv) > 1 and sys.argv[1] == 'bag'
-    return _run('ifc-spg', 'ifc_spg.tools.cli:main', 0 if long_running else None)
+    return _run('ifc-spg', 'ifc_spg.cli:main', 0 if long_running else None)

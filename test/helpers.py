@@ -111,10 +111,10 @@ def finish_run(procs, bridge, timeout):
 
 
 def start_cli(args, env):
-    """``python -m ifc_spg.tools.cli ARGS`` with ``env``, its output piped as text."""
+    """``python -m ifc_spg.cli ARGS`` with ``env``, its output piped as text."""
     import subprocess
 
-    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
+    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.cli', *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -12,9 +12,9 @@ from helpers import wait_for as _wait
 import numpy as np
 import pytest
 
+from benchmarks import pspm_budget_bench as bench
 from ifc_spg.model import RobotModel
 from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
-from ifc_spg.tools import pspm_budget_bench as bench
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.slow, pytest.mark.long_run]
 

@@ -137,8 +137,9 @@ def test_replay_of_a_loaded_live_run_skips_the_states_the_spg_did_not_tick_on(tm
     recorder gets every joint state but misses some spg/state samples and starts mid-run,
     and a second stack replaces the stalling one while it records. The replay ticks on the
     states the live SPG ticked on, no others: every command matches exactly."""
+    from ifc_spg.cli.replay import main
     from ifc_spg.offline.bag import TOPICS, BagWriter
-    from ifc_spg.offline.replay import main, replay
+    from ifc_spg.offline.replay import replay
     from ifc_spg.ros import messages as m
 
     rng = np.random.default_rng(7)

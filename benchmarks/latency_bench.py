@@ -4,7 +4,7 @@
 processes over loopback DDS, for each pairing of the two ROS backends (rclpy on Fast DDS, the
 built-in Cyclone DDS backend) in one invocation::
 
-    python -m ifc_spg.tools.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...]
+    python -m benchmarks.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...]
                                           [--json]
 
 The latency of a tick is measured by the bridge on its own clock: from publishing a state to
@@ -215,8 +215,8 @@ def _pairs(text, have_rclpy):
 
 
 def main(argv=None):
-    """``python -m ifc_spg.tools.latency_bench``; exit 1 if a pairing measured nothing."""
-    parser = argparse.ArgumentParser(prog='python -m ifc_spg.tools.latency_bench',
+    """``python -m benchmarks.latency_bench``; exit 1 if a pairing measured nothing."""
+    parser = argparse.ArgumentParser(prog='python -m benchmarks.latency_bench',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('--seconds', type=float, default=60.0, help='realtime run [s]')
     parser.add_argument('--pairs', default='all',
