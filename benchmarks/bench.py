@@ -34,9 +34,9 @@ import time
 
 import numpy as np
 import pinocchio as pin
+from plants import JointImpedancePlant
 
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack, kernels
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
 from ifc_spg.tasks.bounds import Bound

@@ -25,11 +25,12 @@ import sys
 import tempfile
 import time
 
+from ros_testing import loopback_env, random_domain_id, stop_process
+
 from ifc_spg import ros
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.stamps import stamp_to_ns
-from ifc_spg.ros.testing import loopback_env, random_domain_id, stop_process
 
 __all__ = ['PAIRS', 'main', 'run']
 

@@ -21,11 +21,11 @@ import math
 import sys
 
 import numpy as np
+from plants import JointImpedancePlant
 
 from benchmarks.bench import icub_stack, lbr_stack
 from ifc_spg import RobotModel, SetPointGenerator
 from ifc_spg.cascade.daqp import DaqpCascade, _widen
-from ifc_spg.offline.plants import JointImpedancePlant
 
 __all__ = ['main', 'run']
 

@@ -9,8 +9,9 @@ import json
 from pathlib import Path
 import sys
 
+from ros_testing import LOOPBACK_KEYS, loopback_env
+
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import LOOPBACK_KEYS, loopback_env
 from ifc_spg.task_stack import TaskStack
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -15,11 +15,11 @@ import sys
 
 from helpers import CONFIG, reach_stack, use_loopback
 import pytest
+from ros_testing import ProcessGroup, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.offline.bag import BagReader, BagWriter
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

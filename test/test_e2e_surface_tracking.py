@@ -23,12 +23,12 @@ import time
 from helpers import CONFIG, reach_stack, record_spg_topics, use_loopback
 import numpy as np
 import pytest
+from ros_testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
 import yaml
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

@@ -13,11 +13,11 @@ issue 31) than the warm-started live one; and stack switches, with restores betw
 import json
 
 import numpy as np
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner
-from ifc_spg.offline.plants import JointImpedancePlant
 
 # a wrench pushing the tool into free space (nothing resists: the tanks empty), a circle
 # and a zero-torque posture, no power_budget: the SPG stalls (the issue's stack)
