@@ -54,8 +54,8 @@ def sim_bridge() -> int:
 
 
 def task_publisher() -> int:
-    """``task_publisher``: :func:`ifc_spg.node.task_publisher.main`."""
-    return _run('task_publisher', 'ifc_spg.node.task_publisher:main')
+    """``task_publisher``: :func:`ifc_spg.cli.task_publisher.main`."""
+    return _run('task_publisher', 'ifc_spg.cli.task_publisher:main')
 
 
 def ifc_spg() -> int:

@@ -134,9 +134,9 @@ def test_sim_bridge_imports_only_models_ros_and_errors_of_ifc_spg():
 
 
 
-# Command lines live in ifc_spg/cli/, one module per verb; the library builds no parser. One
-# console entry module keeps its own, beside the node it starts: task_publisher.
-PARSERS_MAY_LIVE_IN = ('ifc_spg.cli', 'ifc_spg.node.task_publisher')
+# Command lines live in ifc_spg/cli/, one module per verb (and per executable); the library
+# builds no parser.
+PARSERS_MAY_LIVE_IN = ('ifc_spg.cli',)
 
 
 def argparse_parsers(tree):
