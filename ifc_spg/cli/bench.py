@@ -24,9 +24,9 @@ def benchmark_module(name: str, verb: str = 'ifc-spg bench') -> ModuleType | Non
         verb: The command, for the message.
     """
     if not (BENCHMARKS / f'{name}.py').is_file():
-        print(f'{verb}: the benchmarks are not installed with the package; run it from a '
-              f'checkout of ifc_spg (no {BENCHMARKS}/{name}.py here), or there: '
-              f'python -m benchmarks.{name}', file=sys.stderr)
+        print(f'{verb}: the benchmarks are not installed with the package (no '
+              f'{BENCHMARKS}/{name}.py next to it); run it from a source checkout of ifc_spg, '
+              f'or there: python -m benchmarks.{name}', file=sys.stderr)
         return None
     root = str(BENCHMARKS.parent)
     if root not in sys.path:
