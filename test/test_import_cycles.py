@@ -178,3 +178,10 @@ def test_only_the_command_lines_build_argparse_parsers():
             bad += [f'{path.relative_to(ROOT)}:{line}'
                     for line in argparse_parsers(ast.parse(path.read_text(), str(path)))]
     assert not bad, f'argparse parsers outside ifc_spg/cli/ (move the command line there): {bad}'
+
+
+def test_nothing_in_the_library_imports_the_command_lines():
+    graph = import_graph()
+    bad = sorted((mod, dep) for mod, deps in graph.items() if not mod.startswith('ifc_spg.cli')
+                 for dep in deps if dep == 'ifc_spg.cli' or dep.startswith('ifc_spg.cli.'))
+    assert not bad, f'the command lines are the top layer; imported by: {bad}'
