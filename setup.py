@@ -41,9 +41,9 @@ def native_extensions():
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*', 'experiments', 'experiments.*']),
-    package_data={'ifc_spg': ['py.typed', 'model/data/*', 'schema/*.json',
-                              'dynamics/kdl_bench.cpp']},
+    packages=find_packages(exclude=['test', 'test.*', 'experiments', 'experiments.*',
+                                    'benchmarks', 'benchmarks.*']),
+    package_data={'ifc_spg': ['py.typed', 'model/data/*', 'schema/*.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

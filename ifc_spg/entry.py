@@ -54,15 +54,15 @@ def sim_bridge() -> int:
 
 
 def task_publisher() -> int:
-    """``task_publisher``: :func:`ifc_spg.node.task_publisher.main`."""
-    return _run('task_publisher', 'ifc_spg.node.task_publisher:main')
+    """``task_publisher``: :func:`ifc_spg.cli.task_publisher.main`."""
+    return _run('task_publisher', 'ifc_spg.cli.task_publisher:main')
 
 
 def ifc_spg() -> int:
-    """``ifc-spg``: :func:`ifc_spg.tools.cli.main`.
+    """``ifc-spg``: :func:`ifc_spg.cli.main`.
 
     ``ifc-spg bag`` (record, play) ends with status 0 on a signal like the nodes; the other
     verbs, interrupted before they install handlers of their own, with 128 + the signal.
     """
     long_running = len(sys.argv) > 1 and sys.argv[1] == 'bag'
-    return _run('ifc-spg', 'ifc_spg.tools.cli:main', 0 if long_running else None)
+    return _run('ifc-spg', 'ifc_spg.cli:main', 0 if long_running else None)

@@ -1,4 +1,5 @@
-"""Shared fixtures; test helper modules in this folder are importable by name."""
+"""Shared fixtures; test helper modules in this folder are importable by name, and the
+checkout's ``benchmarks`` package (not installed with ifc_spg) by its name."""
 
 import os
 import sys
@@ -6,6 +7,7 @@ import sys
 import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
+sys.path.append(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from helpers import use_loopback  # noqa: E402 (needs the path above)
 

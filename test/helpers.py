@@ -9,8 +9,9 @@ import json
 from pathlib import Path
 import sys
 
+from ros_testing import LOOPBACK_KEYS, loopback_env
+
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import LOOPBACK_KEYS, loopback_env
 from ifc_spg.task_stack import TaskStack
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -111,10 +112,10 @@ def finish_run(procs, bridge, timeout):
 
 
 def start_cli(args, env):
-    """``python -m ifc_spg.tools.cli ARGS`` with ``env``, its output piped as text."""
+    """``python -m ifc_spg.cli ARGS`` with ``env``, its output piped as text."""
     import subprocess
 
-    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.tools.cli', *args], env=env,
+    return subprocess.Popen([sys.executable, '-m', 'ifc_spg.cli', *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -7,10 +7,10 @@ import time
 from helpers import start_cli, wait_cli_line
 import numpy as np
 import pytest
+from ros_testing import loopback_env
 
 from ifc_spg.offline.bag import TOPICS, BagReader, BagWriter, info
 from ifc_spg.ros import messages as m
-from ifc_spg.ros.testing import loopback_env
 
 
 def _write_sample(path, n=50, seed=0):

@@ -15,11 +15,11 @@ import sys
 
 from helpers import CONFIG, reach_stack, use_loopback
 import pytest
+from ros_testing import ProcessGroup, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.offline.bag import BagReader, BagWriter
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
@@ -51,7 +51,8 @@ def _listener():
     return node, status, sim_t, spin_until, accepted
 
 def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
-    from ifc_spg.offline.replay import main, replay
+    from ifc_spg.cli.replay import main
+    from ifc_spg.offline.replay import replay
 
     env = use_loopback(monkeypatch)
     first = tmp_path / 'first.yaml'
@@ -147,7 +148,8 @@ def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys):
     """A burst of joint states missing from the bag, where q_v moves fastest: spg/state's tick
     count shows the loss, the replay resynchronises from it and reproduces the rest; without
     the recorded states after the burst the loss goes unnoticed."""
-    from ifc_spg.offline.replay import main, replay
+    from ifc_spg.cli.replay import main
+    from ifc_spg.offline.replay import replay
 
     with BagReader(bag) as r:
         commands = {_stamp(m): m for _, _, m in r.messages(['/command/joint_position'])}
@@ -203,7 +205,8 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
     the cascade, whose lowest level is then degenerate: a cold-started replay solved it
     elsewhere, 5.7e-4 rad of q_v) and one during which a second stack replaces it. Both
     replay with max |dq_v| = 0, every command compared."""
-    from ifc_spg.offline.replay import main, replay
+    from ifc_spg.cli.replay import main
+    from ifc_spg.offline.replay import replay
 
     env = use_loopback(monkeypatch)
     first = tmp_path / 'stalling.yaml'

@@ -1,6 +1,6 @@
 """``ifc-spg bench`` runs end to end (a few ticks; the numbers themselves are not tested)."""
 
-from ifc_spg.tools.bench import format_report, run_benchmarks
+from benchmarks.bench import format_report, run_benchmarks
 
 
 def test_bench_runs_every_row_and_reports_the_machine_baseline():
@@ -27,7 +27,7 @@ def test_bench_runs_every_row_and_reports_the_machine_baseline():
 def test_warm_start_bench_runs_and_the_explicit_working_sets_cost_no_iterations():
     """Working sets kept by the cascade (restorable from spg/state) warm-start DAQP as well as
     DAQP's own: the same iterations per tick within 3 % (3.23 and 7.40 vs 7.43 measured)."""
-    from ifc_spg.tools.warm_start_bench import run
+    from benchmarks.warm_start_bench import run
 
     rows = {r['stack']: r for r in run(ticks=150, warmup=20)}
     assert set(rows) == {'lbr_table_4_1', 'icub_table_3_7'}

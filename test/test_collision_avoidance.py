@@ -10,9 +10,10 @@ import pytest
 import yaml
 
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack
+from ifc_spg.cli import check
 from ifc_spg.geometry import PairQuery
 from ifc_spg.kinematics import Kinematics
-from ifc_spg.task_stack import TaskStackError, check, schema
+from ifc_spg.task_stack import TaskStackError, schema
 
 STACK = """
 version: 1

@@ -2,7 +2,7 @@
 
 import importlib.util
 
-from ifc_spg.tools.collision_bench import bench_collision, format_collision
+from benchmarks.collision_bench import bench_collision, format_collision
 
 
 def test_collision_bench_runs_both_robots_and_mink_when_installed():

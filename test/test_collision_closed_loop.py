@@ -14,11 +14,11 @@ import coal
 import mujoco
 import numpy as np
 import pinocchio as pin
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack
 from ifc_spg.geometry import CollisionGeometry, PairQuery
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.task_stack.collision import ObstacleSpec
 

@@ -2,7 +2,7 @@
 
 import json
 
-from ifc_spg.tools.demo import main
+from ifc_spg.cli.demo import main
 
 
 def test_demo_short(tmp_path, capsys):

@@ -8,7 +8,7 @@ is killed with SIGKILL, leaving what a crash leaves behind). Every cycle must re
 command within 1.5 s of the last start-up line of its nodes.
 
 30 cycles on rclpy (Fast DDS with ``config/fastdds_loopback.xml``, which
-``ifc_spg.ros.testing.loopback_env`` sets), 10 on the built-in backend.
+``ros_testing.loopback_env`` sets), 10 on the built-in backend.
 """
 
 import os
@@ -18,10 +18,10 @@ import time
 
 from helpers import CONFIG, ROOT, reach_stack, use_loopback, wait_for
 import pytest
+from ros_testing import ProcessGroup
 
 from ifc_spg import ros
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import ProcessGroup
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.slow]
 

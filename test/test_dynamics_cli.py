@@ -4,12 +4,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from benchmarks.dynamics_bench import bench_scaling
+from ifc_spg import cli as top_cli
+from ifc_spg.cli import dynamics as cli
 from ifc_spg.dynamics import StaticFrictionSolver, VereshchaginSolver
 from ifc_spg.dynamics.models import random_chain_urdf
 from ifc_spg.dynamics.scenarios import load_problem
-from ifc_spg.tools import cli as top_cli
-from ifc_spg.tools import dynamics_cli as cli
-from ifc_spg.tools.dynamics_bench import bench_scaling
 
 ARM2_MJCF = ('<mujoco model="arm2"><worldbody><body name="l1">'
              '<joint name="j1" type="hinge" axis="0 0 1"/>'

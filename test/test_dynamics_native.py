@@ -13,7 +13,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ifc_spg.dynamics import StaticFrictionSolver, VereshchaginSolver, kdl, native
+from benchmarks import kdl
+from ifc_spg.dynamics import StaticFrictionSolver, VereshchaginSolver, native
 from ifc_spg.dynamics import _native_dynamics as nat  # the build, whatever IFC_SPG_NATIVE says
 from ifc_spg.dynamics.box_qp import box_qp
 from ifc_spg.dynamics.models import iiwa_like_model, random_chain_model
@@ -286,7 +287,7 @@ def test_kdl_reproduces_our_accelerations(which, tmp_path):
 
 def test_bench_kdl_section(monkeypatch, tmp_path, capsys):
     """``ifc-spg dynamics bench`` section 4 (smoke): all rows; without KDL it says so."""
-    from ifc_spg.tools import dynamics_bench as bench
+    from benchmarks import dynamics_bench as bench
     monkeypatch.setenv('XDG_CACHE_HOME', str(tmp_path))     # the KDL program's cache
     res = bench.bench_kdl(np.random.default_rng(0), 50)
     assert [(r['dof'], r['constraints']) for r in res['rows']] == [

@@ -23,12 +23,12 @@ import time
 from helpers import CONFIG, reach_stack, record_spg_topics, use_loopback
 import numpy as np
 import pytest
+from ros_testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
 import yaml
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
@@ -306,7 +306,8 @@ def test_circle_is_tracked(recorded):
 
 
 def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys):
-    from ifc_spg.offline.replay import main, replay
+    from ifc_spg.cli.replay import main
+    from ifc_spg.offline.replay import replay
 
     res = replay(live_run['bag'])
     ticks = round(SIM_SECONDS / DT)
@@ -433,10 +434,10 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
 
 
 def test_latency_bench_smoke():
-    """``python -m ifc_spg.tools.latency_bench`` (realtime bridge + SPG over DDS, on this process's
+    """``python -m benchmarks.latency_bench`` (realtime bridge + SPG over DDS, on this process's
     backend), 3 s only: the bridge measures every command's latency on its own clock."""
+    from benchmarks.latency_bench import run
     from ifc_spg import ros
-    from ifc_spg.tools.latency_bench import run
 
     res = run(3.0)
     assert res['bridge_backend'] == res['spg_backend'] == ros.BACKEND

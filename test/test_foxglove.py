@@ -11,6 +11,7 @@ from helpers import start_cli, wait_cli_line
 import numpy as np
 import pinocchio as pin
 import pytest
+from ros_testing import loopback_env
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
@@ -18,7 +19,6 @@ from ifc_spg.model import RobotModel
 from ifc_spg.model.urdf import urdf_from_robot
 from ifc_spg.offline.bag import info
 from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
-from ifc_spg.ros.testing import loopback_env
 
 
 @pytest.mark.parametrize('name', ['lbr_iiwa14', 'lbr4', 'accrea_dual_arm', 'icub_upper_body'])

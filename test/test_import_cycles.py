@@ -132,3 +132,56 @@ def test_sim_bridge_imports_only_models_ros_and_errors_of_ifc_spg():
                  and not any(dep == a or dep.startswith(a + '.') for a in SIM_BRIDGE_MAY_IMPORT))
     assert not bad, f'sim_bridge imports library layers above the models: {bad}'
 
+
+
+# Command lines live in ifc_spg/cli/, one module per verb (and per executable); the library
+# builds no parser.
+PARSERS_MAY_LIVE_IN = ('ifc_spg.cli',)
+
+
+def argparse_parsers(tree):
+    """Line numbers of the ``argparse.ArgumentParser(...)`` calls in a module's syntax tree,
+    however argparse or the class was imported (``import argparse as ap``, ``from argparse
+    import ArgumentParser as P``)."""
+    modules, classes = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            modules.update(a.asname or a.name for a in node.names if a.name == 'argparse')
+        elif isinstance(node, ast.ImportFrom) and node.module == 'argparse':
+            classes.update(a.asname or a.name for a in node.names if a.name == 'ArgumentParser')
+    lines = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Call):
+            continue
+        f = node.func
+        if (isinstance(f, ast.Attribute) and f.attr == 'ArgumentParser' and
+                isinstance(f.value, ast.Name) and f.value.id in modules) or \
+                (isinstance(f, ast.Name) and f.id in classes):
+            lines.append(node.lineno)
+    return sorted(lines)
+
+
+def test_the_parser_finder_sees_every_spelling():
+    src = ('import argparse\nimport argparse as ap\nfrom argparse import ArgumentParser as P\n'
+           'argparse.ArgumentParser()\nap.ArgumentParser(prog="x")\nP()\n'
+           '# argparse.ArgumentParser()\ns = "argparse.ArgumentParser()"\nArgumentParser()\n')
+    assert argparse_parsers(ast.parse(src)) == [4, 5, 6]
+
+
+def test_only_the_command_lines_build_argparse_parsers():
+    bad = []
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob('*.py')):
+            name = _module_name(path)
+            if any(name == a or name.startswith(a + '.') for a in PARSERS_MAY_LIVE_IN):
+                continue
+            bad += [f'{path.relative_to(ROOT)}:{line}'
+                    for line in argparse_parsers(ast.parse(path.read_text(), str(path)))]
+    assert not bad, f'argparse parsers outside ifc_spg/cli/ (move the command line there): {bad}'
+
+
+def test_nothing_in_the_library_imports_the_command_lines():
+    graph = import_graph()
+    bad = sorted((mod, dep) for mod, deps in graph.items() if not mod.startswith('ifc_spg.cli')
+                 for dep in deps if dep == 'ifc_spg.cli' or dep.startswith('ifc_spg.cli.'))
+    assert not bad, f'the command lines are the top layer; imported by: {bad}'

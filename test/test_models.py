@@ -11,8 +11,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from ifc_spg.cli import generate  # the command line; generate.generate is the library call
 from ifc_spg.errors import ModelError, ParameterError, UnknownJoint, UnknownRobot
-from ifc_spg.model import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, RobotModel, generate
+from ifc_spg.model import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, RobotModel
 from ifc_spg.model import registry as robots
 from ifc_spg.model.registry import ROBOTS, mjcf_spec, mujoco_indices
 
@@ -204,7 +205,7 @@ def test_mujoco_indices_unknown_joint():
 def test_generated_files_are_up_to_date():
     for fname, text in generate.generate().items():
         with open(f'{robots.DATA_DIR}/{fname}', encoding='utf-8') as f:
-            assert f.read() == text, f'{fname} is stale: run python -m ifc_spg.model.generate'
+            assert f.read() == text, f'{fname} is stale: run python -m ifc_spg.cli.generate'
     assert generate.main(['--check']) == 0
 
 

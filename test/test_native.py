@@ -12,16 +12,16 @@ import re
 from types import SimpleNamespace
 
 import numpy as np
+from plants import JointImpedancePlant
 import pytest
 
+from benchmarks.bench import icub_stack, lbr_stack
 from ifc_spg import RobotModel, kernels
 from ifc_spg.kernels import reference as ref
 from ifc_spg.limits import JointVelocityLimits, VelocityBox
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import EnergyTanks, PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks import Level
-from ifc_spg.tools.bench import icub_stack, lbr_stack
 
 nat = kernels.native  # the C module, whatever IFC_SPG_NATIVE selects (None: not built)
 

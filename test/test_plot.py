@@ -4,8 +4,8 @@ import re
 
 import pytest
 
+from ifc_spg.cli.plot import main
 from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
-from ifc_spg.tools.plot import main
 
 
 @pytest.fixture(scope='module')

@@ -1,11 +1,11 @@
 """Passive set-point modulation (SPEC 6): tanks never go negative and (4.84) holds."""
 
 import numpy as np
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg import RobotModel
 from ifc_spg.errors import ParameterError
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import EnergyTanks, PspmConfig
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask

@@ -1,7 +1,7 @@
 """Issue 18: the shipped stacks run as shipped with PSPM on (lockstep, no DDS).
 
 The pass rule of the Table 3.2 acceptance, fixed before it was run (the constants in
-:mod:`ifc_spg.tools.pspm_budget_bench`): the shipped ``table_3_2_surface_tracking.yaml`` on the
+:mod:`benchmarks.pspm_budget_bench`): the shipped ``table_3_2_surface_tracking.yaml`` on the
 iiwa with the shipped ``config/lbr_iiwa14.yaml`` and no other parameter
 (``config/scenarios/table_3_2_as_shipped.yaml``) presses with 8 N: the contact-force RMS
 error from 5 s after the stack starts is <= 1 N, the circle's span (the smaller of the
@@ -9,7 +9,7 @@ measured tool's x and y extent) is >= 9 cm in every full period (1 / 0.16 Hz = 6
 no PSPM stall is reported. The full 60 s is ``ifc-spg run
 config/scenarios/table_3_2_as_shipped.yaml``; here 17.5 s (5 s settling + 2 periods).
 The benchmark of every shipped stack for 10 simulated minutes is ``python -m
-ifc_spg.tools.pspm_budget_bench``; here each runs 8 s.
+benchmarks.pspm_budget_bench``; here each runs 8 s.
 """
 
 from pathlib import Path
@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from benchmarks import pspm_budget_bench as bench
 from ifc_spg.model import RobotModel
 from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
-from ifc_spg.tools import pspm_budget_bench as bench
 
 CONFIG = find_config_dir()
 STACKS = sorted(p.name for p in (CONFIG / 'tasks').glob('*.yaml'))

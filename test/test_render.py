@@ -25,7 +25,7 @@ FPS = 25.0
 
 def _render(bag, out, *args):
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.cli', 'render', str(bag), '-o',
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.cli', 'render', str(bag), '-o',
                            str(out), '--size', '320x240', '--fps', str(FPS), *args],
                           capture_output=True, text=True, env=env, timeout=300)
     if proc.returncode == 2 and 'cannot render offscreen' in proc.stderr:
@@ -108,7 +108,7 @@ def test_short_lockstep_bag_renders_in_its_scene(tmp_path):
 def test_mp4_without_ffmpeg_is_a_clear_error_or_works(tmp_path):
     _sweep_bag(tmp_path / 'bag')
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.cli', 'render',
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.cli', 'render',
                            str(tmp_path / 'bag'),
                            '-o', str(tmp_path / 'run.mp4'), '--size', '320x240', '-q',
                            '--duration', '0.2'], capture_output=True, text=True, env=env,

@@ -2,8 +2,9 @@
 
 import pytest
 
+from ifc_spg.cli.replay import main
 from ifc_spg.offline.bag import BagReader, BagWriter
-from ifc_spg.offline.replay import main, replay
+from ifc_spg.offline.replay import replay
 from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
 
 

@@ -13,11 +13,11 @@ issue 31) than the warm-started live one; and stack switches, with restores betw
 import json
 
 import numpy as np
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner
-from ifc_spg.offline.plants import JointImpedancePlant
 
 # a wrench pushing the tool into free space (nothing resists: the tanks empty), a circle
 # and a zero-torque posture, no power_budget: the SPG stalls (the issue's stack)
@@ -137,8 +137,9 @@ def test_replay_of_a_loaded_live_run_skips_the_states_the_spg_did_not_tick_on(tm
     recorder gets every joint state but misses some spg/state samples and starts mid-run,
     and a second stack replaces the stalling one while it records. The replay ticks on the
     states the live SPG ticked on, no others: every command matches exactly."""
+    from ifc_spg.cli.replay import main
     from ifc_spg.offline.bag import TOPICS, BagWriter
-    from ifc_spg.offline.replay import main, replay
+    from ifc_spg.offline.replay import replay
     from ifc_spg.ros import messages as m
 
     rng = np.random.default_rng(7)

@@ -14,12 +14,12 @@ import time
 from helpers import BIN, CONFIG, TARGET, reach_stack, use_loopback
 import numpy as np
 import pytest
+from ros_testing import ProcessGroup, loopback_env, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
 from ifc_spg.offline.bag import BagReader
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

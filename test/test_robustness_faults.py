@@ -7,10 +7,10 @@ from helpers import TARGET, FakeClock, reach_stack
 import numpy as np
 import pytest
 
+from benchmarks.soak import STACKS, CommandChecker
 from ifc_spg.cascade.daqp import CascadeResult
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner
-from ifc_spg.tools.soak import STACKS, CommandChecker
 from sim_bridge.simulation import SimConfig, Simulation
 
 DT = 0.002

@@ -8,10 +8,10 @@ from helpers import CONFIG, DT_NS, FakeClock
 import numpy as np
 import pytest
 
+from benchmarks.soak import STACKS, CommandChecker
 from ifc_spg.model import RobotModel
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import REJECT_REASONS, SpgRunner
-from ifc_spg.tools.soak import STACKS, CommandChecker
 
 TASKS = CONFIG / 'tasks'
 SPECIALS = (math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, 1e6, -1e6)

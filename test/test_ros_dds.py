@@ -1,7 +1,7 @@
 """In-process tests of the built-in Cyclone DDS backend: pub/sub, QoS, graph info, parameters.
 
 Each test gets a fresh context on a random ROS domain bound to loopback (see
-ifc_spg.ros.testing); a second, raw cyclonedds participant plays the role of a foreign ROS 2
+test/ros_testing.py); a second, raw cyclonedds participant plays the role of a foreign ROS 2
 tool looking at the wire.
 """
 

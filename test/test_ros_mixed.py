@@ -17,9 +17,8 @@ from helpers import CONFIG, reach_stack, start_recorder
 from helpers import wait_for as _wait
 import numpy as np
 import pytest
+from ros_testing import ProcessGroup, loopback_env, random_domain_id
 import yaml
-
-from ifc_spg.ros.testing import ProcessGroup, loopback_env, random_domain_id
 
 pytestmark = [pytest.mark.dds, pytest.mark.backend_pinned, pytest.mark.slow]
 
@@ -58,8 +57,9 @@ def _envs(spg_backend, bridge_backend):
 @pytest.mark.parametrize('spg_backend, bridge_backend', [('rclpy', 'cyclonedds'),
                                                          ('cyclonedds', 'rclpy')])
 def test_bridge_and_spg_on_different_backends(tmp_path, spg_backend, bridge_backend):
+    from ros_testing import stamp_ns
+
     from ifc_spg.offline.bag import BagReader
-    from ifc_spg.ros.testing import stamp_ns
 
     spg_env, bridge_env, rec_env = _envs(spg_backend, bridge_backend)
     stack = _press_stack(tmp_path)

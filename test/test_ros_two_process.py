@@ -7,8 +7,7 @@ import time
 
 from helpers import BIN
 import pytest
-
-from ifc_spg.ros.testing import loopback_env, stop_process
+from ros_testing import loopback_env, stop_process
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

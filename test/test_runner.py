@@ -6,9 +6,10 @@ from helpers import wait_for
 import numpy as np
 import pytest
 
+from ifc_spg.cli.run import main
 from ifc_spg.errors import ParameterError
 from ifc_spg.offline.bag import BagReader, stamp_ns
-from ifc_spg.offline.runner import find_config_dir, load_scenario, main, run_scenario
+from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
 
 SCENARIO = find_config_dir() / 'scenarios' / 'surface_short.yaml'
 

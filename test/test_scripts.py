@@ -10,10 +10,10 @@ import xml.etree.ElementTree as ET
 
 from helpers import BIN, ROOT, reach_stack, use_loopback
 import pytest
+from ros_testing import LOOPBACK_CONFIG, loopback_env, stop_process
 
 from ifc_spg import ros
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import LOOPBACK_CONFIG, loopback_env, stop_process
 
 SCRIPTS = sorted((ROOT / 'scripts').glob('*.sh'))
 RUNNABLE = [p for p in SCRIPTS if p.name != 'lib.sh']

@@ -16,8 +16,7 @@ import time
 
 from helpers import BIN, CONFIG, reach_stack, use_loopback, wait_for
 import pytest
-
-from ifc_spg.ros.testing import stop_process
+from ros_testing import stop_process
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

@@ -4,13 +4,13 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg import RobotModel
 from ifc_spg.cascade import CascadeResult, DaqpCascade, NullspaceCascade
 from ifc_spg.errors import ParameterError
 from ifc_spg.limits import VelocityBox
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator, SpgInfo
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, Level, WrenchTask

@@ -6,6 +6,7 @@ import json
 from helpers import CONFIG, DT_NS, TARGET, parse_stack, reach_stack
 import numpy as np
 import pytest
+from ros_testing import stamp_ns
 import yaml
 
 from ifc_spg import ros
@@ -14,7 +15,6 @@ from ifc_spg.node.config import PARAMETERS
 from ifc_spg.node.spg_node import SpgNode, main
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import stamp_ns
 from ifc_spg.spg import SetPointGenerator
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]

@@ -6,10 +6,10 @@ import time
 from helpers import CONFIG, TARGET, reach_stack, record_spg_topics, use_loopback
 import numpy as np
 import pytest
+from ros_testing import ProcessGroup, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
-from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

@@ -8,9 +8,9 @@ import time
 from helpers import CONFIG, reach_stack, use_loopback
 import numpy as np
 import pytest
+from ros_testing import ProcessGroup
 
 from ifc_spg.model import RobotModel
-from ifc_spg.ros.testing import ProcessGroup
 
 pytestmark = [pytest.mark.dds, pytest.mark.backend_pinned]
 

@@ -9,11 +9,11 @@ import json
 
 import numpy as np
 import pinocchio as pin
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner, parse_task_stack, status_json
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.ros import messages as m
 from ifc_spg.task_stack import TaskStackError
 from ifc_spg.tasks.stream import StreamBound

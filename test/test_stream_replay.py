@@ -13,10 +13,10 @@ import json
 
 import numpy as np
 import pinocchio as pin
+from plants import JointImpedancePlant
 
 from ifc_spg.node.config import SpgConfig
 from ifc_spg.node.core import SpgRunner
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.ros import messages as m
 
 POSE = """

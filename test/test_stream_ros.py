@@ -13,13 +13,13 @@ from helpers import CONFIG, record_spg_topics, start_recorder, use_loopback
 import numpy as np
 import pinocchio as pin
 import pytest
+from ros_testing import ProcessGroup, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
 from ifc_spg.offline.bag import BagReader
 from ifc_spg.offline.replay import replay
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import ProcessGroup, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

@@ -10,11 +10,11 @@ import time
 
 import pytest
 
+from ifc_spg.cli import sweep as sweep_cli
 from ifc_spg.errors import ParameterError
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.offline.sweep import FIXED_COLUMNS, run_point, run_sweep
 from ifc_spg.offline.sweep_spec import SweepError, load_sweep
-from ifc_spg.tools import sweep as sweep_cli
 
 distributed = pytest.importorskip('distributed')
 
@@ -143,7 +143,7 @@ def test_sigterm_mid_sweep_keeps_the_finished_runs(sweep_file, tmp_path):
     """The CLI turns SIGTERM into an orderly stop: exit 130, the table of what finished."""
     out = tmp_path / 'out'
     proc = subprocess.Popen(
-        [sys.executable, '-m', 'ifc_spg.tools.sweep', str(sweep_file), '-o', str(out),
+        [sys.executable, '-m', 'ifc_spg.cli.sweep', str(sweep_file), '-o', str(out),
          '--workers', '1', '--no-figures'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True)
     try:

@@ -7,13 +7,14 @@ import time
 
 from helpers import BIN, reach_stack
 import pytest
+from ros_testing import stop_process
 
 from ifc_spg import ros
+from ifc_spg.cli.check import main as check_main
+from ifc_spg.cli.task_publisher import main
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.node.task_publisher import main, parse_entry
+from ifc_spg.node.task_publisher import parse_entry
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import stop_process
-from ifc_spg.task_stack.check import main as check_main
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 

@@ -8,14 +8,15 @@ import sys
 
 import jsonschema
 import numpy as np
+from plants import JointImpedancePlant
 import pytest
 import yaml
 
+from ifc_spg.cli import check
 from ifc_spg.model import RobotModel
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator
-from ifc_spg.task_stack import TaskStack, TaskStackError, builder, check, schema
+from ifc_spg.task_stack import TaskStack, TaskStackError, builder, schema
 from ifc_spg.task_stack.loader import MAX_NODES, MAX_TEXT_BYTES
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

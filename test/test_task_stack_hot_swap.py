@@ -8,12 +8,12 @@ leaves the running one untouched.
 from types import ModuleType
 
 import numpy as np
+from plants import JointImpedancePlant
 import pytest
 
 from ifc_spg import kernels
 from ifc_spg.limits import VelocityBox
 from ifc_spg.model import RobotModel
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.spg import SetPointGenerator
 from ifc_spg.task_stack import TaskStack, TaskStackError
 

@@ -108,8 +108,8 @@ def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, mo
     import time
 
     from helpers import CONFIG, use_loopback
+    from ros_testing import ProcessGroup
 
-    from ifc_spg.ros.testing import ProcessGroup
     from ifc_spg.tools.view import LiveCockpit
 
     env = use_loopback(monkeypatch)

@@ -4,7 +4,7 @@ Every named robot is built from ONE model file that both pinocchio (the SPG) and
 (the simulator) load, so the SPG and the simulation share kinematics and inertias exactly:
 
 - ``lbr4``, ``lbr_iiwa14``, ``accrea_dual_arm``: MJCF files in ``ifc_spg/model/data/``,
-  generated from the tables in this module by ``python -m ifc_spg.model.generate``.
+  generated from the tables in this module by ``python -m ifc_spg.cli.generate``.
   MJCF (not URDF) is the shared format because it carries everything both sides need:
   sites (``flange``, ``tool``, F/T frames) become pinocchio operational frames, joint
   ``armature`` enters both mass matrices, ``actuatorfrcrange`` becomes pinocchio's

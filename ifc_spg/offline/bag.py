@@ -24,11 +24,9 @@ already received are written, then the MCAP index and ``metadata.yaml``. It also
 ``--robot`` or ``spg/config`` names (:mod:`ifc_spg.offline.foxglove`; ``--no-tf``: not).
 """
 
-import argparse
 import importlib
 from pathlib import Path
 import signal
-import sys
 import time
 
 from mcap.writer import CompressionType, Writer
@@ -46,7 +44,7 @@ from rosbags.typesys import Stores, get_typestore
 import yaml
 
 from ifc_spg import ros
-from ifc_spg.errors import IfcSpgError, ParameterError
+from ifc_spg.errors import ParameterError
 from ifc_spg.ros import messages
 from ifc_spg.ros.qos import (
     DurabilityPolicy,
@@ -65,7 +63,6 @@ __all__ = [
     'BagWriter',
     'from_rosbags_qos',
     'info',
-    'main',
     'play',
     'record',
     'rosbag2_metadata',
@@ -808,54 +805,3 @@ def info(path):
         if bag.custom_data:
             lines.append('custom data: ' + ', '.join(sorted(bag.custom_data)))
     return '\n'.join(lines)
-
-
-def main(argv=None):
-    """``ifc-spg bag record|play|info``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    ros_args = []
-    if '--ros-args' in argv:
-        i = argv.index('--ros-args')
-        argv, ros_args = argv[:i], argv[i:]
-    parser = argparse.ArgumentParser(prog='ifc-spg bag', description=__doc__.split('\n')[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest='cmd', required=True)
-    r = sub.add_parser('record', help='record topics over DDS into a new bag')
-    r.add_argument('topics', nargs='*', help='topics (default: the product topics)')
-    r.add_argument('-o', '--output', required=True, help='bag directory to create')
-    r.add_argument('-a', '--all', action='store_true', help='also record discovered topics')
-    r.add_argument('--duration', type=float, default=None, help='stop after S seconds')
-    r.add_argument('--robot', default=None,
-                   help='robot of /robot_description and /tf (default: the one spg/config '
-                        'or spg/status names)')
-    r.add_argument('--no-tf', action='store_true',
-                   help='no /robot_description, /tf_static, /tf')
-    p = sub.add_parser('play', help='publish a bag with its original timing and QoS')
-    p.add_argument('bag')
-    p.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
-    p.add_argument('--delay', type=float, default=0.5, help='wait S seconds for discovery')
-    p.add_argument('--topics', nargs='*', default=None, help='only these topics')
-    p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
-                   help='after --delay, wait (up to 30 s) until every topic has N matched '
-                        'subscriptions (discovery can take seconds)')
-    i = sub.add_parser('info', help='topics, types, counts, duration')
-    i.add_argument('bag')
-    opts = parser.parse_args(argv)
-    try:
-        if opts.cmd == 'info':
-            print(info(opts.bag))
-        elif opts.cmd == 'record':
-            record(opts.output, opts.topics or None, opts.all, opts.duration, ros_args,
-                   robot=opts.robot, foxglove=not opts.no_tf)
-        else:
-            counts = play(opts.bag, opts.rate, opts.delay, opts.topics, ros_args,
-                          wait_subscribers=opts.wait_for_subscribers)
-            print('played ' + ', '.join(f'{t}: {c}' for t, c in counts.items()))
-    except IfcSpgError as exc:
-        print(f'ifc-spg bag {opts.cmd}: {exc}', file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -1,6 +1,6 @@
 """Scenario evaluation of constrained manipulation.
 
-    python -m ifc_spg.offline.constrained_evaluate
+    python -m ifc_spg.cli.constrained_evaluate
 
 Runs the strategies in the lockstep simulator and prints a JSON report:
 
@@ -17,15 +17,12 @@ Runs the strategies in the lockstep simulator and prints a JSON report:
 
 Examples::
 
-    python -m ifc_spg.offline.constrained_evaluate --only comparison
-    python -m ifc_spg.offline.constrained_evaluate --only accrea
-    python -m ifc_spg.offline.constrained_evaluate --quick      # shorter runs (CI smoke)
+    python -m ifc_spg.cli.constrained_evaluate --only comparison
+    python -m ifc_spg.cli.constrained_evaluate --only accrea
+    python -m ifc_spg.cli.constrained_evaluate --quick      # shorter runs (CI smoke)
 """
 
-import argparse
-import json
 import math
-import sys
 
 from ifc_spg.constrained.metrics import pooled_rms
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
@@ -34,7 +31,7 @@ from ifc_spg.offline.constrained import Scenario, run
 from ifc_spg.offline.sweep import map_unordered
 
 __all__ = ['ACCREA_SCENES', 'KAPPAS', 'QUICK_COMPARISON', 'STIFFNESSES', 'THESIS_5_5_3',
-           'accrea', 'comparison', 'main', 'mechanisms', 'reduction']
+           'accrea', 'comparison', 'mechanisms', 'reduction']
 
 #: Estimator settings for the crank: the task-spec strategy moves the handle at ~1-2 cm/s,
 #: close to the thesis dead band of 1 cm/s, so the dead band and window are reduced.
@@ -182,36 +179,3 @@ def accrea(duration=20.0, force_limit=40.0):
         m['max_ik_residual'] = float(max(log.ik_residual))
         out[scene] = m
     return out
-
-
-def main(argv=None):
-    """Command line entry: print the JSON report; exit 1 if the trend does not hold."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--only', choices=('comparison', 'mechanisms', 'accrea'), default=None)
-    ap.add_argument('--quick', action='store_true', help='short runs (smoke test)')
-    ap.add_argument('--sma-initial-error', type=float, default=0.0,
-                    help='initial error [deg] of the SMA estimator in the comparison')
-    args = ap.parse_args(argv)
-    report = {}
-    if args.only in (None, 'comparison'):
-        kw = {'sma_initial_error_deg': args.sma_initial_error}
-        if args.quick:
-            kw.update(QUICK_COMPARISON)
-        report['comparison'] = comparison(**kw)
-    if args.only in (None, 'mechanisms'):
-        report['mechanisms'] = mechanisms(duration=10.0 if args.quick else 30.0)
-    if args.only in (None, 'accrea'):
-        report['accrea'] = accrea(duration=10.0 if args.quick else 20.0)
-    json.dump(report, sys.stdout, indent=2, default=str)
-    sys.stdout.write('\n')
-    ok = True
-    if 'comparison' in report:
-        c = report['comparison']
-        ok = all(c[k]['reduction_percent'] > 0 for k in ('fixed_direction', 'sma_estimator'))
-    if 'accrea' in report:
-        ok = ok and all(m['success'] for m in report['accrea'].values())
-    return 0 if ok else 1
-
-
-if __name__ == '__main__':
-    sys.exit(main())

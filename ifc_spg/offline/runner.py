@@ -58,7 +58,6 @@ robot exerts along a base axis, from ``sim/contact_wrench``, vs a target; with `
 distance to its bounds, over ``components`` (indices) if given).
 """
 
-import argparse
 import dataclasses
 import json
 import math
@@ -90,10 +89,10 @@ __all__ = [
     'STACK_SINCE_KEY',
     'RunResult',
     'Scenario',
+    'StopRequest',
     'band_error',
     'find_config_dir',
     'load_scenario',
-    'main',
     'robot_with_ifc',
     'run_scenario',
 ]
@@ -456,7 +455,7 @@ def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
     wall = time.perf_counter() - wall0
     metrics = run.metrics.report(done, wall, missed, warnings, run.runner)
     if done < run.n_ticks:
-        metrics['interrupted'] = {'by': _stop.requested, 'ticks_done': done,
+        metrics['interrupted'] = {'by': stop_request.requested, 'ticks_done': done,
                                   'ticks_planned': run.n_ticks}
     metrics_path = out_dir / 'metrics.json'
     metrics_path.write_text(json.dumps(metrics, indent=2, allow_nan=False) + '\n')
@@ -531,9 +530,10 @@ class _LockstepRun:
     def loop(self, wall0):
         """Run every tick (or until a stop is requested); the number of ticks done."""
         for k in range(self.n_ticks):
-            if _stop.requested:
-                print(f'[{self.scenario.name}] stopped by {_stop.requested} after {k} ticks; '
-                      'closing the bag and writing the metrics', file=self.stream, flush=True)
+            if stop_request.requested:
+                print(f'[{self.scenario.name}] stopped by {stop_request.requested} after {k} '
+                      'ticks; closing the bag and writing the metrics', file=self.stream,
+                      flush=True)
                 return k
             self.tick(k)
             if self.progress_every and ((k + 1) % self.progress_every == 0 or
@@ -667,8 +667,6 @@ def robot_with_ifc(scenario):
         where=f"scenario '{scenario.path}': sim.")
 
 
-
-
 def _wrench(stamp, frame, w):
     msg = m.WrenchStamped()
     msg.header.stamp = stamp
@@ -678,7 +676,7 @@ def _wrench(stamp, frame, w):
     return msg
 
 
-class _StopRequest:
+class StopRequest:
     """SIGINT/SIGTERM set :attr:`requested` (the signal's name) instead of killing the run.
 
     So an interrupted run still closes its bag and writes its metrics.
@@ -688,6 +686,7 @@ class _StopRequest:
         self.requested = None
 
     def install(self):
+        """Catch SIGINT and SIGTERM (main thread only); the handlers to restore."""
         if threading.current_thread() is not threading.main_thread():
             return {}
 
@@ -697,33 +696,10 @@ class _StopRequest:
 
     @staticmethod
     def restore(old):
+        """Put back the handlers :meth:`install` returned."""
         for sig, h in old.items():
             signal.signal(sig, h)
 
 
-_stop = _StopRequest()
-
-
-def main(argv=None):
-    """``ifc-spg run SCENARIO.yaml -o DIR``."""
-    parser = argparse.ArgumentParser(prog='ifc-spg run', description=__doc__.split('\n')[0])
-    parser.add_argument('scenario', help='scenario YAML file (or a name in config/scenarios)')
-    parser.add_argument('-o', '--output', required=True, help='output directory')
-    parser.add_argument('--duration', type=float, default=None, help='override [s]')
-    parser.add_argument('-q', '--quiet', action='store_true', help='no progress output')
-    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    old = _stop.install()
-    try:
-        result = run_scenario(opts.scenario, opts.output, opts.duration, opts.quiet)
-    except IfcSpgError as exc:
-        print(f'ifc-spg run: {exc}', file=sys.stderr)
-        return 2
-    finally:
-        _StopRequest.restore(old)
-    print(f'bag: {result.bag}\nmetrics: {result.metrics_path}')
-    print(json.dumps({k: v for k, v in result.metrics.items() if k not in ('spg',)}, indent=1))
-    return 130 if _stop.requested else 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())
+#: The run's stop request: ``ifc-spg run`` installs it, the lockstep loop polls it.
+stop_request = StopRequest()

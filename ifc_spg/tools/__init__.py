@@ -1,1 +1,4 @@
-"""Command-line tools: ``ifc-spg`` and its verbs, benchmarks, demo."""
+"""Above the runs: the demo, figures and videos of bags, the browser cockpit, sweep figures.
+
+Their command lines are in :mod:`ifc_spg.cli`.
+"""

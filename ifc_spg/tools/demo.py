@@ -12,7 +12,6 @@ the figures; default ``DIR`` = ``out/demo``, replaced if it holds an old demo) a
 short summary.
 """
 
-import argparse
 import os
 from pathlib import Path
 import shutil
@@ -24,7 +23,7 @@ from ifc_spg.offline.runner import find_config_dir, run_scenario
 from ifc_spg.tools.plot import plot_bag
 from ifc_spg.tools.render import ffmpeg_exe
 
-__all__ = ['main', 'run_demo', 'summary']
+__all__ = ['run_demo', 'summary']
 
 SCENARIO = 'demo_lbr.yaml'
 
@@ -41,7 +40,7 @@ def _render_video(bag, out, quiet):
     for old in (out / 'run.mp4', out / 'run.gif'):
         old.unlink(missing_ok=True)
     env = {**os.environ, 'MUJOCO_GL': os.environ.get('MUJOCO_GL', 'egl')}
-    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.tools.render', str(bag), '-o',
+    proc = subprocess.run([sys.executable, '-m', 'ifc_spg.cli', 'render', str(bag), '-o',
                            str(video), '-q', *size], capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         reason = (proc.stderr.strip().splitlines() or ['failed'])[-1]
@@ -113,27 +112,3 @@ def summary(result, pngs):
     if pngs:
         lines.append(f'  plots:   {Path(pngs[0]).parent / "index.html"} ({len(pngs)} figures)')
     return '\n'.join(line for line in lines if line)
-
-
-def main(argv=None):
-    """``ifc-spg demo``."""
-    parser = argparse.ArgumentParser(prog='ifc-spg demo', description=__doc__.split('\n')[0])
-    parser.add_argument('--duration', type=float, default=None,
-                        help='simulated seconds (default: the scenario, 20 s)')
-    parser.add_argument('-o', '--output', default='out/demo', help='output directory')
-    parser.add_argument('--no-plots', action='store_true', help='skip the figures')
-    parser.add_argument('--no-video', action='store_true', help='skip the video')
-    parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
-    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        result, pngs = run_demo(opts.output, opts.duration, not opts.no_plots, opts.quiet,
-                                not opts.no_video)
-    except IfcSpgError as exc:
-        print(f'ifc-spg demo: {exc}', file=sys.stderr)
-        return 2
-    print(summary(result, pngs))
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

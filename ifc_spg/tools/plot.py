@@ -18,19 +18,17 @@ Vertical dotted lines mark task-stack switches. Rendering uses matplotlib's Agg 
 (no display needed).
 """
 
-import argparse
 import html
 import json
 import os
 from pathlib import Path
-import sys
 
 import numpy as np
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.offline.bag import BagReader, stamp_ns
 
-__all__ = ['BagSeries', 'load_series', 'main', 'plot_bag']
+__all__ = ['BagSeries', 'load_series', 'plot_bag']
 
 _COLORS = ('#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#8c564b', '#e377c2',
            '#7f7f7f', '#bcbd22', '#17becf')
@@ -380,23 +378,3 @@ def _index(out, written, bag, title, video=None):
         f'</style></head><body><h1>{title}</h1><p>bag: <code>{html.escape(str(bag))}</code></p>'
         f'{_video_html(out, video)}<ul>{links}</ul>{items}{rows}</body></html>\n',
         encoding='utf8')
-
-
-def main(argv=None):
-    """``ifc-spg plot BAG -o DIR``."""
-    parser = argparse.ArgumentParser(prog='ifc-spg plot', description=__doc__.split('\n')[0])
-    parser.add_argument('bag', help='bag directory')
-    parser.add_argument('-o', '--output', required=True, help='directory for the PNGs')
-    parser.add_argument('--title', default=None)
-    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        paths = plot_bag(opts.bag, opts.output, opts.title)
-    except IfcSpgError as exc:
-        print(f'ifc-spg plot: {exc}', file=sys.stderr)
-        return 2
-    print(f'{len(paths)} figures in {opts.output} (open {Path(opts.output) / "index.html"})')
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -17,8 +17,6 @@ works without internet. Chosen over rerun: viser is a Python scene graph with GU
 also steers needs; rerun is a logging viewer with its own binary and data model.
 """
 
-import argparse
-import sys
 import threading
 import time
 import xml.etree.ElementTree as ET
@@ -29,7 +27,7 @@ import pinocchio as pin
 from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.ros.stamps import stamp_to_sec
 
-__all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'main', 'status_text']
+__all__ = ['Cockpit', 'LiveCockpit', 'ViewData', 'load_bag', 'status_text']
 
 _SOLID = (200, 200, 205)
 _GHOST = (60, 120, 255)
@@ -487,40 +485,3 @@ class LiveCockpit(_Scene):
         if self._own_node:
             self.node.destroy_node()
             self._ros.shutdown()
-
-
-def main(argv=None):
-    """``ifc-spg view BAG``."""
-    parser = argparse.ArgumentParser(prog='ifc-spg view', description=__doc__.split('\n')[0])
-    parser.add_argument('bag', nargs='?', help='bag directory (ifc-spg run / bag record)')
-    parser.add_argument('--live', metavar='ROBOT', default=None,
-                        help='instead of a bag: the running SPG of robot ROBOT, from its '
-                             'topics (drag a gizmo to stream a target)')
-    parser.add_argument('--host', default='127.0.0.1',
-                        help='interface to serve on (default loopback; 0.0.0.0 exposes it)')
-    parser.add_argument('--port', type=int, default=8080, help='TCP port (default 8080)')
-    opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    if (opts.bag is None) == (opts.live is None):
-        parser.error('give a bag directory or --live ROBOT')
-    try:
-        cockpit = LiveCockpit(opts.live, None, opts.host, opts.port) if opts.live else \
-            Cockpit(load_bag(opts.bag), opts.host, opts.port)
-    except IfcSpgError as exc:
-        print(f'ifc-spg view: {exc}', file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f'ifc-spg view: cannot serve on {opts.host}:{opts.port}: {exc}', file=sys.stderr)
-        return 2
-    print(f'ifc-spg view: {cockpit.url} (Ctrl-C to stop)', flush=True)
-    try:
-        while True:
-            time.sleep(1.0)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        cockpit.close()
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

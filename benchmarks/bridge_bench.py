@@ -1,6 +1,6 @@
 """Benchmark of the MuJoCo bridge: real-time factor per robot/scene, and pacing lateness.
 
-    python -m sim_bridge.bench [--seconds 5] [--pacing 2]
+    python -m benchmarks.bridge_bench [--seconds 5] [--pacing 2]
 
 The lockstep loop is what ``ifc-spg run`` and the node do without DDS: write q_v, step one
 command period (2 ms = 2 physics steps), read the state. Real-time factor = simulated time

@@ -4,7 +4,7 @@ Usage::
 
     ifc-spg dynamics [scenarios] [--plot DIR] [--samples N]   # the report's Ch. 6 scenarios
     ifc-spg dynamics solve PROBLEM.yaml [--plot DIR] [--samples N]
-    ifc-spg dynamics bench [--quick] [--json FILE]           # timing (see bench.py)
+    ifc-spg dynamics bench [--quick] [--json FILE]   # timing, benchmarks/dynamics_bench.py
 
 For each problem it prints q̈, ν and τ_control without friction, then the static-friction
 solution: μ*, which joints stick, q̈(μ*) and the resulting joint torques, next to the
@@ -19,9 +19,9 @@ import sys
 
 import numpy as np
 
+from ifc_spg.cli.bench import benchmark_module
 from ifc_spg.dynamics.scenarios import external_joint_torques, load_problem, report_problems
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.tools import dynamics_bench as bench
 
 __all__ = ['main']
 
@@ -134,7 +134,8 @@ def main(argv=None):
     """Entry point of ``ifc-spg dynamics``; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == 'bench':
-        return bench.main(argv[1:])
+        bench = benchmark_module('dynamics_bench', 'ifc-spg dynamics bench')
+        return 2 if bench is None else int(bench.main(argv[1:]) or 0)
     parser = argparse.ArgumentParser(
         prog='ifc-spg dynamics', description=__doc__.split('\n\n')[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,

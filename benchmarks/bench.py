@@ -17,7 +17,7 @@ joint-impedance plant (the plant is not timed). Stacks:
   interleaved tick by tick so that machine load affects both alike;
 - ``collision``: the tick with and without a ``collision_avoidance`` level (iiwa: 47
   pairs, ACCREA: 218 self pairs) and the level's rows next to mink's
-  ``CollisionAvoidanceLimit`` on the same pairs (:mod:`ifc_spg.tools.collision_bench`).
+  ``CollisionAvoidanceLimit`` on the same pairs (:mod:`benchmarks.collision_bench`).
 
 Targets (issue 3): LBR p99 <= 0.3 ms and max <= 1 ms; iCub p99 <= 0.6 ms; ratio <= 1.0.
 
@@ -34,9 +34,9 @@ import time
 
 import numpy as np
 import pinocchio as pin
+from plants import JointImpedancePlant
 
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack, kernels
-from ifc_spg.offline.plants import JointImpedancePlant
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
 from ifc_spg.tasks.bounds import Bound
@@ -344,7 +344,7 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
     if progress:
         print('  first and stack-switch ticks ...', file=sys.stderr)
     out['first_ticks'] = bench_first_ticks()
-    from ifc_spg.tools.collision_bench import bench_collision
+    from benchmarks.collision_bench import bench_collision
     out['collision'] = bench_collision(max(10, ticks // 4), progress)
     return out
 
@@ -409,7 +409,7 @@ def format_report(res):
                      f"prepared/lazy p50: first {ratio['first']:.2f}, switch "
                      f"{ratio['switch']:.2f}")
     if res.get('collision'):
-        from ifc_spg.tools.collision_bench import format_collision
+        from benchmarks.collision_bench import format_collision
         lines += ['', format_collision(res['collision'])]
     return '\n'.join(lines)
 

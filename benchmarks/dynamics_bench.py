@@ -6,13 +6,13 @@
 3. Static friction, 3 stationary joints: exact QP method vs the report's sampling with
    21 samples per joint (9261 solver runs).
 4. KDL's C++ ``ChainHdSolver_Vereshchagin`` side by side (where liborocos-kdl-dev is
-   installed; the timing program is built at run time, see :mod:`ifc_spg.dynamics.kdl`):
+   installed; the timing program is built at run time, see :mod:`benchmarks.kdl`):
    the iiwa 14 and a 17-DoF chain, free and with 1 and 3 constraints; ours in C and in
    numpy, KDL and pinocchio ABA, same states, same run; the ratio ours (C) / KDL and the
    largest difference of KDL's q̈ from ours (same chain given to both).
 
 Run: ``ifc-spg dynamics bench [--quick] [--json FILE]`` or
-``python -m ifc_spg.tools.dynamics_bench``.
+``python -m benchmarks.dynamics_bench``.
 """
 
 import argparse
@@ -24,7 +24,8 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from ifc_spg.dynamics import kdl, native
+from benchmarks import kdl
+from ifc_spg.dynamics import native
 from ifc_spg.dynamics.models import iiwa_like_model, random_chain_model
 from ifc_spg.dynamics.static_friction import StaticFrictionSolver
 from ifc_spg.dynamics.vereshchagin import VereshchaginSolver

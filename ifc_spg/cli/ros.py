@@ -261,3 +261,7 @@ def main(argv=None):
     except IfcSpgError as exc:
         print(f'ifc-spg ros {command}: {exc}', file=sys.stderr)
         return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -4,7 +4,7 @@
 processes over loopback DDS, for each pairing of the two ROS backends (rclpy on Fast DDS, the
 built-in Cyclone DDS backend) in one invocation::
 
-    python -m ifc_spg.tools.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...]
+    python -m benchmarks.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...]
                                           [--json]
 
 The latency of a tick is measured by the bridge on its own clock: from publishing a state to
@@ -25,11 +25,12 @@ import sys
 import tempfile
 import time
 
+from ros_testing import loopback_env, random_domain_id, stop_process
+
 from ifc_spg import ros
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.stamps import stamp_to_ns
-from ifc_spg.ros.testing import loopback_env, random_domain_id, stop_process
 
 __all__ = ['PAIRS', 'main', 'run']
 
@@ -215,8 +216,8 @@ def _pairs(text, have_rclpy):
 
 
 def main(argv=None):
-    """``python -m ifc_spg.tools.latency_bench``; exit 1 if a pairing measured nothing."""
-    parser = argparse.ArgumentParser(prog='python -m ifc_spg.tools.latency_bench',
+    """``python -m benchmarks.latency_bench``; exit 1 if a pairing measured nothing."""
+    parser = argparse.ArgumentParser(prog='python -m benchmarks.latency_bench',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('--seconds', type=float, default=60.0, help='realtime run [s]')
     parser.add_argument('--pairs', default='all',

@@ -1,6 +1,6 @@
 """Every shipped task stack, as shipped, in lockstep: does it run without a PSPM stall?
 
-    python -m ifc_spg.tools.pspm_budget_bench [--minutes 10] [--only NAME ...] [--jobs 2] [-o DIR]
+    python -m benchmarks.pspm_budget_bench [--minutes 10] [--only NAME ...] [--jobs 2] [-o DIR]
 
 Issue 18's benchmark. For each stack in ``config/tasks/`` the bench runs one lockstep
 scenario (:func:`ifc_spg.offline.runner.run_scenario`): the robot the stack names, with the SPG
@@ -202,7 +202,7 @@ def _row_text(r):
 
 def main(argv=None):
     """Run the benchmark; exit code 1 if an unexpected stack stalled."""
-    parser = argparse.ArgumentParser(prog='python -m ifc_spg.tools.pspm_budget_bench',
+    parser = argparse.ArgumentParser(prog='python -m benchmarks.pspm_budget_bench',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('--minutes', type=float, default=10.0, help='simulated minutes')
     parser.add_argument('--only', nargs='*', default=None, help='stack names (file stems)')

@@ -1,6 +1,6 @@
 """Sweep throughput: N short lockstep runs serially vs on a local Dask cluster.
 
-    python -m ifc_spg.tools.sweep_bench [--runs 40] [--duration 0.3] [--workers 2]
+    python -m benchmarks.sweep_bench [--runs 40] [--duration 0.3] [--workers 2]
                                         [--repeat 1] [--json FILE]
 
 The sweep: ``free_push`` (LBR iiwa 14 holding its tool pose against a push) with
@@ -160,7 +160,7 @@ def format_report(res):
 
 def main(argv=None):
     """Entry point: run and print the benchmark."""
-    p = argparse.ArgumentParser(prog='python -m ifc_spg.tools.sweep_bench',
+    p = argparse.ArgumentParser(prog='python -m benchmarks.sweep_bench',
                                 description=__doc__.split('\n')[0])
     p.add_argument('--runs', type=int, default=40, help='runs per engine (default 40)')
     p.add_argument('--duration', type=float, default=0.3,

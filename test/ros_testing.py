@@ -42,7 +42,7 @@ LOOPBACK_KEYS = ('CYCLONEDDS_URI', 'ROS_DOMAIN_ID', 'IFC_SPG_ROS_BACKEND',
 
 def _fastdds_profile():
     """config/fastdds_loopback.xml of the checkout, else of the installed share/ifc_spg."""
-    for root in (Path(__file__).resolve().parents[2], Path(sys.prefix) / 'share' / 'ifc_spg'):
+    for root in (Path(__file__).resolve().parents[1], Path(sys.prefix) / 'share' / 'ifc_spg'):
         path = root / 'config' / 'fastdds_loopback.xml'
         if path.is_file():
             return str(path)

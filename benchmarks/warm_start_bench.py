@@ -1,6 +1,6 @@
 """The cost of an explicit, restorable warm start: DAQP working sets kept by us vs by DAQP.
 
-    python -m ifc_spg.tools.warm_start_bench [--ticks N] [--json]
+    python -m benchmarks.warm_start_bench [--ticks N] [--json]
 
 :class:`~ifc_spg.cascade.daqp.DaqpCascade` keeps each level model's working set itself
 (read from the multipliers after a solve, handed back as the sense flags of the next one)
@@ -21,11 +21,11 @@ import math
 import sys
 
 import numpy as np
+from plants import JointImpedancePlant
 
+from benchmarks.bench import icub_stack, lbr_stack
 from ifc_spg import RobotModel, SetPointGenerator
 from ifc_spg.cascade.daqp import DaqpCascade, _widen
-from ifc_spg.offline.plants import JointImpedancePlant
-from ifc_spg.tools.bench import icub_stack, lbr_stack
 
 __all__ = ['main', 'run']
 
@@ -129,7 +129,7 @@ def run(ticks=5000, warmup=200):
 
 
 def main(argv=None):
-    """``python -m ifc_spg.tools.warm_start_bench``."""
+    """``python -m benchmarks.warm_start_bench``."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--ticks', type=int, default=5000, help='timed ticks per loop')
     parser.add_argument('--json', action='store_true', help='print the results as JSON')

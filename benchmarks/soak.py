@@ -1,6 +1,6 @@
 """Soak benchmark: a long lockstep run that must stay safe, lean and steady.
 
-    python -m ifc_spg.tools.soak [--hours 1] [--minutes M] [--quick] [--robot lbr_iiwa14]
+    python -m benchmarks.soak [--hours 1] [--minutes M] [--quick] [--robot lbr_iiwa14]
                                  [--json F]
 
 The MuJoCo simulation (:class:`sim_bridge.simulation.Simulation`, free scene, 1 kHz
@@ -367,8 +367,8 @@ def _pct(x, p):
 
 
 def main(argv=None):
-    """Command line entry (``python -m ifc_spg.tools.soak``); returns the exit code."""
-    p = argparse.ArgumentParser(prog='python -m ifc_spg.tools.soak', description=__doc__.split(
+    """Command line entry (``python -m benchmarks.soak``); returns the exit code."""
+    p = argparse.ArgumentParser(prog='python -m benchmarks.soak', description=__doc__.split(
         '\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('--hours', type=float, default=1.0, help='simulated hours (default 1)')
     p.add_argument('--minutes', type=float, default=None, help='simulated minutes (overrides '

@@ -1,6 +1,6 @@
 // Times KDL's ChainHdSolver_Vereshchagin on a chain given on stdin (ifc-spg dynamics bench).
 //
-// Built by ifc_spg/dynamics/kdl.py at run time (g++ -O2 against liborocos-kdl-dev) and fed
+// Built by benchmarks/kdl.py at run time (g++ -O2 against liborocos-kdl-dev) and fed
 // the same chain, constraints and states as our solver. Input (whitespace-separated):
 //   nseg nc nstates repeat
 //   per segment: type (1 revolute, 2 prismatic) axis(3) rotor_inertia
