@@ -11,6 +11,7 @@ import signal
 from helpers import record_spg_topics, start_recorder, use_loopback
 import numpy as np
 import pytest
+from ros_testing import ProcessGroup, loopback_env, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.geometry import Obstacle
@@ -18,7 +19,6 @@ from ifc_spg.model import RobotModel
 from ifc_spg.node.obstacles import obstacle_marker
 from ifc_spg.offline.replay import replay
 from ifc_spg.ros import msg as ros_msg
-from ifc_spg.ros.testing import ProcessGroup, loopback_env, stamp_ns
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
