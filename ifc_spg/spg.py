@@ -187,6 +187,32 @@ class SpgInfo:
         return {k: conv(getattr(self, k)) for k in self._FIELDS}
 
 
+@dataclass(frozen=True, slots=True)
+class Tick:
+    """What one :meth:`SetPointGenerator.tick` did: the command, the report and the events.
+
+    Attributes:
+        q_v: The virtual joint positions in [rad] (a new array; what :meth:`step` returns).
+        qdot_v: The virtual joint velocity in [rad/s].
+        info: The tick's :class:`SpgInfo` (also ``spg.info`` until the next tick).
+        events: What happened in this tick that a caller may report, in order, from
+            :data:`TICK_EVENTS`: ``'activated'`` (the stack started this tick — the first
+            tick, the first after :meth:`SetPointGenerator.reset`, or a new stack — and its
+            tasks took their ``init`` values), ``'stack_taken'`` (the stack given to the
+            constructor or to ``set_stack`` took effect this tick), ``'pspm_stall'`` (a
+            new stall episode, or other joints stalled; ``info.message`` says which),
+            and the non-'ok' statuses ``'fallback'``, ``'hold'``, ``'bad_input'``.
+    """
+
+    q_v: np.ndarray
+    qdot_v: np.ndarray
+    info: SpgInfo
+    events: tuple[str, ...] = ()
+
+
+TICK_EVENTS = ('activated', 'stack_taken', 'pspm_stall', 'fallback', 'hold', 'bad_input')
+
+
 class SetPointGenerator:
     """Hierarchical set-point generator for an IFC robot.
 
@@ -429,7 +455,7 @@ class SetPointGenerator:
 
     # -- the tick -------------------------------------------------------------------
     def step(self, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
-        """One SPG tick.
+        """One SPG tick; :meth:`tick` also says what happened in it.
 
         Args:
             q: Measured joint positions in [rad] (n,).
@@ -439,8 +465,19 @@ class SetPointGenerator:
         Returns:
             The virtual joint positions q_v in [rad] (a new array).
         """
+        return self.tick(q, qdot, t).q_v
+
+    def tick(self, q: np.ndarray, qdot: np.ndarray, t: float) -> Tick:
+        """One SPG tick (:meth:`step`): q_v, qdot_v, the report and the tick's events.
+
+        Args:
+            q: Measured joint positions in [rad] (n,).
+            qdot: Measured joint velocities in [rad/s] (n,).
+            t: Time stamp of the measurement in [s] (task time counts from activation).
+        """
         t_start = time.perf_counter()
         q, qdot = self._measurement(q, qdot)
+        events: list[str] = []
         if self.q_v is None:
             if not np.all(np.isfinite(q)):
                 raise ParameterError('the first measurement must be finite to start from it')
@@ -450,6 +487,9 @@ class SetPointGenerator:
             return self._hold('bad_input', 'non-finite joint state or time stamp', t_start)
         if self._pending is not None:
             self._take_pending()
+            events.append('stack_taken')
+        if self._t0 is None and self.tasks:  # the stack starts: its tasks take init values
+            events.append('activated')
         task_time = self._task_time(q, qdot, t)
         q_v = self.q_v
         if q_v is None:  # reset() above sets it
@@ -463,6 +503,18 @@ class SetPointGenerator:
         tick = self._solve(q, qdot, q_v, box, task_time)
         solve_time = time.perf_counter() - t_solve
 
+        q_v = self._after_solve(q, qdot, q_v, qd_prev, limits_box, tick, task_time,
+                                solve_time, t_start)
+        if self.info.stall_new:
+            events.append('pspm_stall')
+        if tick.status != 'ok':
+            events.append(tick.status)
+        return Tick(q_v.copy(), tick.qdot_v, self.info, tuple(events))
+
+    def _after_solve(self, q: np.ndarray, qdot: np.ndarray, q_v: np.ndarray,
+                     qd_prev: np.ndarray, limits_box: VelocityBox, tick: '_Tick',
+                     task_time: float, solve_time: float, t_start: float) -> np.ndarray:
+        """The tanks, the stall watch, the integration of q_v and this tick's info; new q_v."""
         energy_step = stall = None
         message = tick.message
         if self._reporting and tick.status == 'ok' and not message:
@@ -473,8 +525,8 @@ class SetPointGenerator:
                                       task_time)
             if stall is not None and tick.status == 'ok':
                 message = stall_message(stall, self.robot.joint_names)
-        self.q_v = self._kernels.integrate(q_v, self.dt, tick.qdot_v, self._q_min,
-                                           self._q_max)
+        self.q_v = q_next = self._kernels.integrate(q_v, self.dt, tick.qdot_v, self._q_min,
+                                                    self._q_max)
         self.qdot_v = tick.qdot_v
         self.info = SpgInfo(
             status=tick.status, solver=self._solver.name, slacks=tick.slacks,
@@ -487,7 +539,7 @@ class SetPointGenerator:
             power_budget=0.0 if self.tanks is None else self.tanks.power, tanks=self.tanks,
             joint_names=self.robot.joint_names,
             distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None))
-        return self.q_v.copy()
+        return q_next
 
     def _collision_message(self, tick: '_Tick') -> str:
         """The pair a collision-avoidance level could not keep this tick (its slack), or ''."""
@@ -599,7 +651,7 @@ class SetPointGenerator:
         monitor.observe(requested, task_time=task_time)
         return monitor.report
 
-    def _hold(self, status: str, message: str, t_start: float) -> np.ndarray:
+    def _hold(self, status: str, message: str, t_start: float) -> Tick:
         if self.q_v is None:  # step() resets from the first measurement before any hold
             raise IfcSpgError('internal: hold before the first measurement')
         self.qdot_v = np.zeros(self.n)
@@ -609,7 +661,7 @@ class SetPointGenerator:
                             qdot_v=self.qdot_v, message=message, failed_level=-1,
                             power_budget=0.0 if self.tanks is None else self.tanks.power,
                             tanks=self.tanks, joint_names=self.robot.joint_names)
-        return self.q_v.copy()
+        return Tick(self.q_v.copy(), self.qdot_v, self.info, (status,))
 
 
 class _Tick(NamedTuple):

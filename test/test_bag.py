@@ -91,6 +91,7 @@ def dds_env(tmp_path):
     return loopback_env()
 
 
+@pytest.mark.realtime
 @pytest.mark.ros
 def test_record_over_dds_counts_match_and_sigterm_closes(tmp_path, dds_env):
     path = tmp_path / 'rec'
@@ -121,6 +122,7 @@ def test_record_over_dds_counts_match_and_sigterm_closes(tmp_path, dds_env):
         assert sum(1 for _ in make_reader(f).iter_messages()) == 400
 
 
+@pytest.mark.realtime
 @pytest.mark.ros
 def test_play_republishes_with_qos_and_timing(tmp_path, dds_env):
     src = tmp_path / 'src'

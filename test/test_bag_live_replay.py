@@ -199,6 +199,7 @@ tasks:
 """
 
 
+@pytest.mark.realtime
 def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, monkeypatch,
                                                                     capsys):
     """The issue-31 case on a realtime bridge: a bag of a stalling stack (empty tanks clip

@@ -78,6 +78,7 @@ def test_lockstep_over_dds_equals_in_process_run(domain):
     bridge.close()
 
 
+@pytest.mark.realtime
 def test_realtime_holds_q_v_and_counts_missing_commands(domain):
     bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=realtime'])
     spg = EchoSpg(spg_node, bridge.sim.q0, answer=lambda k: k == 0)

@@ -80,6 +80,7 @@ def test_press_task_through_each_command_interface(tmp_path, interface):
 
 @pytest.mark.parametrize('rate, state_rate', [(500.0, 100.0), (1000.0, 1000.0)],
                          ids=['states_100Hz', 'states_1kHz'])
+@pytest.mark.realtime
 def test_timer_tick_presses_with_states_at_another_rate(tmp_path, rate, state_rate):
     """tick: timer — the SPG ticks every 2 ms with the latest joint state while the
     (realtime) bridge publishes states at 100 Hz or 1 kHz; spg/status reports their age."""

@@ -23,7 +23,7 @@ from ros_testing import ProcessGroup
 from ifc_spg import ros
 from ifc_spg.ros import msg as ros_msg
 
-pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.slow, pytest.mark.realtime]
 
 # 30 on rclpy (Fast DDS, whose discovery this is about); 10 on the built-in backend, whose
 # second pass re-runs every ROS-level test (the suite's time)

@@ -433,6 +433,7 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
     np.testing.assert_allclose(q_meas[stamp_ns(sessions[1][0])][0], q_last, atol=1e-3)
 
 
+@pytest.mark.realtime
 def test_latency_bench_smoke():
     """``python -m benchmarks.latency_bench`` (realtime bridge + SPG over DDS, on this process's
     backend), 3 s only: the bridge measures every command's latency on its own clock."""

@@ -35,6 +35,7 @@ HOG = ('import os, time\n'
        '    pass\n')
 
 
+@pytest.mark.realtime
 def test_faults_over_dds_keep_commands_safe_and_the_bag_complete(tmp_path, monkeypatch):
     env = use_loopback(monkeypatch)
     stack = tmp_path / 'reach.yaml'

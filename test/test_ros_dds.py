@@ -192,6 +192,7 @@ def test_parameter_override_type_mismatch_is_clear(domain):
         node.declare_parameter('rate', 100.0)
 
 
+@pytest.mark.realtime
 def test_timer_rate_and_cancel(domain):
     ros.init()
     node = ros.Node('clock')

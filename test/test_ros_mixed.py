@@ -147,6 +147,7 @@ def test_latched_stack_reaches_a_late_spg_on_the_other_backend(tmp_path, publish
         pubs.close()
 
 
+@pytest.mark.realtime
 def test_bag_record_of_rclpy_nodes_deserializes_with_rosbags(tmp_path):
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore

@@ -31,6 +31,7 @@ def _read_line(proc, timeout):
     return ''
 
 
+@pytest.mark.realtime
 def test_talker_listener_500hz_for_10s_loses_nothing():
     env = loopback_env()
     count = int(RATE_HZ * DURATION_S)

@@ -117,6 +117,7 @@ def test_sim_lbr_lockstep_runs_and_stops_what_it_started(tmp_path):
     assert "task stack 'reach' (id 1) accepted" in (out / 'spg_node.log').read_text()
 
 
+@pytest.mark.realtime
 @pytest.mark.ros
 def test_sim_lbr_trap_stops_its_processes_on_sigterm(tmp_path):
     out = tmp_path / 'logs'

@@ -18,7 +18,7 @@ from helpers import BIN, CONFIG, reach_stack, use_loopback, wait_for
 import pytest
 from ros_testing import stop_process
 
-pytestmark = [pytest.mark.dds, pytest.mark.ros]
+pytestmark = [pytest.mark.dds, pytest.mark.ros, pytest.mark.realtime]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _BITS = (1 << (signal.SIGINT - 1)) | (1 << (signal.SIGTERM - 1))

@@ -302,3 +302,38 @@ def test_a_stacks_solver_models_are_built_when_it_is_accepted_not_at_its_first_t
         q_v = spg.step(q, qdot, k * 0.002)
         qdot, q = (q_v - q) / 0.002, q_v
     assert solver.model_count == built     # nor did the switch
+
+
+def test_tick_says_what_happened_and_step_is_its_q_v():
+    """``tick`` returns q_v, qdot_v, the info and the events of the tick; ``step`` the same
+    q_v (two SPGs side by side, one ticked, one stepped, stay bit-identical)."""
+    def stack(dz):
+        target = tool_position(IIWA, IIWA.q_home) + [0.0, 0.0, dz]
+        return [CartesianPoseTask(IIWA, frame='tool', axes=['x', 'y', 'z'], equal=target,
+                                  gain=5.0),
+                JointPositionTask(IIWA, equal='init', gain=1.0, name='posture')]
+    ticked, stepped = SetPointGenerator(IIWA, stack(0.05)), SetPointGenerator(IIWA, stack(0.05))
+    plant = JointImpedancePlant(IIWA, IIWA.q_home, substeps=2)
+    q, qd, t = plant.q, plant.qdot, 0.0
+    events = []
+    for k in range(300):
+        if k == 100:
+            ticked.set_stack(stack(-0.05))
+            stepped.set_stack(stack(-0.05))
+        if k == 200:
+            ticked.reset(q)
+            stepped.reset(q)
+        tick = ticked.tick(q, qd, t)
+        q_v = stepped.step(q, qd, t)
+        np.testing.assert_array_equal(tick.q_v, q_v)
+        np.testing.assert_array_equal(tick.qdot_v, stepped.qdot_v)
+        assert tick.info is ticked.info and tick.info.status == 'ok'
+        events.append(tick.events)
+        q, qd, t = plant.step(q_v)
+    assert events[0] == ('stack_taken', 'activated')  # the constructor's stack
+    assert events[100] == ('stack_taken', 'activated')
+    assert events[200] == ('activated',)
+    assert all(e == () for k, e in enumerate(events) if k not in (0, 100, 200))
+    bad = ticked.tick(np.full(IIWA.n, np.nan), qd, t)
+    assert bad.events == ('bad_input',) and bad.info.status == 'bad_input'
+    np.testing.assert_array_equal(bad.q_v, ticked.q_v)  # held

@@ -143,8 +143,8 @@ def test_missing_velocities_are_finite_differences(robot):
             return []
 
     runner = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot, parse_stack=lambda t: Recorder())
-    step = runner.spg.step
-    runner.spg.step = lambda q, qdot, t: (seen.append(qdot.copy()), step(q, qdot, t))[1]
+    tick = runner.spg.tick
+    runner.spg.tick = lambda q, qdot, t: (seen.append(qdot.copy()), tick(q, qdot, t))[1]
     q = robot.q_home.copy()
     runner.handle_joint_state(robot.joint_names, q, [], 0)
     runner.handle_joint_state(robot.joint_names, q + 0.004, [], DT_NS)
@@ -193,3 +193,33 @@ def test_every_config_field_has_exactly_one_parameter():
 def test_status_json_is_strict():
     text = status_json({'a': float('inf'), 'b': [1.0, float('nan')], 'c': {'d': -float('inf')}})
     assert json.loads(text) == {'a': None, 'b': [1.0, None], 'c': {'d': None}}
+
+
+def test_tick_events_say_what_each_state_did(robot):
+    """``SpgRunner.tick`` returns the command and the tick's events, in order: what the
+    node logs and publishes (the shell never diffs the runner's counters)."""
+    clock = FakeClock(100.0)
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.05), robot, clock=clock)
+    runner.handle_task_stack(STACK)
+    q, z, names = robot.q_home.copy(), np.zeros(robot.n), robot.joint_names
+
+    def kinds(*args):
+        outcome = runner.tick(*args)
+        return outcome.command is not None, [e.kind for e in outcome.events], outcome
+
+    assert kinds(names, q, z, 0)[:2] == (True, ['stack_taken', 'started'])
+    assert kinds(names, q, z, DT_NS)[:2] == (True, [])
+    ok, events, out = kinds(names, q, z, 0)  # backwards while running
+    assert (ok, events) == (False, ['rejected']) and 'stamp_backwards' in out.events[0].message
+    assert kinds(names[:3], q[:3], z[:3], 2 * DT_NS)[:2] == (False, ['rejected'])
+    # the SPG runs the new stack from the next tick
+    runner.handle_task_stack(STACK.replace('name: reach', 'name: reach2'))
+    ok, events, out = kinds(names, q, z, 2 * DT_NS)
+    assert (ok, events) == (True, ['stack_taken']) and 'reach2' in out.events[0].message
+    # a stamp gap trips the watchdog and restarts from the measured q
+    assert kinds(names, q, z, 2 * DT_NS + 60_000_000)[:2] == (True, ['watchdog', 'resumed'])
+    # a paused source (wall-clock watchdog) continuing its stamps
+    clock.t += 0.2
+    assert runner.check_watchdog()
+    assert kinds(names, q, z, 3 * DT_NS + 60_000_000)[:2] == (True, ['continued'])
+    assert runner.resumes == 1 and runner.watchdog_trips == 2

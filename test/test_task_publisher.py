@@ -97,6 +97,7 @@ def test_once_without_subscriber_exits_1(tmp_path, dds_env):
     assert main(['task_publisher', _file(tmp_path, 'a'), '--once', '--timeout', '0.3']) == 1
 
 
+@pytest.mark.realtime
 def test_timed_sequence_and_latched_delivery_to_a_late_subscriber(tmp_path, dds_env):
     a, b = _file(tmp_path, 'first'), _file(tmp_path, 'second')
     listener = Listener()

@@ -79,6 +79,33 @@ class Command(NamedTuple):
     resumed: bool
 
 
+class Event(NamedTuple):
+    """Something a joint state's tick did that the node reports (log, status, diagnostics).
+
+    Attributes:
+        kind: 'rejected' (the state; ``message`` says why), 'watchdog' (the stamps jumped
+            past watchdog.timeout: commanding stopped until the restart), 'started' (the
+            first command, from the measured q), 'resumed' (a restart from the measured q
+            after the watchdog), 'continued' (states came back with continuous stamps after
+            the watchdog: no restart), 'stack_taken' (a new stack runs from this tick),
+            'pspm_stall' (a new PSPM stall episode; ``message`` names the joints and the fix).
+        message: What to log or publish.
+    """
+
+    kind: str
+    message: str
+
+
+class Outcome(NamedTuple):
+    """What :meth:`SpgRunner.tick` did with one joint state.
+
+    The command (None: no command) and the events of the tick, in order.
+    """
+
+    command: 'Command | None'
+    events: tuple[Event, ...]
+
+
 class StackEvent(NamedTuple):
     """The outcome of :meth:`SpgRunner.handle_task_stack`.
 
@@ -248,7 +275,7 @@ class SpgRunner:
         self.stack_text = None          # the running stack's document (spg/config)
         self._pending_text = None
         self.config_version = 0         # grows when config_doc() changes (stack, restart)
-        self._activation = None
+        self._events: list[Event] = []   # the current tick's (see tick)
         self._next_id = 0
         self._pending_name = None
         self._last_stamp = None
@@ -330,6 +357,11 @@ class SpgRunner:
                             f"'{stream.topic}' for {stream.age:.3f} s > stale_after "
                             f'{stream.stale_after:g} s; holding the last one')
 
+    def tick(self, names, position, velocity, stamp_ns) -> Outcome:
+        """:meth:`handle_joint_state`, and the events of the tick (what a node reports)."""
+        command = self.handle_joint_state(names, position, velocity, stamp_ns)
+        return Outcome(command, tuple(self._events))
+
     def handle_joint_state(self, names, position, velocity, stamp_ns):
         """One tick for one joint-state message; None when the message is rejected.
 
@@ -340,6 +372,8 @@ class SpgRunner:
                 the positions over the stamps, zero on the first tick).
             stamp_ns: Measurement stamp in [ns] (sets task time and the command stamp).
         """
+        self._events = []
+        was_stale = self.stale
         measured = self._measured(names, position, velocity, stamp_ns)
         if measured is None:
             return None
@@ -361,14 +395,28 @@ class SpgRunner:
         if last is not None and not restart:
             self._period.append((stamp_ns - last) * 1e-9)
         self.obstacles.apply(list(self.spg.tasks) + self.spg.pending_tasks)  # at the tick boundary
-        q_v = self.spg.step(q, qdot, stamp_ns * 1e-9)
-        self._after_tick(stamp_ns)
+        tick = self.spg.tick(q, qdot, stamp_ns * 1e-9)
+        self._after_tick(stamp_ns, tick.events)
         self._last_stamp, self._last_q = stamp_ns, q
-        qdot_v = np.array(self.spg.qdot_v, dtype=float)
-        self._last_command = Command(stamp_ns, self.joint_names, q_v, qdot_v, self.ticks,
+        qdot_v = np.array(tick.qdot_v, dtype=float)
+        self._last_command = Command(stamp_ns, self.joint_names, tick.q_v, qdot_v, self.ticks,
                                      restart)
         self._last_seen = self.clock()
+        self._report_restart(restart, was_stale, stamp_ns)
         return self._last_command
+
+    def _report_restart(self, restart, was_stale, stamp_ns):
+        if restart and self.resumes:
+            self._events.append(Event('resumed', f'joint states are back (stamp '
+                                      f'{stamp_ns * 1e-9:.3f} s): restarted from the measured'
+                                      f' q (restart {self.resumes})'))
+        elif restart:
+            self._events.append(Event('started', 'first joint state: commanding from the '
+                                      'measured q'))
+        elif was_stale:
+            self._events.append(Event('continued', 'joint states are back with continuous '
+                                      'stamps (the source paused): continuing without a '
+                                      'restart'))
 
     def _measured(self, names, position, velocity, stamp_ns):
         """The checked message: (q in model order, velocity, permutation, stamp [ns]) or None."""
@@ -430,25 +478,29 @@ class SpgRunner:
                                 'overflows (absurd positions)')
         return qdot
 
-    def _after_tick(self, stamp_ns):
-        """Book-keeping after a tick: the stack taken over, errors and stalls, counters."""
-        if self._pending_name is not None and self.spg.stack is not None and \
-                self.spg.pending_stack is None:
+    def _after_tick(self, stamp_ns, events):
+        """Book-keeping after a tick: the stack taken over, errors and stalls, counters.
+
+        ``events`` are the SPG's (:attr:`~ifc_spg.spg.Tick.events`).
+        """
+        info = self.spg.info
+        if 'stack_taken' in events and self._pending_name is not None:
             self.stack_id, self.stack_name = self._next_id, self._pending_name
             self.stack_text = self._pending_text
             self._pending_name = None
             self._stack_since = stamp_ns * 1e-9
-        if self.spg.activations and self.spg.activations[-1] is not self._activation:
-            self._activation = self.spg.activations[-1]  # a new stack, or a restart
+            self._events.append(Event('stack_taken', f"task stack '{self.stack_name}' (id "
+                                      f'{self.stack_id}) runs from t = {stamp_ns * 1e-9:.3f} s'))
+        if 'activated' in events:  # a new stack, or a restart: new activation values
             self.config_version += 1
-        info = self.spg.info
         if info.status in ('fallback', 'hold', 'bad_input'):
             self._error('spg', f'{info.status}: {info.message}')
-        if info.stall_new:  # the first stall of this episode (stack activation or restart),
-            # or one of joints that had not stalled in it
+        if 'pspm_stall' in events:  # the first stall of this episode (stack activation or
+            # restart), or one of joints that had not stalled in it
             self.pspm_stalls += 1
             self.last_stall = info.message
             self._error('pspm', info.message)
+            self._events.append(Event('pspm_stall', info.message))
         self.ticks += 1
         self._tick_times.append(info.tick_time or 0.0)
         self._update_streams()
@@ -488,6 +540,7 @@ class SpgRunner:
     def _reject(self, reason, message):
         self.rejected[reason] += 1
         self._error('joint_states', f'joint state rejected ({reason}): {message}')
+        self._events.append(Event('rejected', self.last_error))
         return None
 
     def _error(self, where, message):
@@ -517,6 +570,7 @@ class SpgRunner:
         self.stale = True
         self.watchdog_trips += 1
         self._error('watchdog', message)
+        self._events.append(Event('watchdog', message))
 
     @property
     def state(self):
@@ -731,7 +785,6 @@ class SpgRunner:
             self.stack_id, self.stack_name = int(stack['id']), str(stack['name'])
             self.stack_text, self._stack_since = stack['text'], stack.get('since')
             self._next_id, self._pending_name = self.stack_id, None
-            self._activation = self.spg.activations[-1] if self.spg.activations else None
         self.replay_streams(vector, doc)
         self.ticks = int(parts['tick'][0])
         self.started, self.stale = True, False

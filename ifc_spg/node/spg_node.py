@@ -191,7 +191,6 @@ class SpgNode:
         else:
             self.log.warning('spg/obstacles is off: rclpy has no visualization_msgs here '
                              '(install ros-jazzy-visualization-msgs, requirements.txt)')
-        self._streams_stack = 0
         self._watchdog_timer = self._diag_timer = None
         self._latest, self._last_tick_ns = None, -1   # tick: timer
         self._ages = deque(maxlen=1000)                # [s] state age at each timer tick
@@ -352,46 +351,33 @@ class SpgNode:
             self._hold(message, stamp)
             return
         runner = self.runner
-        rejected, trips = sum(runner.rejected.values()), runner.watchdog_trips
-        was_stale, stalls = runner.stale, runner.pspm_stalls
-        cmd = runner.handle_joint_state(message.name, message.position, message.velocity,
-                                        stamp_to_ns(stamp))
-        if sum(runner.rejected.values()) != rejected:
-            self._log_throttled('error', runner.last_error)
-        if runner.watchdog_trips != trips:  # a stamp gap tripped it
-            self.log.warning(runner.last_error)
-        if cmd is None:
-            return
-        self._write(stamp, cmd.position, cmd.velocity)
-        if runner.stack_id != self._streams_stack:  # a stack took over: drop its old streams
-            self._streams_stack = runner.stack_id
-            self.streams.sync()
-        self.commands_sent += 1
-        if runner.config_version != self._config_version:
-            self.publish_config()
-        self.pub_state.publish(msg.Float64MultiArray(data=runner.state_vector().tolist()))
-        self._report_events(cmd, was_stale, stalls)
-        if cmd.tick % self.config.status_decimation == 0:
+        cmd, events = runner.tick(message.name, message.position, message.velocity,
+                                  stamp_to_ns(stamp))
+        if cmd is not None:
+            self._write(stamp, cmd.position, cmd.velocity)
+            self.commands_sent += 1
+            if runner.config_version != self._config_version:
+                self.publish_config()
+            self.pub_state.publish(msg.Float64MultiArray(data=runner.state_vector().tolist()))
+        for event in events:
+            self._report(event)
+        if cmd is not None and cmd.tick % self.config.status_decimation == 0:
             self.publish_status()
 
-    def _report_events(self, cmd, was_stale, stalls):
-        """Log and report a restart, a continuation after a pause, or a new PSPM stall."""
-        runner = self.runner
-        if cmd.resumed and cmd.tick > 1:
-            text = (f'joint states are back (stamp {cmd.stamp_ns * 1e-9:.3f} s): restarted from '
-                    f'the measured q (restart {runner.resumes})')
+    def _report(self, event):
+        """Map one of the runner's tick events to the log, ``spg/status`` and the streams."""
+        kind, text = event
+        if kind == 'rejected':
+            self._log_throttled('error', text)
+        elif kind == 'watchdog':  # a stamp gap tripped it
             self.log.warning(text)
-            self.publish_status(('resumed', text))
-        elif cmd.resumed:
-            self.log.info('first joint state: commanding from the measured q')
-        elif was_stale:
-            text = ('joint states are back with continuous stamps (the source paused): '
-                    'continuing without a restart')
+        elif kind == 'stack_taken':  # its streams replace the old stack's
+            self.streams.sync()
+        elif kind == 'started':
             self.log.info(text)
-            self.publish_status(('continued', text))
-        if runner.pspm_stalls != stalls:  # an empty tank clips the stack: once per episode
-            self.log.warning(runner.last_stall)
-            self.publish_status(('pspm_stall', runner.last_stall))
+        elif kind in ('resumed', 'continued', 'pspm_stall'):
+            (self.log.info if kind == 'continued' else self.log.warning)(text)
+            self.publish_status((kind, text))
 
     def on_obstacles(self, message):
         """``spg/obstacles`` (MarkerArray): obstacle poses for the next tick; bad ones counted."""

@@ -552,8 +552,7 @@ class _LockstepRun:
         js = self._write_state(s, t_ns, stamp)
         # the SPG sees exactly what the bag holds
         runner = self.runner
-        stalls = runner.pspm_stalls
-        cmd = runner.handle_joint_state(js.name, js.position, js.velocity, t_ns)
+        cmd, events = runner.tick(js.name, js.position, js.velocity, t_ns)
         if cmd is None:
             raise IfcSpgError(f'the SPG rejected the joint state at t = {s.t:.3f} s: '
                               f'{runner.last_error}')
@@ -576,11 +575,12 @@ class _LockstepRun:
                 runner.spg.tasks, self.probe.kin_v, task_time,
                 (self.contact_chain, force)))
         event = None
-        if runner.pspm_stalls != stalls:  # once per episode, as spg_node logs it
-            event = ('pspm_stall', runner.last_stall)
-            if not self.quiet:
-                print(f'[{self.scenario.name}] t = {s.t:.3f} s: {runner.last_stall}',
-                      file=self.stream, flush=True)
+        for kind, text in events:
+            if kind == 'pspm_stall':  # once per episode, as spg_node reports it
+                event = (kind, text)
+                if not self.quiet:
+                    print(f'[{self.scenario.name}] t = {s.t:.3f} s: {text}',
+                          file=self.stream, flush=True)
         if event or k % self.config.status_decimation == 0 or k == self.n_ticks - 1:
             self._write_status(event, tasks, t_ns)
         self.metrics.on_tick(s.t, s.contact_wrench, cmd, info, tasks)
