@@ -174,9 +174,10 @@ class ObstacleInput:
         obs = declared.get(name)
         if obs is None:
             from ifc_spg.errors import did_you_mean
+            listed = (', '.join(declared) if declared else
+                      '(none: no collision_avoidance task of the running stack lists one)')
             return None, ('unknown_obstacle', f"marker ns '{name}' names no obstacle of the "
-                          f'running stack{did_you_mean(name, declared)}; obstacles: '
-                          f"{', '.join(declared) or '(none declared)'}")
+                          f'running stack{did_you_mean(name, declared)}; obstacles: {listed}')
         frame = str(mk.header.frame_id)
         if frame not in self.base_frames:
             return None, ('unknown_frame', f"obstacle '{name}': frame_id '{frame}'; give the "
