@@ -223,3 +223,34 @@ def test_tick_events_say_what_each_state_did(robot):
     assert runner.check_watchdog()
     assert kinds(names, q, z, 3 * DT_NS + 60_000_000)[:2] == (True, ['continued'])
     assert runner.resumes == 1 and runner.watchdog_trips == 2
+
+
+def test_live_markers_draw_each_wrench_tasks_commanded_force(robot):
+    """``spg/markers`` of the node (MarkerPublisher) carries the commanded force of a wrench
+    task as an arrow of FORCE_SCALE m/N at its frame: the demo's 8 N press, pointing down."""
+    from types import SimpleNamespace
+
+    from helpers import CONFIG
+    import yaml
+
+    from ifc_spg.node.markers import FORCE_SCALE, MarkerPublisher
+
+    published = []
+    node = SimpleNamespace(create_publisher=lambda *a: SimpleNamespace(publish=published.append),
+                           create_timer=lambda *a: None, get_logger=lambda: None)
+    runner = SpgRunner(SpgConfig(watchdog_timeout=0.0), robot)
+    doc = yaml.safe_load((CONFIG / 'scenarios' / 'demo_lbr.yaml').read_text())
+    assert runner.handle_task_stack(yaml.safe_dump(doc['stacks'][0]['stack'])).accepted
+    q, z = robot.q_home.copy(), np.zeros(robot.n)
+    for k in range(3):
+        runner.handle_joint_state(robot.joint_names, q, z, k * DT_NS)
+    markers = MarkerPublisher(node, runner, 30.0)
+    markers.publish()
+    [arr] = published
+    arrows = [m for m in arr.markers if m.type == m.ARROW and len(m.points) == 2]
+    assert [m.ns for m in arrows] == ['contact_force']
+    start, end = (np.array([p.x, p.y, p.z]) for p in arrows[0].points)
+    force = (end - start) / FORCE_SCALE
+    assert np.linalg.norm(force) == pytest.approx(8.0, abs=1e-6) and force[2] < -7.0
+    tool = runner.spg.kin.frame(robot.frame_id('tool'), virtual=False)[0]
+    np.testing.assert_allclose(start, tool, atol=1e-12)

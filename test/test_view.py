@@ -29,7 +29,9 @@ def cockpit(tmp_path_factory):
     out = tmp_path_factory.mktemp('view')
     sc = load_scenario(find_config_dir() / 'scenarios' / 'surface_short.yaml',
                        {'duration': 1.2})
-    c = Cockpit(load_bag(run_scenario(sc, out, quiet=True).bag), port=_free_port())
+    bag = run_scenario(sc, out, quiet=True).bag
+    c = Cockpit(load_bag(bag), port=_free_port())
+    c.bag_path = bag  # for the tests (not the cockpit's)
     yield c
     c.close()
 
@@ -59,6 +61,40 @@ def test_robot_ghost_and_targets_follow_the_timeline(cockpit):
     assert cockpit.status.content.startswith('stack **circle**, running')
     assert 'tanks [J]: ' + ' '.join(f'{e:.2f}' for e in doc['tank_energy']) in \
         cockpit.status.content
+
+
+def test_force_arrows_are_the_recorded_contact_force_and_the_commanded_one(cockpit):
+    """The cockpit draws each /spg/markers force arrow: the measured one (orange) is the bag's
+    own /sim/contact_wrench at that stamp, 1 cm per newton, at the contact frame."""
+    from ros_testing import stamp_ns
+
+    from ifc_spg.node.markers import FORCE_SCALE
+    from ifc_spg.offline.bag import BagReader
+
+    with BagReader(cockpit.bag_path) as reader:
+        wrench = {stamp_ns(m): -np.array([m.wrench.force.x, m.wrench.force.y,
+                                          m.wrench.force.z])
+                  for _, _, m in reader.messages({'/sim/contact_wrench'})}
+    bag = cockpit.data
+    assert bag.forces and all(len(items) == 2 for _, items in bag.forces)  # task + measured
+    checked = 0
+    for i in (len(bag.t) // 2, len(bag.t) - 1):
+        cockpit.slider.value = i
+        stamp, items = [x for x in bag.forces if x[0] <= bag.t[i] + 1e-9][-1]
+        for name, start, end, rgb in items:
+            handle = cockpit.force_handles[name]
+            assert handle.visible
+            np.testing.assert_allclose(handle.points[0], [start, end])
+            if name.endswith('measured'):
+                assert rgb[0] > rgb[2]  # orange
+                np.testing.assert_allclose((end - start) / FORCE_SCALE,
+                                           wrench[round(stamp * 1e9)], atol=1e-6)
+                checked += 1
+            else:
+                assert rgb[1] > rgb[0]  # green: the commanded force, along -z (pressing)
+                assert end[2] < start[2]
+    assert checked == 2
+    assert 'arrows: forces' in cockpit.label.content
 
 
 def _wxyz(R):

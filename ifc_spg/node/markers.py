@@ -8,9 +8,9 @@ generated ones or :mod:`ifc_spg.ros.messages`); the offline bags
 a yellow sphere at its origin (2 cm), in ``frame`` (the robot's base frame, default
 ``world``); ``spg_node`` adds the running stack's base-frame obstacles where the SPG has
 them (:func:`~ifc_spg.node.obstacles.obstacle_markers`: ``ns`` the obstacle's name, the
-markers ``spg/obstacles`` takes). The bags of ``ifc-spg run`` add force arrows (1 cm per
-N, labelled in N): each wrench task's commanded force (green) and the measured contact
-force (orange).
+markers ``spg/obstacles`` takes). Force arrows (1 cm per N, labelled in N): each wrench
+task's commanded force (green), live and in the bags, and in the bags of ``ifc-spg run``
+the measured contact force (orange).
 """
 
 import numpy as np
@@ -194,7 +194,8 @@ class MarkerPublisher:
         t = spg.info.task_time if spg.info.task_time is not None else 0.0
         targets = cartesian_targets(spg.tasks, spg.kin, t)
         stamp = self.runner._last_stamp or 0
-        out = marker_array(self._msg, targets, stamp, self.frame)
+        out = marker_array(self._msg, targets, stamp, self.frame,
+                           forces=wrench_arrows(spg.tasks, spg.kin, t))
         out.markers = list(out.markers) + obstacle_markers(self._msg, spg.tasks, self.frame,
                                                            stamp)
         self.pub.publish(out)

@@ -45,30 +45,46 @@ class ViewData:
         targets: ``[(stamp [s], [(task name, position (3,), wxyz (4,))])]`` from
             ``/spg/markers``.
         status: ``[(stamp [s], spg/status document)]`` (documents with a stamp).
+        forces: ``[(stamp [s], [(name, start (3,), end (3,), rgb)])]``: the force arrows of
+            ``/spg/markers`` (commanded and measured, :data:`ifc_spg.node.markers.FORCE_SCALE`
+            metres per newton).
     """
 
-    def __init__(self, urdf, joint_names, t, q, q_v, targets, status=()):
+    def __init__(self, urdf, joint_names, t, q, q_v, targets, status=(), forces=()):
         self.urdf, self.joint_names = urdf, list(joint_names)
         self.t, self.q, self.q_v, self.targets = t, q, q_v, targets
         self.status = list(status)
+        self.forces = list(forces)
 
 
 def _stamp(msg):
     return stamp_to_sec(msg.header.stamp)
 
 
+def _targets(markers):
+    """``[(task, position, wxyz)]``: the target origins (SPHERE markers) of ``spg/markers``."""
+    return [(m.ns, np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z]),
+             np.array([m.pose.orientation.w, m.pose.orientation.x, m.pose.orientation.y,
+                       m.pose.orientation.z])) for m in markers if m.type == 2]  # SPHERE
+
+
+def _forces(markers):
+    """``[(name, start, end, rgb)]``: the force arrows (ARROWs given by two points)."""
+    return [(m.ns, np.array([m.points[0].x, m.points[0].y, m.points[0].z]),
+             np.array([m.points[1].x, m.points[1].y, m.points[1].z]),
+             tuple(int(round(255 * c)) for c in (m.color.r, m.color.g, m.color.b)))
+            for m in markers if m.type == 0 and len(m.points) == 2]  # ARROW
+
+
 def _markers(data):
-    """``(stamp [s], [(task, position, wxyz)])`` of a recorded ``spg/markers`` message."""
+    """``(stamp [s], targets, forces)`` of a recorded ``spg/markers`` message (None if empty)."""
     from ifc_spg.ros import messages
 
     arr = messages.deserialize(messages.MarkerArray, data)
-    spheres = [m for m in arr.markers if m.type == messages.Marker.SPHERE]
-    if not spheres:
+    stamped = [m for m in arr.markers if m.action == messages.Marker.ADD]
+    if not stamped:
         return None
-    return (_stamp(spheres[0]), [
-        (m.ns, np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z]),
-         np.array([m.pose.orientation.w, m.pose.orientation.x, m.pose.orientation.y,
-                   m.pose.orientation.z])) for m in spheres])
+    return _stamp(stamped[0]), _targets(arr.markers), _forces(arr.markers)
 
 
 def _json_doc(text):
@@ -87,7 +103,7 @@ def _read(path):
     from ifc_spg.offline.bag import BagReader
     from ifc_spg.ros import messages
 
-    states, commands, targets, status = {}, {}, [], []
+    states, commands, targets, forces, status = {}, {}, [], [], []
     urdf = robot = None
     with BagReader(path) as bag:
         topics = {t.lstrip('/'): t for t in bag.topics}
@@ -109,11 +125,14 @@ def _read(path):
             elif name == 'spg/markers':
                 item = _markers(data)
                 if item is not None:
-                    targets.append(item)
+                    stamp, items, arrows = item
+                    if items:
+                        targets.append((stamp, items))
+                    forces.append((stamp, arrows))
             elif name in ('joint_states', 'command/joint_position'):
                 js = messages.deserialize(messages.JointState, data)
                 (states if name == 'joint_states' else commands)[_stamp(js)] = js
-    return states, commands, targets, urdf, robot, status
+    return states, commands, (targets, forces), urdf, robot, status
 
 
 def load_bag(path):
@@ -122,7 +141,7 @@ def load_bag(path):
     Raises:
         ParameterError: Not a bag, no joint states, or no way to know the robot.
     """
-    states, commands, targets, urdf, robot, status = _read(path)
+    states, commands, (targets, forces), urdf, robot, status = _read(path)
     if not states:
         raise ParameterError(f"bag '{path}': no joint states recorded")
     if urdf is None:
@@ -142,9 +161,9 @@ def load_bag(path):
     q = np.array([row(states[s]) for s in stamps])
     q_v = np.array([row(commands[s]) if s in commands else [np.nan] * len(names)
                     for s in stamps])
-    targets.sort(key=lambda x: x[0])
-    status.sort(key=lambda x: x[0])
-    return ViewData(urdf, names, np.array(stamps), q, q_v, targets, status)
+    for items in (targets, forces, status):
+        items.sort(key=lambda x: x[0])
+    return ViewData(urdf, names, np.array(stamps), q, q_v, targets, status, forces)
 
 
 def _visuals(urdf):
@@ -244,7 +263,7 @@ class _Scene:
                         scene.add_icosphere(name, radius=size[0], **kw)
                     else:
                         scene.add_cylinder(name, radius=size[0], height=size[1], **kw)
-        self.target_handles = {}
+        self.target_handles, self.force_handles = {}, {}
         self._stop = threading.Event()
 
     def fk(self, q):
@@ -284,10 +303,37 @@ class _Scene:
             if name not in seen:
                 handle.visible = False
 
+    def draw_forces(self, items):
+        """Show ``[(name, start, end, rgb)]`` as arrows; hide the others."""
+        seen = set()
+        for name, start, end, rgb in items:
+            seen.add(name)
+            points = np.array([[start, end]], dtype=float)
+            colors = np.array([rgb], dtype=np.uint8)
+            handle = self.force_handles.get(name)
+            if handle is None:
+                handle = self.force_handles[name] = self.server.scene.add_arrows(
+                    f'/forces/{name}', points=points, colors=colors, shaft_radius=0.004,
+                    head_radius=0.01, head_length=0.02)
+            handle.points, handle.colors, handle.visible = points, colors, True
+        for name, handle in self.force_handles.items():
+            if name not in seen:
+                handle.visible = False
+
     def close(self):
         """Stop the background thread and the server."""
         self._stop.set()
         self.server.stop()
+
+
+def _at(series, t, default):
+    """The value of ``[(stamp, value)]`` (sorted) last at or before ``t``."""
+    current = default
+    for stamp, value in series:
+        if stamp > t + 1e-9:
+            break
+        current = value
+    return current
 
 
 class Cockpit(_Scene):
@@ -328,14 +374,11 @@ class Cockpit(_Scene):
         self.index = i
         with self.server.atomic():
             self.draw(data.q[i], data.q_v[i])
-            current = []
-            for stamp, items in data.targets:
-                if stamp > data.t[i] + 1e-9:
-                    break
-                current = items
-            self.draw_targets(current)
+            self.draw_targets(_at(data.targets, data.t[i], []))
+            self.draw_forces(_at(data.forces, data.t[i], []))
         self.label.content = (f'**t = {data.t[i] - data.t[0]:.3f} s** ({i + 1}/{len(data.t)}); '
-                              'solid: measured q, blue: q_v, axes: task targets')
+                              'solid: measured q, blue: q_v, axes: task targets, arrows: '
+                              'forces (green commanded, orange measured; 1 cm/N)')
         doc = None
         for stamp, d in data.status:
             if stamp > data.t[i] + 1e-9:
@@ -387,7 +430,7 @@ class LiveCockpit(_Scene):
             node = ros.Node('spg_view')
         self.node = node
         self.q = self.q_v = None
-        self.targets, self.gizmos, self._pubs = [], {}, {}
+        self.targets, self.forces, self.gizmos, self._pubs = [], [], {}, {}
         node.create_subscription(msg.JointState, 'joint_states',
                                  lambda m: setattr(self, 'q', self._ordered(m)), 10)
         node.create_subscription(msg.JointState, 'command/joint_position',
@@ -413,11 +456,7 @@ class LiveCockpit(_Scene):
             self.last_status = doc
 
     def _on_markers(self, arr):
-        self.targets = [(m.ns, np.array([m.pose.position.x, m.pose.position.y,
-                                         m.pose.position.z]),
-                         np.array([m.pose.orientation.w, m.pose.orientation.x,
-                                   m.pose.orientation.y, m.pose.orientation.z]))
-                        for m in arr.markers if m.type == 2]  # SPHERE: a target's origin
+        self.targets, self.forces = _targets(arr.markers), _forces(arr.markers)
 
     def _on_config(self, message):
         import json
@@ -473,8 +512,10 @@ class LiveCockpit(_Scene):
                 with self.server.atomic():
                     self.draw(self.q, self.q_v)
                     self.draw_targets(self.targets)
-                self.label.content = ('solid: measured q, blue: q_v, axes: targets; drag a '
-                                      'gizmo to stream a pose target')
+                    self.draw_forces(self.forces)
+                self.label.content = ('solid: measured q, blue: q_v, axes: targets, green '
+                                      'arrows: commanded forces (1 cm/N); drag a gizmo to '
+                                      'stream a pose target')
                 self.status.content = status_text(self.last_status)
 
     def close(self):
