@@ -19,6 +19,9 @@ joint-impedance plant (the plant is not timed). Stacks:
   pairs, ACCREA: 218 self pairs) and the level's rows next to mink's
   ``CollisionAvoidanceLimit`` on the same pairs (:mod:`benchmarks.collision_bench`).
 
+``--scaling`` runs the cost curve instead (:mod:`benchmarks.scaling_bench`): tick p50/p99
+against DoF, levels and rows per level, with the fitted exponents and a figure.
+
 Targets (issue 3): LBR p99 <= 0.3 ms and max <= 1 ms; iCub p99 <= 0.6 ms; ratio <= 1.0.
 
 A machine baseline runs next to each DAQP row, tick by tick: a fixed piece of pure Python
@@ -29,6 +32,7 @@ work of about the same length, timed the same way. Its max and its count of peri
 import argparse
 import gc
 import json
+from pathlib import Path
 import sys
 import time
 
@@ -414,11 +418,37 @@ def format_report(res):
     return '\n'.join(lines)
 
 
+_FIGURE = Path(__file__).resolve().parent.parent / 'docs' / 'figures' / 'tick_scaling.png'
+
+
+def _scaling(ticks, json_path, figure):
+    """``--scaling``: run :mod:`benchmarks.scaling_bench`, print, write the JSON and figure."""
+    from benchmarks.scaling_bench import format_scaling, plot, run_scaling
+
+    res = run_scaling(ticks)
+    print(format_scaling(res))
+    if json_path:
+        with open(json_path, 'w') as f:
+            json.dump(res, f, indent=1)
+    if figure:
+        plot(res, figure)
+        print(f'figure: {figure}')
+    return 0
+
+
 def main(argv=None):
     """Entry point of ``ifc-spg bench``."""
     p = argparse.ArgumentParser(prog='ifc-spg bench', description=__doc__.split('\n\n')[0])
-    p.add_argument('--ticks', type=int, default=20000, help='ticks per row (default 20000)')
+    p.add_argument('--ticks', type=int, default=None,
+                   help='ticks per row (default 20000; with --scaling 2000 per point)')
     p.add_argument('--quick', action='store_true', help='2000 ticks per row')
+    p.add_argument('--scaling', action='store_true',
+                   help='only the cost curve: tick p50/p99 against DoF (7, 17, 34-joint '
+                        'chains), levels (1-10) and rows per level (1-12), with fitted '
+                        'exponents (benchmarks/scaling_bench.py; about 30 s)')
+    p.add_argument('--figure', default=str(_FIGURE),
+                   help='with --scaling: the PNG of the three curves (default '
+                        "docs/figures/tick_scaling.png of the checkout; '' for none)")
     p.add_argument('--solvers', default='daqp,proxsuite', help='comma-separated solvers')
     p.add_argument('--proxsuite-ticks', type=int, default=300,
                    help='ticks per proxsuite row (default 300: it stalls for up to ~0.2 s '
@@ -427,9 +457,13 @@ def main(argv=None):
                    help='seconds per proxsuite row, warm-up included (default 60)')
     p.add_argument('--json', help='also write the results to this JSON file')
     args = p.parse_args(argv)
-    ticks = 2000 if args.quick else args.ticks
+    ticks = 2000 if args.quick else 20000 if args.ticks is None else args.ticks
+    if args.scaling and not args.quick and args.ticks is None:
+        ticks = 2000
     if ticks < 1:
         p.error('--ticks must be >= 1')
+    if args.scaling:
+        return _scaling(ticks, args.json, args.figure)
     res = run_benchmarks(ticks, tuple(s for s in args.solvers.split(',') if s),
                          slow_ticks=args.proxsuite_ticks, slow_budget=args.proxsuite_budget)
     print(format_report(res))
