@@ -33,6 +33,7 @@ import argparse
 import gc
 import json
 from pathlib import Path
+import subprocess
 import sys
 import time
 
@@ -322,8 +323,57 @@ def bench_first_ticks(repeats=20):
                'steady': _stats(np.array(st))} for mode, (f, s, st) in times.items()}}
 
 
+def _process_first(warm_up):
+    """First, switch and steady ticks [us] of the first SPG of this process (LBR, as above)."""
+    robot = RobotModel.from_config('lbr_iiwa14')
+    second = TaskStack.from_file(str(find_config_dir() / 'tasks' /
+                                     'table_4_2_orientation_box.yaml'))
+    spg = SetPointGenerator(robot, None, dt=0.002, warm_up=warm_up)
+    spg.set_stack(lbr_stack(robot))
+    q, qdot = np.array(robot.q_home, dtype=float), np.zeros(robot.n)
+    times = np.empty(200)
+    gc.disable()
+    try:
+        for k in range(200):
+            if k == 100:
+                spg.set_stack(second)
+            t0 = time.perf_counter()
+            q_v = spg.step(q, qdot, k * 0.002)
+            times[k] = time.perf_counter() - t0
+            qdot, q = (q_v - q) / 0.002, q_v
+    finally:
+        gc.enable()
+    us = times * 1e6
+    p50 = float(np.median(np.delete(us, [0, 100])))
+    return {'first_us': float(us[0]), 'switch_us': float(us[100]), 'steady_p50_us': p50,
+            'first_ratio': float(us[0]) / p50, 'switch_ratio': float(us[100]) / p50}
+
+
+def bench_process_first_ticks(runs=3):
+    """The first and switch tick of the first SPG of a process, with and without the warm-up.
+
+    Each run starts two fresh interpreters (:func:`_process_first`, the SPG built with
+    ``warm_up=True`` and with ``warm_up=False``); the first tick of a process pays for
+    Python's bytecode specialization and the libraries' first calls, which a process that
+    ran other SPGs before has paid. Returns the runs and their medians.
+    """
+    root = Path(__file__).resolve().parent.parent
+    code = ('import json, sys; from benchmarks.bench import _process_first; '
+            'print(json.dumps(_process_first(sys.argv[1] == "1")))')
+    out = {'runs': runs}
+    for mode, flag in (('warm_up', '1'), ('no_warm_up', '0')):
+        rows = []
+        for _ in range(runs):
+            proc = subprocess.run([sys.executable, '-c', code, flag], cwd=root, check=True,
+                                  capture_output=True, text=True)
+            rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        out[mode] = {'runs': rows, **{key: float(np.median([r[key] for r in rows]))
+                                      for key in rows[0]}}
+    return out
+
+
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
-                   slow_ticks=300, slow_budget=60.0):
+                   slow_ticks=300, slow_budget=60.0, first_runs=3):
     """Run all benchmarks; return a JSON-friendly dict."""
     out = {'ticks': ticks, 'stacks': [], 'implementation': kernels.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
@@ -348,12 +398,49 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
     if progress:
         print('  first and stack-switch ticks ...', file=sys.stderr)
     out['first_ticks'] = bench_first_ticks()
+    out['process_first_ticks'] = bench_process_first_ticks(first_runs)
     from benchmarks.collision_bench import bench_collision
     out['collision'] = bench_collision(max(10, ticks // 4), progress)
     return out
 
 
 TARGETS = {'lbr_table_4_1': (300.0, 1000.0), 'icub_table_3_7': (600.0, None)}
+
+
+def _format_first_ticks(res):
+    """The lines of the first-tick and stack-switch-tick rows."""
+    lines = []
+    f = res.get('first_ticks')
+    if f:
+        lines += ['', f"LBR first tick and stack-switch tick ({f['repeats']} repeats each, "
+                  'interleaved): solver models built when a stack is accepted (prepared) vs '
+                  'at the tick that first needs them (lazy, the old way):']
+        for mode in ('prepared', 'lazy'):
+            for key in ('first', 'switch', 'steady'):
+                st = f[mode][key]
+                lines.append(f"  {mode:<9}{key:<7}p50 {st['p50_us']:8.1f} us  p99 "
+                             f"{st['p99_us']:8.1f} us  max {st['max_us']:8.1f} us")
+        p, lazy = f['prepared'], f['lazy']
+        worst = max(p['first']['max_us'], p['switch']['max_us'])
+        ratio = {key: p[key]['p50_us'] / lazy[key]['p50_us'] for key in ('first', 'switch')}
+        lines.append(f"  first and switch ticks <= 1 ms (prepared): "
+                     f"{'met' if worst <= 1000.0 else 'MISSED'} (max {worst:.0f} us); ratio "
+                     f"prepared/lazy p50: first {ratio['first']:.2f}, switch "
+                     f"{ratio['switch']:.2f}")
+        lines.append(f"  prepared, to the steady p50: first "
+                     f"{p['first']['p50_us'] / p['steady']['p50_us']:.2f}, switch "
+                     f"{p['switch']['p50_us'] / p['steady']['p50_us']:.2f} (target <= 3)")
+    pf = res.get('process_first_ticks')
+    if pf:
+        lines += ['', f"LBR first tick of a process (a fresh interpreter per run, median of "
+                  f"{pf['runs']}), with the construction's warm-up and without it:"]
+        for mode in ('warm_up', 'no_warm_up'):
+            m = pf[mode]
+            lines.append(f"  {mode:<11}first {m['first_us']:6.0f} us  switch "
+                         f"{m['switch_us']:6.0f} us  steady p50 {m['steady_p50_us']:5.0f} us:"
+                         f"  first/p50 {m['first_ratio']:.2f}  switch/p50 "
+                         f"{m['switch_ratio']:.2f}  (target <= 3)")
+    return lines
 
 
 def format_report(res):
@@ -395,23 +482,7 @@ def format_report(res):
               f"  ours without PSPM (pink has no passivity layer): p50 "
               f"{p['ours_no_pspm']['p50_us']:.1f} us  p99 {p['ours_no_pspm']['p99_us']:.1f} us; "
               f"ratio p50 {p['ratio_no_pspm_p50']:.2f}  p99 {p['ratio_no_pspm_p99']:.2f}"]
-    f = res.get('first_ticks')
-    if f:
-        lines += ['', f"LBR first tick and stack-switch tick ({f['repeats']} repeats each, "
-                  'interleaved): solver models built when a stack is accepted (prepared) vs '
-                  'at the tick that first needs them (lazy, the old way):']
-        for mode in ('prepared', 'lazy'):
-            for key in ('first', 'switch', 'steady'):
-                st = f[mode][key]
-                lines.append(f"  {mode:<9}{key:<7}p50 {st['p50_us']:8.1f} us  p99 "
-                             f"{st['p99_us']:8.1f} us  max {st['max_us']:8.1f} us")
-        p, lazy = f['prepared'], f['lazy']
-        worst = max(p['first']['max_us'], p['switch']['max_us'])
-        ratio = {key: p[key]['p50_us'] / lazy[key]['p50_us'] for key in ('first', 'switch')}
-        lines.append(f"  first and switch ticks <= 1 ms (prepared): "
-                     f"{'met' if worst <= 1000.0 else 'MISSED'} (max {worst:.0f} us); ratio "
-                     f"prepared/lazy p50: first {ratio['first']:.2f}, switch "
-                     f"{ratio['switch']:.2f}")
+    lines += _format_first_ticks(res)
     if res.get('collision'):
         from benchmarks.collision_bench import format_collision
         lines += ['', format_collision(res['collision'])]

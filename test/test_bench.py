@@ -6,7 +6,7 @@ from benchmarks.bench import format_report, run_benchmarks
 
 
 def test_bench_runs_every_row_and_reports_the_machine_baseline():
-    res = run_benchmarks(ticks=40, solvers=('daqp',), progress=False)
+    res = run_benchmarks(ticks=40, solvers=('daqp',), progress=False, first_runs=1)
     rows = {r['stack']: r for r in res['stacks']}
     assert set(rows) == {'lbr_table_4_1', 'icub_table_3_7'}
     for r in rows.values():
@@ -24,6 +24,11 @@ def test_bench_runs_every_row_and_reports_the_machine_baseline():
         assert f[mode]['first']['ticks'] == f[mode]['switch']['ticks'] == f['repeats']
         assert f[mode]['steady']['ticks'] == 198 * f['repeats']
     assert 'stack-switch tick' in report and 'prepared/lazy' in report
+    pf = res['process_first_ticks']
+    for mode in ('warm_up', 'no_warm_up'):
+        assert len(pf[mode]['runs']) == 1 and pf[mode]['first_us'] > 0
+        assert pf[mode]['first_ratio'] > 0 and pf[mode]['switch_ratio'] > 0
+    assert 'first tick of a process' in report
 
 
 def test_warm_start_bench_runs_and_the_explicit_working_sets_cost_no_iterations():
