@@ -18,6 +18,7 @@ log-log; :func:`plot` draws the three curves.
 
 import gc
 import math
+import os
 import sys
 import time
 
@@ -192,7 +193,8 @@ def run_scaling(ticks=2000, warmup=200, progress=True):
     from benchmarks.bench import _stats
 
     robots = {n: chain_robot(n) for n in AXES['dof']}
-    out = {'ticks': ticks, 'warmup': warmup, 'axes': {}, 'exponents': {}}
+    out = {'ticks': ticks, 'warmup': warmup, 'axes': {}, 'exponents': {},
+           'load_average': os.getloadavg()[0]}
     t_start = time.perf_counter()
     for axis, xs in AXES.items():
         rows = []
@@ -226,7 +228,8 @@ _LABELS = {'dof': 'DoF (chain, 5-level Table 4.1 stack)',
 def format_scaling(res):
     """The table and the exponents as text."""
     lines = [f"Tick cost scaling, closed loop, {res['ticks']} ticks per point (GC off, plant "
-             'not timed); exponent k of p50 ~ x^k (log-log least squares):']
+             f"not timed; load average {res['load_average']:.1f} at the start); exponent k of "
+             'p50 ~ x^k (log-log least squares):']
     for axis, rows in res['axes'].items():
         lines.append(f"  {_LABELS[axis]}: k = {res['exponents'][axis]:.2f}")
         lines.append('    ' + '  '.join(f"{r['x']:>3}: {r['p50_us']:5.0f}/{r['p99_us']:.0f}"
@@ -254,7 +257,8 @@ def plot(res, path):
         ax.grid(True, which='major', alpha=0.3)
     axes[0].set_ylabel('tick [us]')
     axes[0].legend(fontsize=8)
-    fig.suptitle(f"SPG tick cost, closed loop, {res['ticks']} ticks per point", fontsize=10)
+    fig.suptitle(f"SPG tick cost, closed loop, {res['ticks']} ticks per point (load average "
+                 f"{res['load_average']:.1f})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
