@@ -324,7 +324,7 @@ def test_the_construction_warm_up_changes_no_result(monkeypatch):
 
     monkeypatch.setattr(SetPointGenerator, 'step', counted_step)
 
-    def run(warm_up):
+    def run(warm_up):  # the process's record of warm-ups has no public API: emptied here
         monkeypatch.setattr(spg_module, '_WARMED_UP', set())
         steps.clear()
         spg = SetPointGenerator(IIWA, stacks[0], warm_up=warm_up)
