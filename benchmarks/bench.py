@@ -19,6 +19,9 @@ joint-impedance plant (the plant is not timed). Stacks:
   pairs, ACCREA: 218 self pairs) and the level's rows next to mink's
   ``CollisionAvoidanceLimit`` on the same pairs (:mod:`benchmarks.collision_bench`).
 
+``--scaling`` runs the cost curve instead (:mod:`benchmarks.scaling_bench`): tick p50/p99
+against DoF, levels and rows per level, with the fitted exponents and a figure.
+
 Targets (issue 3): LBR p99 <= 0.3 ms and max <= 1 ms; iCub p99 <= 0.6 ms; ratio <= 1.0.
 
 A machine baseline runs next to each DAQP row, tick by tick: a fixed piece of pure Python
@@ -29,6 +32,8 @@ work of about the same length, timed the same way. Its max and its count of peri
 import argparse
 import gc
 import json
+from pathlib import Path
+import subprocess
 import sys
 import time
 
@@ -318,8 +323,57 @@ def bench_first_ticks(repeats=20):
                'steady': _stats(np.array(st))} for mode, (f, s, st) in times.items()}}
 
 
+def _process_first(warm_up):
+    """First, switch and steady ticks [us] of the first SPG of this process (LBR, as above)."""
+    robot = RobotModel.from_config('lbr_iiwa14')
+    second = TaskStack.from_file(str(find_config_dir() / 'tasks' /
+                                     'table_4_2_orientation_box.yaml'))
+    spg = SetPointGenerator(robot, None, dt=0.002, warm_up=warm_up)
+    spg.set_stack(lbr_stack(robot))
+    q, qdot = np.array(robot.q_home, dtype=float), np.zeros(robot.n)
+    times = np.empty(200)
+    gc.disable()
+    try:
+        for k in range(200):
+            if k == 100:
+                spg.set_stack(second)
+            t0 = time.perf_counter()
+            q_v = spg.step(q, qdot, k * 0.002)
+            times[k] = time.perf_counter() - t0
+            qdot, q = (q_v - q) / 0.002, q_v
+    finally:
+        gc.enable()
+    us = times * 1e6
+    p50 = float(np.median(np.delete(us, [0, 100])))
+    return {'first_us': float(us[0]), 'switch_us': float(us[100]), 'steady_p50_us': p50,
+            'first_ratio': float(us[0]) / p50, 'switch_ratio': float(us[100]) / p50}
+
+
+def bench_process_first_ticks(runs=3):
+    """The first and switch tick of the first SPG of a process, with and without the warm-up.
+
+    Each run starts two fresh interpreters (:func:`_process_first`, the SPG built with
+    ``warm_up=True`` and with ``warm_up=False``); the first tick of a process pays for
+    Python's bytecode specialization and the libraries' first calls, which a process that
+    ran other SPGs before has paid. Returns the runs and their medians.
+    """
+    root = Path(__file__).resolve().parent.parent
+    code = ('import json, sys; from benchmarks.bench import _process_first; '
+            'print(json.dumps(_process_first(sys.argv[1] == "1")))')
+    out = {'runs': runs}
+    for mode, flag in (('warm_up', '1'), ('no_warm_up', '0')):
+        rows = []
+        for _ in range(runs):
+            proc = subprocess.run([sys.executable, '-c', code, flag], cwd=root, check=True,
+                                  capture_output=True, text=True)
+            rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        out[mode] = {'runs': rows, **{key: float(np.median([r[key] for r in rows]))
+                                      for key in rows[0]}}
+    return out
+
+
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
-                   slow_ticks=300, slow_budget=60.0):
+                   slow_ticks=300, slow_budget=60.0, first_runs=3):
     """Run all benchmarks; return a JSON-friendly dict."""
     out = {'ticks': ticks, 'stacks': [], 'implementation': kernels.describe()}
     lbr = RobotModel.from_config('lbr_iiwa14')
@@ -344,12 +398,49 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
     if progress:
         print('  first and stack-switch ticks ...', file=sys.stderr)
     out['first_ticks'] = bench_first_ticks()
+    out['process_first_ticks'] = bench_process_first_ticks(first_runs)
     from benchmarks.collision_bench import bench_collision
     out['collision'] = bench_collision(max(10, ticks // 4), progress)
     return out
 
 
 TARGETS = {'lbr_table_4_1': (300.0, 1000.0), 'icub_table_3_7': (600.0, None)}
+
+
+def _format_first_ticks(res):
+    """The lines of the first-tick and stack-switch-tick rows."""
+    lines = []
+    f = res.get('first_ticks')
+    if f:
+        lines += ['', f"LBR first tick and stack-switch tick ({f['repeats']} repeats each, "
+                  'interleaved): solver models built when a stack is accepted (prepared) vs '
+                  'at the tick that first needs them (lazy, the old way):']
+        for mode in ('prepared', 'lazy'):
+            for key in ('first', 'switch', 'steady'):
+                st = f[mode][key]
+                lines.append(f"  {mode:<9}{key:<7}p50 {st['p50_us']:8.1f} us  p99 "
+                             f"{st['p99_us']:8.1f} us  max {st['max_us']:8.1f} us")
+        p, lazy = f['prepared'], f['lazy']
+        worst = max(p['first']['max_us'], p['switch']['max_us'])
+        ratio = {key: p[key]['p50_us'] / lazy[key]['p50_us'] for key in ('first', 'switch')}
+        lines.append(f"  first and switch ticks <= 1 ms (prepared): "
+                     f"{'met' if worst <= 1000.0 else 'MISSED'} (max {worst:.0f} us); ratio "
+                     f"prepared/lazy p50: first {ratio['first']:.2f}, switch "
+                     f"{ratio['switch']:.2f}")
+        lines.append(f"  prepared, to the steady p50: first "
+                     f"{p['first']['p50_us'] / p['steady']['p50_us']:.2f}, switch "
+                     f"{p['switch']['p50_us'] / p['steady']['p50_us']:.2f} (target <= 3)")
+    pf = res.get('process_first_ticks')
+    if pf:
+        lines += ['', f"LBR first tick of a process (a fresh interpreter per run, median of "
+                  f"{pf['runs']}), with the construction's warm-up and without it:"]
+        for mode in ('warm_up', 'no_warm_up'):
+            m = pf[mode]
+            lines.append(f"  {mode:<11}first {m['first_us']:6.0f} us  switch "
+                         f"{m['switch_us']:6.0f} us  steady p50 {m['steady_p50_us']:5.0f} us:"
+                         f"  first/p50 {m['first_ratio']:.2f}  switch/p50 "
+                         f"{m['switch_ratio']:.2f}  (target <= 3)")
+    return lines
 
 
 def format_report(res):
@@ -391,34 +482,44 @@ def format_report(res):
               f"  ours without PSPM (pink has no passivity layer): p50 "
               f"{p['ours_no_pspm']['p50_us']:.1f} us  p99 {p['ours_no_pspm']['p99_us']:.1f} us; "
               f"ratio p50 {p['ratio_no_pspm_p50']:.2f}  p99 {p['ratio_no_pspm_p99']:.2f}"]
-    f = res.get('first_ticks')
-    if f:
-        lines += ['', f"LBR first tick and stack-switch tick ({f['repeats']} repeats each, "
-                  'interleaved): solver models built when a stack is accepted (prepared) vs '
-                  'at the tick that first needs them (lazy, the old way):']
-        for mode in ('prepared', 'lazy'):
-            for key in ('first', 'switch', 'steady'):
-                st = f[mode][key]
-                lines.append(f"  {mode:<9}{key:<7}p50 {st['p50_us']:8.1f} us  p99 "
-                             f"{st['p99_us']:8.1f} us  max {st['max_us']:8.1f} us")
-        p, lazy = f['prepared'], f['lazy']
-        worst = max(p['first']['max_us'], p['switch']['max_us'])
-        ratio = {key: p[key]['p50_us'] / lazy[key]['p50_us'] for key in ('first', 'switch')}
-        lines.append(f"  first and switch ticks <= 1 ms (prepared): "
-                     f"{'met' if worst <= 1000.0 else 'MISSED'} (max {worst:.0f} us); ratio "
-                     f"prepared/lazy p50: first {ratio['first']:.2f}, switch "
-                     f"{ratio['switch']:.2f}")
+    lines += _format_first_ticks(res)
     if res.get('collision'):
         from benchmarks.collision_bench import format_collision
         lines += ['', format_collision(res['collision'])]
     return '\n'.join(lines)
 
 
+_FIGURE = Path(__file__).resolve().parent.parent / 'docs' / 'figures' / 'tick_scaling.png'
+
+
+def _scaling(ticks, json_path, figure):
+    """``--scaling``: run :mod:`benchmarks.scaling_bench`, print, write the JSON and figure."""
+    from benchmarks.scaling_bench import format_scaling, plot, run_scaling
+
+    res = run_scaling(ticks)
+    print(format_scaling(res))
+    if json_path:
+        with open(json_path, 'w') as f:
+            json.dump(res, f, indent=1)
+    if figure:
+        plot(res, figure)
+        print(f'figure: {figure}')
+    return 0
+
+
 def main(argv=None):
     """Entry point of ``ifc-spg bench``."""
     p = argparse.ArgumentParser(prog='ifc-spg bench', description=__doc__.split('\n\n')[0])
-    p.add_argument('--ticks', type=int, default=20000, help='ticks per row (default 20000)')
+    p.add_argument('--ticks', type=int, default=None,
+                   help='ticks per row (default 20000; with --scaling 2000 per point)')
     p.add_argument('--quick', action='store_true', help='2000 ticks per row')
+    p.add_argument('--scaling', action='store_true',
+                   help='only the cost curve: tick p50/p99 against DoF (7, 17, 34-joint '
+                        'chains), levels (1-10) and rows per level (1-12), with fitted '
+                        'exponents (benchmarks/scaling_bench.py; about 30 s)')
+    p.add_argument('--figure', default=str(_FIGURE),
+                   help='with --scaling: the PNG of the three curves (default '
+                        "docs/figures/tick_scaling.png of the checkout; '' for none)")
     p.add_argument('--solvers', default='daqp,proxsuite', help='comma-separated solvers')
     p.add_argument('--proxsuite-ticks', type=int, default=300,
                    help='ticks per proxsuite row (default 300: it stalls for up to ~0.2 s '
@@ -427,9 +528,13 @@ def main(argv=None):
                    help='seconds per proxsuite row, warm-up included (default 60)')
     p.add_argument('--json', help='also write the results to this JSON file')
     args = p.parse_args(argv)
-    ticks = 2000 if args.quick else args.ticks
+    ticks = 2000 if args.quick else 20000 if args.ticks is None else args.ticks
+    if args.scaling and not args.quick and args.ticks is None:
+        ticks = 2000
     if ticks < 1:
         p.error('--ticks must be >= 1')
+    if args.scaling:
+        return _scaling(ticks, args.json, args.figure)
     res = run_benchmarks(ticks, tuple(s for s in args.solvers.split(',') if s),
                          slow_ticks=args.proxsuite_ticks, slow_budget=args.proxsuite_budget)
     print(format_report(res))

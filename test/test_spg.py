@@ -337,3 +337,49 @@ def test_tick_says_what_happened_and_step_is_its_q_v():
     bad = ticked.tick(np.full(IIWA.n, np.nan), qd, t)
     assert bad.events == ('bad_input',) and bad.info.status == 'bad_input'
     np.testing.assert_array_equal(bad.q_v, ticked.q_v)  # held
+
+
+def test_the_construction_warm_up_changes_no_result(monkeypatch):
+    """The warm-up (ten ticks of a throwaway SPG, once per process and configuration) runs at
+    construction and leaves the results alone: closed loops of the Table 4.3 stack switched to
+    Table 4.2 with and without it are equal bit for bit, first and switch ticks included."""
+    from ifc_spg import TaskStack
+    from ifc_spg.offline.runner import find_config_dir
+    import ifc_spg.spg as spg_module
+
+    tasks = find_config_dir() / 'tasks'
+    stacks = [TaskStack.from_file(str(tasks / name)) for name in
+              ('table_4_3_pose_wrench_limits.yaml', 'table_4_2_orientation_box.yaml')]
+
+    step, steps = SetPointGenerator.step, []
+
+    def counted_step(self, *args):
+        steps.append(self)
+        return step(self, *args)
+
+    monkeypatch.setattr(SetPointGenerator, 'step', counted_step)
+
+    def run(warm_up):  # the process's record of warm-ups has no public API: emptied here
+        monkeypatch.setattr(spg_module, '_WARMED_UP', set())
+        steps.clear()
+        spg = SetPointGenerator(IIWA, stacks[0], warm_up=warm_up)
+        assert len(steps) == (spg_module._WARM_UP_TICKS if warm_up else 0)
+        assert spg not in steps and len(spg_module._WARMED_UP) == int(warm_up)
+        if warm_up:  # warmed up already: a second SPG runs none
+            SetPointGenerator(IIWA, stacks[0])
+            assert len(steps) == spg_module._WARM_UP_TICKS
+        plant = JointImpedancePlant(IIWA, IIWA.q_home, substeps=2)
+        q, qd, t = plant.q, plant.qdot, 0.0
+        log = []
+        for k in range(300):
+            if k == 150:
+                spg.set_stack(stacks[1])
+            q_v = spg.step(q, qd, t)
+            assert spg.info.status == 'ok', (k, spg.info.message)
+            log.append(np.concatenate([q_v, spg.qdot_v, spg.tanks.energy]))
+            q, qd, t = plant.step(q_v)
+        return np.array(log)
+
+    cold, warm = run(False), run(True)
+    assert np.array_equal(cold, warm)
+    assert np.abs(cold[150] - cold[0]).max() > 0  # the loop moved
