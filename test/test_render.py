@@ -117,3 +117,18 @@ def test_mp4_without_ffmpeg_is_a_clear_error_or_works(tmp_path):
         assert (tmp_path / 'run.mp4').stat().st_size > 1000
     else:
         assert proc.returncode == 2 and 'imageio-ffmpeg' in proc.stderr, proc.stderr
+
+
+def test_view_turns_the_camera_and_a_bad_view_is_refused(tmp_path):
+    """``--view AZIMUTH,ELEVATION``: from above (-89) the same frame is another picture; an
+    elevation outside [-90, 90] or a malformed value exits 2 naming the option."""
+    _sweep_bag(tmp_path / 'bag')
+    _render(tmp_path / 'bag', tmp_path / 'side.gif', '-q', '--duration', '0.1')
+    _render(tmp_path / 'bag', tmp_path / 'top.gif', '-q', '--duration', '0.1', '--view=180,-89')
+    side, top = _frames(tmp_path / 'side.gif')[0], _frames(tmp_path / 'top.gif')[0]
+    assert top.std() > 10 and (np.abs(side - top).max(axis=2) > 40).mean() > 0.02
+    for bad in ('180,-100', 'left'):
+        proc = subprocess.run([sys.executable, '-m', 'ifc_spg.cli', 'render',
+                               str(tmp_path / 'bag'), '-o', str(tmp_path / 'x.gif'),
+                               f'--view={bad}'], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 2 and '--view' in proc.stderr, proc.stderr

@@ -25,6 +25,9 @@ def main(argv=None):
     parser.add_argument('--no-ghost', action='store_true', help='do not draw q_v')
     parser.add_argument('--shadows', action='store_true',
                         help='shadows and reflections (slower on software GL)')
+    parser.add_argument('--view', default='140,-20',
+                        help='camera AZIMUTH,ELEVATION in degrees (140,-20; -90 elevation: '
+                             'from above)')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
@@ -33,8 +36,15 @@ def main(argv=None):
         print(f"ifc-spg render: --size must be WIDTHxHEIGHT, got '{opts.size}'", file=sys.stderr)
         return 2
     try:
+        view = tuple(float(x) for x in opts.view.split(','))
+    except ValueError:
+        print(f"ifc-spg render: --view must be AZIMUTH,ELEVATION, got '{opts.view}'",
+              file=sys.stderr)
+        return 2
+    try:
         res = render(opts.bag, opts.output, opts.fps, (w, h), opts.start, opts.duration,
-                     opts.scene, not opts.no_ghost, opts.quiet, shadows=opts.shadows)
+                     opts.scene, not opts.no_ghost, opts.quiet, shadows=opts.shadows,
+                     view=view)
     except IfcSpgError as exc:
         print(f'ifc-spg render: {exc}', file=sys.stderr)
         return 2

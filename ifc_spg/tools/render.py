@@ -21,6 +21,7 @@ A progress line is printed every 10 % of the frames.
 """
 
 import json
+import math
 import os
 from pathlib import Path
 import shutil
@@ -203,9 +204,10 @@ class _Scene:
         mujoco: The ``mujoco`` module (imported once ``MUJOCO_GL`` is set).
         sim: The :class:`sim_bridge.simulation.Simulation` of the scene.
         size: (width, height) in pixels.
+        view: Camera (azimuth, elevation) in degrees.
     """
 
-    def __init__(self, mujoco, sim, size):
+    def __init__(self, mujoco, sim, size, view=(140.0, -20.0)):
         self.mj, self.sim = mujoco, sim
         m = self.model = sim.model
         self.names = list(sim.joint_names)
@@ -228,7 +230,7 @@ class _Scene:
         base = self.data.xpos[m.body_rootid[m.jnt_bodyid[m.joint(self.names[0]).id]]].copy()
         self.cam.lookat[:] = 0.5 * (p_tool + base)
         self.cam.distance = max(1.2, 2.5 * float(np.linalg.norm(p_tool - base)))
-        self.cam.azimuth, self.cam.elevation = 140.0, -20.0
+        self.cam.azimuth, self.cam.elevation = (float(v) for v in view)
         self.opt = mujoco.MjvOption()
         self.pert = mujoco.MjvPerturb()
 
@@ -305,7 +307,7 @@ def _frame_span(states, start, duration, fps):
 
 
 def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, scene=None,
-           ghost=True, quiet=False, stream=None, shadows=False):
+           ghost=True, quiet=False, stream=None, shadows=False, view=(140.0, -20.0)):
     """Render a bag's recorded motion to ``output`` (.mp4, .gif, .webp).
 
     Args:
@@ -320,6 +322,7 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         quiet: No progress lines.
         stream: Where progress goes (default stderr).
         shadows: Render shadows and reflections (slower on software GL).
+        view: Camera (azimuth, elevation) in degrees (-90 elevation looks straight down).
 
     Returns:
         :class:`RenderResult`.
@@ -343,7 +346,11 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         scene=scene or scenario.get('scene') or 'free',
         scene_options=scenario.get('scene_options') or {}, q0=scenario.get('q0')))
     w, h = int(size[0]), int(size[1])
-    view = _Scene(mujoco, sim, (w, h))
+    if len(view) != 2 or not all(math.isfinite(float(v)) for v in view) or \
+            not -90.0 <= float(view[1]) <= 90.0:
+        raise ParameterError(f'--view must be AZIMUTH,ELEVATION in degrees with the elevation '
+                             f'in [-90, 90], got {view}')
+    view = _Scene(mujoco, sim, (w, h), view)
     t0, n_frames = _frame_span(states, start, duration, fps)
     write, close = _writer(output, fps, (w, h))
     wall = time.monotonic()
