@@ -3,6 +3,7 @@ cannot import numpy from the caller's environment there; pyproject.toml's [build
 provides it) holds both extensions, and not the workshop (benchmarks, tests)."""
 
 from pathlib import Path
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -14,9 +15,14 @@ pytestmark = pytest.mark.slow
 
 
 def test_isolated_wheel_build_carries_both_c_extensions(tmp_path):
+    # from a copy without build products: setuptools packs whatever an earlier build left
+    # in build/lib (a checkout built before files moved put them in the wheel)
+    src = tmp_path / 'src'
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(
+        '.git', '.venv', 'build', 'out', '*.egg-info', '*.so', '__pycache__'))
     out = subprocess.run([sys.executable, '-m', 'pip', 'wheel', '--no-deps',
                           '--disable-pip-version-check', '-q', '-w', str(tmp_path),
-                          str(ROOT)], capture_output=True, text=True, timeout=600)
+                          str(src)], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
     (wheel,) = Path(tmp_path).glob('ifc_spg-*.whl')
     names = zipfile.ZipFile(wheel).namelist()
