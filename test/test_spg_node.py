@@ -189,6 +189,30 @@ def test_watchdog_stops_commanding_and_resumes_from_the_measured_q(domain):
     assert spg.runner.watchdog_trips >= 1 and spg.runner.resumes == 1
 
 
+def test_a_paused_source_continues_then_a_stamp_jump_restarts(domain):
+    """The node reports each of the runner's events: 'continued' (a paused source, continuous
+    stamps) and then 'resumed' (stamps jumped) in one process (rclpy's logger wants one
+    severity per call site: logging both from one line raised in the second report)."""
+    spg, fake = _start(['watchdog.timeout:=0.05', 'status.decimation:=1000'])
+    robot = spg.runner.robot
+    fake.publish_stack(STACK, 'stack_accepted')
+    names, q, z = list(robot.joint_names), robot.q_home.copy(), np.zeros(7)
+    k = 0
+    for episode, kind in enumerate(('continued', 'resumed', 'continued')):
+        for _ in range(5):
+            fake.tick(names, q, z, k * DT_NS)
+            k += 1
+        assert fake.spin_until(lambda e=episode: len(fake.events('watchdog')) > e, 2.0)
+        if kind == 'resumed':
+            k += 100  # the stamps jumped by 0.2 s > watchdog.timeout
+        assert fake.tick(names, q, z, k * DT_NS) is not None
+        k += 1
+        want = 2 if episode == 2 else 1
+        assert fake.spin_until(lambda kind=kind, want=want: len(fake.events(kind)) >= want)
+    assert len(fake.events('continued')) == 2 and len(fake.events('resumed')) == 1
+    assert spg.runner.resumes == 1
+
+
 @pytest.mark.parametrize('param, message', [
     ('dt:=1', "'dt': value 1 has type PARAMETER_INTEGER, expected PARAMETER_DOUBLE"),
     ('dt:=0.5', "'dt': value 0.5 is outside its range"),

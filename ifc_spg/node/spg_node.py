@@ -375,8 +375,11 @@ class SpgNode:
             self.streams.sync()
         elif kind == 'started':
             self.log.info(text)
-        elif kind in ('resumed', 'continued', 'pspm_stall'):
-            (self.log.info if kind == 'continued' else self.log.warning)(text)
+        elif kind == 'continued':  # rclpy's logger wants one severity per call site
+            self.log.info(text)
+            self.publish_status((kind, text))
+        elif kind in ('resumed', 'pspm_stall'):
+            self.log.warning(text)
             self.publish_status((kind, text))
 
     def on_obstacles(self, message):
