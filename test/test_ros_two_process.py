@@ -33,11 +33,14 @@ def _read_line(proc, timeout):
 
 @pytest.mark.realtime
 def test_talker_listener_500hz_for_10s_loses_nothing():
+    """Reliable, with a history that holds the run: nothing is lost however far the listener
+    falls behind (with the tools' default depth 10, 874 of 5000 went at load 9 on 2 cores:
+    keep-last drops the oldest, as it should)."""
     env = loopback_env()
     count = int(RATE_HZ * DURATION_S)
     listener = subprocess.Popen(
         [IFC_SPG, 'ros', 'listener', '--ros-args', '-p', f'count:={count}',
-         '-p', f'timeout_s:={DURATION_S + 30}'],
+         '-p', f'timeout_s:={DURATION_S + 30}', '-p', f'depth:={count}'],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     talker = None
     try:
@@ -45,7 +48,8 @@ def test_talker_listener_500hz_for_10s_loses_nothing():
         assert ready.get('ready'), listener.stderr.read() if listener.poll() is not None else ''
         talker = subprocess.Popen(
             [IFC_SPG, 'ros', 'talker', '--ros-args', '-p', f'rate:={RATE_HZ}',
-             '-p', f'count:={count}', '-p', 'wait_for_subscribers:=1', '-r', '__node:=talker'],
+             '-p', f'count:={count}', '-p', 'wait_for_subscribers:=1', '-p', f'depth:={count}',
+             '-r', '__node:=talker'],
             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         t_out, t_err = talker.communicate(timeout=DURATION_S + 40)
         assert talker.returncode == 0, t_err

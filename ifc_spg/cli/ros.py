@@ -73,7 +73,10 @@ def talker(argv):
             'After the subscribers matched, wait this long before publishing [s]: discovery '
             'is not symmetric (a Fast DDS writer may see a reader before the reader knows '
             'the writer, and the first samples are then lost).', 0.0, 60.0)).value
-        pub = node.create_publisher(JointState, 'joint_states', 10)
+        depth = node.declare_parameter('depth', 10, _descriptor(
+            'History depth of the reliable publisher (keep last): a reader that falls '
+            'further behind loses the oldest samples.', 1, 100000, integer=True)).value
+        pub = node.create_publisher(JointState, 'joint_states', depth)
         names = [f'joint_{i + 1}' for i in range(n_joints)]
         clock = node.get_clock()
         if wait_subs and not ros.spin_until(lambda: pub.get_subscription_count() >= wait_subs,
@@ -144,7 +147,10 @@ def listener(argv):
             if first[0] is None:
                 first[0] = time.monotonic()
 
-        sub = node.create_subscription(JointState, 'joint_states', callback, 10)
+        depth = node.declare_parameter('depth', 10, _descriptor(
+            'History depth of the reliable subscription (keep last).', 1, 100000,
+            integer=True)).value
+        sub = node.create_subscription(JointState, 'joint_states', callback, depth)
         print(json.dumps({'ready': True, 'topic': sub.topic_name}), flush=True)
         start = time.monotonic()
         while ros.ok() and time.monotonic() - start < timeout_s:
