@@ -305,8 +305,9 @@ def main(argv=None):
                         help='with the SPG on rclpy, one run per way of serving its joint '
                              f"states, a list of {', '.join(SPG_PATHS)} (default wait_set, "
                              "the node's default)")
-    parser.add_argument('--no-baseline', action='store_true',
-                        help='skip the plain Python pacing loop (the machine baseline)')
+    parser.add_argument('--baseline-seconds', type=float, default=None,
+                        help='length of the machine baseline per rate [s] (default --seconds; '
+                             '0: none)')
     parser.add_argument('--json', action='store_true', help='print the results as JSON')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     rates = _list(opts.rate, '--rate', kind=float)
@@ -318,10 +319,11 @@ def main(argv=None):
         have_rclpy = False
     results, baselines = [], {}
     for rate in rates:
-        if not opts.no_baseline:
+        base_seconds = opts.seconds if opts.baseline_seconds is None else opts.baseline_seconds
+        if base_seconds > 0:
             print(f'latency_bench: machine baseline, a sleep loop at {rate:g} Hz for '
-                  f'{opts.seconds:g} s', file=sys.stderr, flush=True)
-            baselines[rate] = baseline(rate, opts.seconds)
+                  f'{base_seconds:g} s', file=sys.stderr, flush=True)
+            baselines[rate] = baseline(rate, base_seconds)
         for b, s in _pairs(opts.pairs, have_rclpy):
             for path in (paths if s == 'rclpy' else ['wait_set']):
                 results.append(run(opts.seconds, bridge_backend=b, spg_backend=s, rate=rate,
