@@ -24,7 +24,8 @@ receiving the command answering it (same header stamp) — the bridge's publish,
 and the command's way back over loopback DDS, as the robot sees it. Reported per pairing:
 p50/p99/max [ms], missed periods (the bridge's count of command periods without a new
 command, from its exit line; the goal on an idle machine is <= 0.1 % over 60 s), the states
-and commands this process saw (a listener on the SPG's backend) and the bridge's pacing.
+and commands this process saw (a listener on the SPG's backend), the bridge's pacing, and
+the SPG process' CPU time per tick over the run (all its threads; Linux).
 """
 
 import argparse
@@ -218,9 +219,13 @@ def _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend
               f'{bridge_backend}, SPG on {spg_backend} (hot_path {hot_path}'
               f"{', EventsExecutor' if 'IFC_SPG_RCLPY_EXECUTOR' in spg_env else ''}; logs in "
               f'{tmp})', file=stream, flush=True)
+        cpu0 = _cpu_seconds(spg.pid)
         while bridge.poll() is None:
             listener.spin(0.2)
         listener.spin(0.5)
+        cpu1 = _cpu_seconds(spg.pid)
+        if cpu0 is not None and cpu1 is not None:
+            (tmp / 'spg_cpu').write_text(repr(cpu1 - cpu0))
         stop_process(spg)
     finally:
         for proc in procs:
@@ -229,9 +234,22 @@ def _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend
             f.close()
 
 
+def _cpu_seconds(pid):
+    """User + system CPU time [s] of process ``pid`` so far (Linux /proc; None elsewhere)."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def _results(listener, tmp, seconds, bridge_backend, spg_backend, rate):
     """The results dict of one pairing, from the listener and the bridge's exit lines."""
     bridge_log = (tmp / 'sim_bridge.log').read_text()
+    ticks = re.search(r'spg_node: (\d+) ticks', (tmp / 'spg_node.log').read_text())
+    cpu = tmp / 'spg_cpu'
+    cpu_per_tick = (1e6 * float(cpu.read_text()) / int(ticks.group(1))
+                    if cpu.exists() and ticks and int(ticks.group(1)) else None)
     pacing = re.search(r'p50 lateness (\d+) us, p99 (\d+) us, (\d+) overrun\(s\), (\d+) missed',
                        bridge_log)
     measured = re.search(r'command latency p50 ([\d.]+) ms, p99 ([\d.]+) ms, max ([\d.]+) ms',
@@ -251,6 +269,8 @@ def _results(listener, tmp, seconds, bridge_backend, spg_backend, rate):
         'bridge_missed_commands': int(pacing.group(4)) if pacing else None,
         'bridge_pacing_us': {'p50': int(pacing.group(1)), 'p99': int(pacing.group(2)),
                              'overruns': int(pacing.group(3))} if pacing else None,
+        # the SPG process' CPU time (all threads: tick, DDS, timers) over the bridge's run
+        'spg_cpu_us_per_tick': cpu_per_tick,
         'logs': str(tmp),
     }
 
@@ -351,7 +371,7 @@ def _print_table(results, baselines):
     print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, nice '
           f'{os.getpriority(os.PRIO_PROCESS, 0)}')
     print('rate  bridge      spg         path       states  p50 ms  p99 ms  max ms  missed  '
-          'missed %  x base  p99 x base')
+          'missed %  x base  p99 x base  SPG CPU us/tick')
     for rate, base in baselines.items():
         over = base['overshoot_us']
         print(f"{rate:>4g}  baseline: sleep loop               {base['periods']:>6} "
@@ -367,7 +387,7 @@ def _print_table(results, baselines):
         print(f"{res['rate']:>4g}  {res['bridge_backend']:<11} {res['spg_backend']:<11} "
               f"{res['spg_path']:<9} {res['states']:>7} {lat['p50']:>7.3f} {lat['p99']:>7.3f} "
               f"{lat['max']:>7.3f} {missed if missed is not None else '?':>7} {share:>9.3f} "
-              f'{ratios}')
+              f"{ratios or ' ' * 17}  {res['spg_cpu_us_per_tick'] or nan:>10.0f}")
 
 
 if __name__ == '__main__':
