@@ -223,6 +223,8 @@ def test_watchdog_stops_commanding_and_resumes_from_the_measured_q(domain):
     ('impedance.stiffness:=[500.0,500.0]', 'impedance.stiffness must be > 0 (scalar or 7 values'
                                            ' for A1, A2'),
     ('impedance.damping:=[-1.0]', 'impedance.damping must be >= 0'),
+    ('hot_path:=waitset', "'hot_path': 'waitset' is not one of wait_set, executor; did you "
+                          "mean 'wait_set'"),
 ])
 def test_bad_parameters_exit_2_naming_them(domain, capsys, param, message):
     assert main(['spg_node', '--ros-args', '-p', param]) == 2
