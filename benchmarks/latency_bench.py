@@ -1,18 +1,31 @@
 """Tick-to-command latency of a realtime DDS run, per pairing of the two ROS backends.
 
-``sim_bridge`` (realtime, 500 Hz, iiwa, free scene) and ``spg_node`` run as separate
+``sim_bridge`` (realtime, 500 or 1000 Hz, iiwa, free scene) and ``spg_node`` run as separate
 processes over loopback DDS, for each pairing of the two ROS backends (rclpy on Fast DDS, the
 built-in Cyclone DDS backend) in one invocation::
 
-    python -m benchmarks.latency_bench [--seconds 60] [--pairs all|same|BRIDGE:SPG,...]
-                                          [--json]
+    python -m benchmarks.latency_bench [--seconds 60] [--rate 500,1000]
+                                          [--pairs all|same|BRIDGE:SPG,...]
+                                          [--spg-paths wait_set,executor,events]
+                                          [--baseline-seconds S] [--nice N] [--json]
+
+``--spg-paths`` runs each pairing with the SPG on rclpy once per way of serving its joint
+states: ``wait_set`` (the node's default, ``hot_path:=wait_set``), ``executor``
+(``hot_path:=executor``, rclpy's SingleThreadedExecutor) and ``events`` (the same with
+``IFC_SPG_RCLPY_EXECUTOR=events``: rclpy's experimental EventsExecutor).
+
+Beside them, once per rate and in this process, the machine's own baseline: a plain Python
+loop pacing the same rate with absolute deadlines and ``time.sleep``, its overshoot
+p50/p99/max and the periods it missed (woke after the next deadline). On a shared machine
+the ratio of a pairing's missed periods and p99 to the baseline's is what a run can show.
 
 The latency of a tick is measured by the bridge on its own clock: from publishing a state to
 receiving the command answering it (same header stamp) — the bridge's publish, the SPG's tick
 and the command's way back over loopback DDS, as the robot sees it. Reported per pairing:
 p50/p99/max [ms], missed periods (the bridge's count of command periods without a new
 command, from its exit line; the goal on an idle machine is <= 0.1 % over 60 s), the states
-and commands this process saw (a listener on the SPG's backend) and the bridge's pacing.
+and commands this process saw (a listener on the SPG's backend), the bridge's pacing, and
+the SPG process' CPU time per tick over the run (all its threads; Linux).
 """
 
 import argparse
@@ -32,7 +45,7 @@ from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.ros import dds, messages
 from ifc_spg.ros.stamps import stamp_to_ns
 
-__all__ = ['PAIRS', 'main', 'run']
+__all__ = ['PAIRS', 'SPG_PATHS', 'baseline', 'main', 'run']
 
 STACK = """version: 1
 name: reach
@@ -98,7 +111,46 @@ class _Listener:
             self.context.shutdown()
 
 
-def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
+#: ways of serving the SPG's joint states on rclpy: (hot_path parameter, extra environment)
+SPG_PATHS = {'wait_set': ('wait_set', {}), 'executor': ('executor', {}),
+             'events': ('executor', {'IFC_SPG_RCLPY_EXECUTOR': 'events'})}
+
+
+def baseline(rate=500.0, seconds=10.0, clock=time.perf_counter):
+    """The machine's own pacing: a plain Python loop at ``rate`` [Hz] for ``seconds`` [s].
+
+    Absolute deadlines t_k = t_0 + k/rate, ``time.sleep`` until each (no busy wait, nothing
+    else done). A wake-up later than the next deadline misses the periods it slept through;
+    the loop then resumes at the first deadline still ahead.
+
+    Returns:
+        ``{'rate', 'seconds', 'periods', 'overshoot_us': {p50, p99, max}, 'missed',
+        'missed_pct'}``: overshoot of each wake-up past its deadline [µs], missed periods
+        (of ``seconds * rate``).
+    """
+    period = 1.0 / rate
+    n = round(seconds * rate)
+    late, missed, k = [], 0, 0
+    t0 = clock() + period
+    while k < n:
+        deadline = t0 + k * period
+        remaining = deadline - clock()
+        if remaining > 0:
+            time.sleep(remaining)
+        over = clock() - deadline
+        late.append(over)
+        skipped = int(over // period)  # deadlines passed while asleep
+        missed += skipped
+        k += 1 + skipped
+    lat = sorted(late)
+    pick = lambda q: lat[min(len(lat) - 1, int(q * len(lat)))] * 1e6  # noqa: E731
+    return {'rate': rate, 'seconds': seconds, 'periods': n,
+            'overshoot_us': {'p50': pick(0.5), 'p99': pick(0.99), 'max': lat[-1] * 1e6},
+            'missed': missed, 'missed_pct': 100.0 * missed / n}
+
+
+def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, rate=500.0,
+        spg_path='wait_set'):
     """Run the bridge and the SPG for ``seconds`` [s] of realtime; return the results dict.
 
     Args:
@@ -107,11 +159,16 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
         bridge_backend: 'rclpy' or 'cyclonedds' for the bridge process; None: the backend
             of this process (``ifc_spg.ros.BACKEND``).
         spg_backend: The same for the SPG process (and this process' listener).
+        rate: The bridge's rate [Hz] (the SPG's dt is 1 / rate).
+        spg_path: How an SPG on rclpy serves its joint states, a key of :data:`SPG_PATHS`
+            (ignored on the built-in backend).
     """
     bridge_backend = bridge_backend or ros.BACKEND
     spg_backend = spg_backend or ros.BACKEND
     domain = random_domain_id()
     envs = {b: loopback_env(domain, backend=b) for b in {bridge_backend, spg_backend}}
+    hot_path, extra = SPG_PATHS[spg_path] if spg_backend == 'rclpy' else ('wait_set', {})
+    spg_env = {**envs[spg_backend], **extra}
     saved = {k: os.environ.get(k) for k in envs[spg_backend] if k not in os.environ or
              os.environ[k] != envs[spg_backend][k]}
     os.environ.update(envs[spg_backend])  # the listener's domain and loopback settings
@@ -119,7 +176,8 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
     (tmp / 'reach.yaml').write_text(STACK)
     listener = _Listener(spg_backend)
     try:
-        _run_processes(listener, tmp, envs, seconds, stream, bridge_backend, spg_backend)
+        _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend,
+                       spg_backend, rate, hot_path)
     finally:
         listener.close()
         for key, value in saved.items():
@@ -127,36 +185,47 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None):
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
-    return _results(listener, tmp, seconds, bridge_backend, spg_backend)
+    res = _results(listener, tmp, seconds, bridge_backend, spg_backend, rate)
+    res['spg_path'] = spg_path if spg_backend == 'rclpy' else 'built-in'
+    return res
 
 
-def _run_processes(listener, tmp, envs, seconds, stream, bridge_backend, spg_backend):
+def _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend, spg_backend,
+                   rate, hot_path):
     """Start the SPG, then the bridge for ``seconds``; listen until the bridge ends."""
     bindir = Path(sys.executable).parent
     procs, logs = [], []
 
-    def start(name, backend, *args):
+    def start(name, env, *args):
         logs.append(open(tmp / f'{name}.log', 'w+'))
-        procs.append(subprocess.Popen([str(bindir / name), *args], env=envs[backend],
+        procs.append(subprocess.Popen([str(bindir / name), *args], env=env,
                                       stdout=logs[-1], stderr=subprocess.STDOUT))
         return procs[-1]
 
     try:
-        spg = start('spg_node', spg_backend, '--ros-args', '--params-file',
+        spg = start('spg_node', spg_env, '--ros-args', '--params-file',
                     str(find_config_dir() / 'lbr_iiwa14.yaml'), '-p',
-                    f"task_stack_file:={tmp / 'reach.yaml'}")
+                    f"task_stack_file:={tmp / 'reach.yaml'}", '-p', f'dt:={1.0 / rate!r}',
+                    '-p', f'hot_path:={hot_path}')
         deadline = time.monotonic() + 60.0  # let the SPG start (imports) before the clock
         while time.monotonic() < deadline and spg.poll() is None and \
                 'waiting for' not in (tmp / 'spg_node.log').read_text():
             listener.spin(0.1)
         listener.spin(0.5)
-        bridge = start('sim_bridge', bridge_backend, '--ros-args', '-p', 'robot:=lbr_iiwa14',
-                       '-p', 'scene:=free', '-p', 'mode:=realtime', '-p', f'duration:={seconds}')
-        print(f'latency_bench: realtime run of {seconds:g} s, bridge on {bridge_backend}, SPG '
-              f'on {spg_backend} (logs in {tmp})', file=stream, flush=True)
+        bridge = start('sim_bridge', envs[bridge_backend], '--ros-args', '-p',
+                       'robot:=lbr_iiwa14', '-p', 'scene:=free', '-p', 'mode:=realtime', '-p',
+                       f'rate:={float(rate)!r}', '-p', f'duration:={seconds}')
+        print(f'latency_bench: realtime run of {seconds:g} s at {rate:g} Hz, bridge on '
+              f'{bridge_backend}, SPG on {spg_backend} (hot_path {hot_path}'
+              f"{', EventsExecutor' if 'IFC_SPG_RCLPY_EXECUTOR' in spg_env else ''}; logs in "
+              f'{tmp})', file=stream, flush=True)
+        cpu0 = _cpu_seconds(spg.pid)
         while bridge.poll() is None:
             listener.spin(0.2)
         listener.spin(0.5)
+        cpu1 = _cpu_seconds(spg.pid)
+        if cpu0 is not None and cpu1 is not None:
+            (tmp / 'spg_cpu').write_text(repr(cpu1 - cpu0))
         stop_process(spg)
     finally:
         for proc in procs:
@@ -165,9 +234,22 @@ def _run_processes(listener, tmp, envs, seconds, stream, bridge_backend, spg_bac
             f.close()
 
 
-def _results(listener, tmp, seconds, bridge_backend, spg_backend):
+def _cpu_seconds(pid):
+    """User + system CPU time [s] of process ``pid`` so far (Linux /proc; None elsewhere)."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _results(listener, tmp, seconds, bridge_backend, spg_backend, rate):
     """The results dict of one pairing, from the listener and the bridge's exit lines."""
     bridge_log = (tmp / 'sim_bridge.log').read_text()
+    ticks = re.search(r'spg_node: (\d+) ticks', (tmp / 'spg_node.log').read_text())
+    cpu = tmp / 'spg_cpu'
+    cpu_per_tick = (1e6 * float(cpu.read_text()) / int(ticks.group(1))
+                    if cpu.exists() and ticks and int(ticks.group(1)) else None)
     pacing = re.search(r'p50 lateness (\d+) us, p99 (\d+) us, (\d+) overrun\(s\), (\d+) missed',
                        bridge_log)
     measured = re.search(r'command latency p50 ([\d.]+) ms, p99 ([\d.]+) ms, max ([\d.]+) ms',
@@ -176,9 +258,10 @@ def _results(listener, tmp, seconds, bridge_backend, spg_backend):
         'bridge_backend': bridge_backend,
         'spg_backend': spg_backend,
         'seconds': seconds,
+        'rate': rate,
         'states': len(listener.states),
         'commands': len(listener.commands),
-        'expected_ticks': round(seconds * 500),
+        'expected_ticks': round(seconds * rate),
         'missed_here': len(listener.states - listener.commands),
         # the bridge's own clock: its state published -> the command answering it received
         'latency_ms': dict(zip(('p50', 'p99', 'max'), map(float, measured.groups())))
@@ -186,6 +269,8 @@ def _results(listener, tmp, seconds, bridge_backend, spg_backend):
         'bridge_missed_commands': int(pacing.group(4)) if pacing else None,
         'bridge_pacing_us': {'p50': int(pacing.group(1)), 'p99': int(pacing.group(2)),
                              'overruns': int(pacing.group(3))} if pacing else None,
+        # the SPG process' CPU time (all threads: tick, DDS, timers) over the bridge's run
+        'spg_cpu_us_per_tick': cpu_per_tick,
         'logs': str(tmp),
     }
 
@@ -215,38 +300,94 @@ def _pairs(text, have_rclpy):
     return pairs
 
 
+def _list(text, name, choices=None, kind=str):
+    items = [kind(x) for x in text.split(',') if x]
+    bad = [x for x in items if choices is not None and x not in choices]
+    if bad or not items:
+        raise SystemExit(f"{name}: '{text}' is not a list of {', '.join(choices or ['values'])}")
+    return items
+
+
+def _ratio(value, base):
+    return f'{value / base:7.1f}' if base else '      -'
+
+
 def main(argv=None):
     """``python -m benchmarks.latency_bench``; exit 1 if a pairing measured nothing."""
     parser = argparse.ArgumentParser(prog='python -m benchmarks.latency_bench',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('--seconds', type=float, default=60.0, help='realtime run [s]')
+    parser.add_argument('--rate', default='500',
+                        help='bridge rate(s) [Hz], a list: 500, 1000 or 500,1000 (default 500)')
     parser.add_argument('--pairs', default='all',
                         help="'all' (default: rclpy-rclpy, built-in-built-in and both mixed), "
                              "'same', or a list BRIDGE:SPG,... of rclpy / cyclonedds")
+    parser.add_argument('--spg-paths', default='wait_set',
+                        help='with the SPG on rclpy, one run per way of serving its joint '
+                             f"states, a list of {', '.join(SPG_PATHS)} (default wait_set, "
+                             "the node's default)")
+    parser.add_argument('--baseline-seconds', type=float, default=None,
+                        help='length of the machine baseline per rate [s] (default --seconds; '
+                             '0: none)')
+    parser.add_argument('--nice', type=int, default=None,
+                        help='run this process (the baseline, the listener) and the bridge and '
+                             'SPG at this nice value, e.g. -10 as the tests and a robot PC do '
+                             '(needs root or CAP_SYS_NICE; default: as started)')
     parser.add_argument('--json', action='store_true', help='print the results as JSON')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if opts.nice is not None:
+        os.setpriority(os.PRIO_PROCESS, 0, opts.nice)  # inherited by the bridge and the SPG
+    rates = _list(opts.rate, '--rate', kind=float)
+    paths = _list(opts.spg_paths, '--spg-paths', SPG_PATHS)
     try:
         import rclpy  # noqa: F401 -- optional: is it installed?
         have_rclpy = True
     except ImportError:
         have_rclpy = False
-    results = [run(opts.seconds, bridge_backend=b, spg_backend=s)
-               for b, s in _pairs(opts.pairs, have_rclpy)]
+    results, baselines = [], {}
+    for rate in rates:
+        base_seconds = opts.seconds if opts.baseline_seconds is None else opts.baseline_seconds
+        if base_seconds > 0:
+            print(f'latency_bench: machine baseline, a sleep loop at {rate:g} Hz for '
+                  f'{base_seconds:g} s', file=sys.stderr, flush=True)
+            baselines[rate] = baseline(rate, base_seconds)
+        for b, s in _pairs(opts.pairs, have_rclpy):
+            for path in (paths if s == 'rclpy' else ['wait_set']):
+                results.append(run(opts.seconds, bridge_backend=b, spg_backend=s, rate=rate,
+                                   spg_path=path))
     if opts.json:
-        print(json.dumps(results, indent=1))
+        print(json.dumps({'load_average': os.getloadavg(), 'nice': os.getpriority(
+            os.PRIO_PROCESS, 0), 'baselines': list(baselines.values()), 'runs': results},
+                         indent=1))
     else:
-        nan = float('nan')
-        print('bridge      spg         states  commands  p50 ms  p99 ms  max ms  missed '
-              '(bridge)  missed %')
-        for res in results:
-            lat = res['latency_ms'] or {'p50': nan, 'p99': nan, 'max': nan}
-            missed = res['bridge_missed_commands']
-            share = 100.0 * missed / res['expected_ticks'] if missed is not None else nan
-            print(f"{res['bridge_backend']:<11} {res['spg_backend']:<11} {res['states']:>6} "
-                  f"{res['commands']:>9} {lat['p50']:>7.3f} {lat['p99']:>7.3f} "
-                  f"{lat['max']:>7.3f} {missed if missed is not None else '?':>15} "
-                  f'{share:>9.3f}')
+        _print_table(results, baselines)
     return 0 if all(res['latency_ms'] for res in results) else 1
+
+
+def _print_table(results, baselines):
+    """One line per rate's baseline and per run; x base: the run's value over the baseline's."""
+    nan = float('nan')
+    load = os.getloadavg()
+    print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, nice '
+          f'{os.getpriority(os.PRIO_PROCESS, 0)}')
+    print('rate  bridge      spg         path       states  p50 ms  p99 ms  max ms  missed  '
+          'missed %  x base  p99 x base  SPG CPU us/tick')
+    for rate, base in baselines.items():
+        over = base['overshoot_us']
+        print(f"{rate:>4g}  baseline: sleep loop               {base['periods']:>6} "
+              f"{over['p50'] / 1e3:>7.3f} {over['p99'] / 1e3:>7.3f} {over['max'] / 1e3:>7.3f} "
+              f"{base['missed']:>7} {base['missed_pct']:>9.3f}")
+    for res in results:
+        lat = res['latency_ms'] or {'p50': nan, 'p99': nan, 'max': nan}
+        missed = res['bridge_missed_commands']
+        share = 100.0 * missed / res['expected_ticks'] if missed is not None else nan
+        base = baselines.get(res['rate'])
+        ratios = (_ratio(share, base['missed_pct']) + '  ' +
+                  _ratio(lat['p99'] * 1e3, base['overshoot_us']['p99'])) if base else ''
+        print(f"{res['rate']:>4g}  {res['bridge_backend']:<11} {res['spg_backend']:<11} "
+              f"{res['spg_path']:<9} {res['states']:>7} {lat['p50']:>7.3f} {lat['p99']:>7.3f} "
+              f"{lat['max']:>7.3f} {missed if missed is not None else '?':>7} {share:>9.3f} "
+              f"{ratios or ' ' * 17}  {res['spg_cpu_us_per_tick'] or nan:>10.0f}")
 
 
 if __name__ == '__main__':

@@ -2,6 +2,7 @@
 the node and a fake robot (joint-state publisher, command/status listener) in one process."""
 
 import json
+import threading
 
 from helpers import CONFIG, DT_NS, TARGET, parse_stack, reach_stack
 import numpy as np
@@ -123,6 +124,28 @@ def test_commands_equal_the_library_and_follow_the_stack(domain):
     assert len(last['tank_energy']) == 7 and last['state'] == 'running'
 
 
+def test_the_hot_path_commands_what_the_executor_does(domain):
+    """``spin_hot`` (hot_path wait_set): joint states taken by its own loop, here in a thread,
+    the stack and status on its executor; commands equal the library bit for bit."""
+    spg, fake = _start(['watchdog.timeout:=0.0', 'status.decimation:=25'])
+    fake.nodes = (fake.node,)  # the SPG node is the hot loop's alone
+    stop = threading.Event()
+    loop = threading.Thread(target=ros.spin_hot, args=(spg.node, spg.sub_states, 0.02,
+                                                       stop.is_set))
+    loop.start()
+    try:
+        fake.publish_stack(STACK, 'stack_accepted')
+        robot = spg.runner.robot
+        ref = _reference(robot, spg.config)
+        _closed_loop(robot, spg, ref, fake, robot.q_home.copy(), 60)
+        assert fake.spin_until(lambda: [s['tick'] for s in fake.status if 'event' not in s] ==
+                               [25, 50])
+    finally:
+        stop.set()
+        loop.join(5.0)
+    assert not loop.is_alive()
+
+
 def test_bad_stack_is_reported_with_its_field_and_the_old_one_continues(domain):
     spg, fake = _start(['watchdog.timeout:=0.0'])
     robot = spg.runner.robot
@@ -224,6 +247,8 @@ def test_a_paused_source_continues_then_a_stamp_jump_restarts(domain):
     ('impedance.stiffness:=[500.0,500.0]', 'impedance.stiffness must be > 0 (scalar or 7 values'
                                            ' for A1, A2'),
     ('impedance.damping:=[-1.0]', 'impedance.damping must be >= 0'),
+    ('hot_path:=waitset', "'hot_path': 'waitset' is not one of wait_set, executor; did you "
+                          "mean 'wait_set'"),
 ])
 def test_bad_parameters_exit_2_naming_them(domain, capsys, param, message):
     assert main(['spg_node', '--ros-args', '-p', param]) == 2

@@ -73,6 +73,11 @@ class SpgConfig:
         tick: 'joint_states' (one tick per joint state: lockstep simulation, FRI at the
             SPG's rate) or 'timer' (a tick every ``dt`` with the latest joint state, for
             robots whose states come at another rate; nothing is extrapolated).
+        hot_path: How ``spg_node`` serves the joint states on rclpy: 'wait_set' (a loop
+            waiting on them and taking each itself, everything else on the executor; no
+            executor overhead per tick) or 'executor' (rclpy's SingleThreadedExecutor, or the
+            EventsExecutor with ``IFC_SPG_RCLPY_EXECUTOR=events``, for all callbacks). The
+            built-in backend serves them from its one wait either way.
         markers_rate: Rate of ``spg/markers`` in [Hz] (<= 30; 0: off).
         markers_frame: Frame id of ``spg/markers``.
     """
@@ -104,6 +109,7 @@ class SpgConfig:
     command_interface: str = 'joint_state'
     command_joints: tuple = ()
     tick: str = 'joint_states'
+    hot_path: str = 'wait_set'
     markers_rate: float = 30.0
     markers_frame: str = 'world'
 
@@ -132,6 +138,10 @@ class SpgConfig:
         if self.tick not in TICKS:
             raise ParameterError(f"parameter 'tick': '{self.tick}' is not one of "
                                  f"{', '.join(TICKS)}{did_you_mean(self.tick, TICKS)}")
+        if self.hot_path not in HOT_PATHS:
+            raise ParameterError(f"parameter 'hot_path': '{self.hot_path}' is not one of "
+                                 f"{', '.join(HOT_PATHS)}"
+                                 f'{did_you_mean(self.hot_path, HOT_PATHS)}')
         if self.command_interface not in COMMAND_INTERFACES:
             raise ParameterError(
                 f"parameter 'command.interface': '{self.command_interface}' is not one of "
@@ -217,6 +227,8 @@ PARAMETERS = (
           "Joint order of the command (ros2_control's 'joints'; default: the robot's)"),
     Param('tick', 'tick', 'joint_states (one tick per joint state) or timer (a tick every dt '
           'with the latest joint state; a state older than watchdog.timeout stops commanding)'),
+    Param('hot_path', 'hot_path', 'rclpy: wait_set (joint states taken by a dedicated loop, '
+          'the rest on the executor) or executor (every callback from the executor)'),
     Param('markers.rate', 'markers_rate', 'Rate of spg/markers (each Cartesian task target, '
           'visualization_msgs/MarkerArray) in [Hz], at most 30 (0: off)', (0.0, 30.0)),
     Param('markers.frame', 'markers_frame',
@@ -224,6 +236,7 @@ PARAMETERS = (
 )
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 TICKS = ('joint_states', 'timer')
+HOT_PATHS = ('wait_set', 'executor')
 
 _DEFAULTS = {f.name: f.default for f in fields(SpgConfig)}
 _BY_NAME = {p.name: p for p in PARAMETERS}

@@ -25,7 +25,7 @@ Parameters (``ros2 param describe`` shows ranges and units): robot, dt, solver, 
 torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget,
 max_power}, impedance.{stiffness, damping}, watchdog.timeout, status.decimation,
 diagnostics.period, task_stack_file, topics.{joint_states, command, task_stack, status,
-diagnostics}, enable, command.{interface, joints, hold_when_disabled}, tick. An unknown,
+diagnostics}, enable, command.{interface, joints, hold_when_disabled}, tick, hot_path. An unknown,
 mistyped or out-of-range parameter ends the node with exit code 2 and a message naming it.
 
 Real robots (README, "On a real robot"): ``command.interface`` joint_state |
@@ -33,6 +33,11 @@ float64_multi_array (ros2_control JointGroupPositionController, in ``command.joi
 joint_trajectory; ``tick`` joint_states | timer (every dt with the latest state); ``enable``
 false publishes nothing until switched on (parameter or the latched ``spg/enable`` Bool),
 then restarts from the measured q.
+
+``hot_path`` (rclpy): ``wait_set`` (default) serves ``joint_states`` from a loop that waits on
+the node's wait set and takes each state itself (:func:`ifc_spg.ros.spin_hot`), leaving
+parameters, stacks, timers and status to a SingleThreadedExecutor spun only when they are
+ready; ``executor`` runs every callback from the executor as before (README, latency).
 
 At run time (``ros2 param set``, rcl_interfaces SetParameters with rclpy) status.decimation,
 diagnostics.period, watchdog.timeout, enable and command.hold_when_disabled change from the
@@ -523,7 +528,10 @@ def main(argv=None):
     try:
         gc.collect()
         gc.freeze()
-        ros.spin(node)
+        if spg.config.hot_path == 'wait_set':
+            ros.spin_hot(node, spg.sub_states)  # rclpy: the joint states without the executor
+        else:
+            ros.spin(node)
     except KeyboardInterrupt:
         pass
     finally:

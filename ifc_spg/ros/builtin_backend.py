@@ -43,6 +43,7 @@ __all__ = [
     'qos_profile_sensor_data',
     'shutdown',
     'spin',
+    'spin_hot',
     'spin_once',
     'spin_until',
     'wait_for_acks',
@@ -63,6 +64,20 @@ def executor(nodes):
     """The (cached) executor of ``nodes``: ``executor(nodes).spin_once(timeout_sec)``."""
     nodes = (nodes,) if isinstance(nodes, Node) else tuple(nodes)
     return nodes[0].context.executor(nodes)
+
+def spin_hot(node, subscription, timeout_sec=0.1, until=None):
+    """:func:`spin`: the built-in executor already serves a subscription without overhead.
+
+    (rclpy's :func:`~ifc_spg.ros.rclpy_backend.spin_hot` takes ``subscription`` out of the
+    executor; here its reader's callback runs from the same wait as everything else.) Ends
+    when the context shuts down or ``until()`` is True.
+    """
+    if until is None:
+        spin(node)
+        return
+    ex = executor((node,))
+    while node.context.ok() and not until():
+        ex.spin_once(timeout_sec)
 
 def wait_for_acks(publisher, timeout_sec=1.0):
     """Wait until every matched reliable reader acknowledged what ``publisher`` sent.

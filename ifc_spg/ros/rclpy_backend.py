@@ -18,6 +18,7 @@ from rcl_interfaces.msg import (
 )
 import rclpy
 from rclpy import ok
+from rclpy.callback_groups import CallbackGroup as _CallbackGroup
 from rclpy.context import Context as _Context
 from rclpy.executors import ExternalShutdownException as _ExternalShutdown
 from rclpy.executors import SingleThreadedExecutor as _Executor
@@ -55,6 +56,7 @@ __all__ = [
     'qos_profile_sensor_data',
     'shutdown',
     'spin',
+    'spin_hot',
     'spin_once',
     'spin_until',
     'wait_for_acks',
@@ -170,6 +172,107 @@ def spin(node, executor=None):
     ex = globals()['executor']((node,)) if executor is None else executor
     while node.context.ok():
         ex.spin_once(timeout_sec=0.1)
+
+class _Claimed(_CallbackGroup):
+    """The callback group of a subscription served by :func:`spin_hot`: no executor runs it."""
+
+    def can_execute(self, entity):
+        return False
+
+    def beginning_execution(self, entity):
+        return False
+
+    def ending_execution(self, entity):
+        pass
+
+def spin_hot(node, subscription, timeout_sec=0.1, until=None):
+    """Run callbacks of ``node`` until its context shuts down, ``subscription`` first.
+
+    The hot path without the executor: one loop waits on a wait set of the node's
+    subscriptions, timers, services, clients and guard conditions (rebuilt only when they
+    change), takes a message of ``subscription`` itself and calls its callback. Anything else
+    ready — and whatever a wait that timed out may have missed (the QoS event handlers,
+    which are not in the wait set) — is left to a SingleThreadedExecutor spun without
+    waiting. While it runs no executor serves ``subscription``; a signal ends it quietly, as
+    :func:`spin`.
+
+    Args:
+        node: The node.
+        subscription: One of its subscriptions (the joint states).
+        timeout_sec: Longest wait [s] between checks of the context and the QoS events.
+        until: Optional ``until()``: end the loop (checked after each wait) when True, e.g.
+            before shutting the context down from another thread.
+    """
+    rest = _Executor(context=node.context)
+    rest.add_node(node)
+    group, subscription.callback_group = subscription.callback_group, _Claimed()
+    handle, msg_type, raw = subscription.handle, subscription.msg_type, subscription.raw
+    callback, timeout_ns = subscription.callback, round(timeout_sec * 1e9)
+    context, entities, wait_set = node.context, None, None
+    try:
+        while context.ok() and not (until is not None and until()):
+            now = _entities(node)
+            if now != entities:
+                entities, wait_set = now, _WaitSet(node.context, now)
+            ready = wait_set.wait(timeout_ns)
+            hot = handle.pointer in ready
+            if hot:
+                taken = handle.take_message(msg_type, raw)
+                if taken is not None:
+                    callback(taken[0])
+            if not hot or len(ready) > 1 or wait_set.others_ready():
+                _spin_rest(rest, context)
+    finally:
+        subscription.callback_group = group
+        rest.shutdown(timeout_sec=0)
+
+def _spin_rest(rest, context):
+    """Run what is ready on the rest of the node without waiting (quiet at shutdown)."""
+    if not context.ok():
+        return
+    try:
+        rest.spin_once(timeout_sec=0)
+    except _ExternalShutdown:
+        pass
+    except Exception:
+        if context.ok():
+            raise
+
+def _entities(node):
+    """What the hot path waits on: the node's entities but its waitables, comparable."""
+    return (tuple(node._subscriptions), tuple(node._timers), tuple(node._services),
+            tuple(node._clients), tuple(node._guards))
+
+class _WaitSet:
+    """An rcl wait set over ``entities`` (:func:`_entities`), filled again for each wait."""
+
+    def __init__(self, context, entities):
+        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+        subs, timers, services, clients, guards = entities
+        self.wait_set = ws = _rclpy.WaitSet(len(subs), len(guards), len(timers), len(clients),
+                                            len(services), 0, context.handle)
+        self.adds = [(ws.add_subscription, [s.handle for s in subs]),
+                     (ws.add_timer, [t.handle for t in timers]),
+                     (ws.add_service, [s.handle for s in services]),
+                     (ws.add_client, [c.handle for c in clients]),
+                     (ws.add_guard_condition, [g.handle for g in guards])]
+
+    def wait(self, timeout_ns):
+        """Wait up to ``timeout_ns`` [ns]; the pointers of the subscriptions ready."""
+        ws = self.wait_set
+        ws.clear_entities()
+        for add, handles in self.adds:
+            for h in handles:
+                add(h)
+        ws.wait(timeout_ns)
+        return ws.get_ready_entities('subscription')
+
+    def others_ready(self):
+        """Anything but subscriptions ready: timers, services, clients, guard conditions."""
+        ws = self.wait_set
+        return any(ws.get_ready_entities(k) for k in ('timer', 'service', 'client',
+                                                      'guard_condition'))
 
 def executor(nodes):
     """The (cached) executor of ``nodes``: ``executor(nodes).spin_once(timeout_sec)``."""
