@@ -24,6 +24,7 @@ executor over a set of nodes), ``spin_until`` and ``describe`` (the start-up log
 """
 
 import os
+from typing import TYPE_CHECKING
 
 from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
@@ -61,7 +62,9 @@ def _rclpy_available(choice):
     return True
 
 
-if _rclpy_available(_choice()):
+# mypy checks the code written against this module with the built-in backend's names (always
+# importable, and the API both backends share); rclpy_backend.py is checked on its own
+if not TYPE_CHECKING and _rclpy_available(_choice()):
     from ifc_spg.ros.rclpy_backend import (
         BACKEND,
         RMW,

@@ -21,6 +21,7 @@ import os
 import re
 import sys
 import time
+from typing import Any
 import weakref
 
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
@@ -74,16 +75,18 @@ def domain_id_from_env(environ=None):
 
 # DDS (IDL) types for topic creation: wire layout + XTypes info for tools like `cyclonedds typeof`
 
-_IDL_TYPES = {}
+_IDL_TYPES: dict[type[messages.Message], Any] = {}  # IdlStruct classes made at run time
 
 
 def _idl_field(ftype):
+    # cyclonedds' IDL annotations (bounded_str, sequence, array) are indexed through a
+    # metaclass mypy does not see: hence the type: ignore[misc] below
     from cyclonedds.idl import types as t
 
     base, kind, length = parse_field_type(ftype)
     if base == 'string':
         bound = re.match(r'string<=(\d+)', ftype)
-        inner = t.bounded_str[int(bound.group(1))] if bound else str
+        inner: Any = t.bounded_str[int(bound.group(1))] if bound else str  # type: ignore[misc]
     elif base in PRIMITIVES:
         inner = {'bool': bool, 'byte': t.byte, 'char': t.uint8, 'int8': t.int8, 'uint8': t.uint8,
                  'int16': t.int16, 'uint16': t.uint16, 'int32': t.int32, 'uint32': t.uint32,
@@ -92,9 +95,9 @@ def _idl_field(ftype):
     else:
         inner = idl_type(messages.REGISTRY[base])
     if kind == 'sequence':
-        return t.sequence[inner, length] if length else t.sequence[inner]
+        return t.sequence[inner, length] if length else t.sequence[inner]  # type: ignore[misc]
     if kind == 'array':
-        return t.array[inner, length]
+        return t.array[inner, length]  # type: ignore[misc]
     return inner
 
 
@@ -131,7 +134,7 @@ class Context:
         self.ros_args = parse_ros_args(sys.argv if args is None else args)
         self.domain_id = domain_id_from_env() if domain_id is None else int(domain_id)
         enclave = self.ros_args.enclave or '/'
-        self.participant = DomainParticipant(
+        self.participant: DomainParticipant | None = DomainParticipant(
             self.domain_id, qos=Qos(Policy.Userdata(data=f'enclave={enclave};'.encode())))
         self.gid = self.participant.get_guid().bytes
         self.guard = GuardCondition(self.participant)
@@ -144,7 +147,7 @@ class Context:
         self._info_topic = self.topic('ros_discovery_info', info_type)
         from cyclonedds.pub import DataWriter
 
-        self._info_writer = DataWriter(self.participant, self._info_topic,
+        self._info_writer: DataWriter | None = DataWriter(self.participant, self._info_topic,
                                        to_dds_qos(latched(1), info_type._HASH))
         self._info_ser = messages._codec(info_type)[0]
 
@@ -158,6 +161,8 @@ class Context:
                 if name == dds_name and other is not cls:
                     raise ParameterError(f"topic '{dds_name}' is already used with type "
                                          f'{other._TYPE}, not {cls._TYPE}')
+            if self.participant is None:
+                raise IfcSpgError('the DDS context is shut down')
             self._topics[key] = Topic(self.participant, dds_name, idl_type(cls))
         return self._topics[key]
 
@@ -705,8 +710,8 @@ class _Executor:
         if self.generation == self.context.generation:
             return
         self.generation = self.context.generation
-        subs = {id(s): s for ref in self.nodes if ref() is not None
-                for s in ref().subscriptions}
+        subs = {id(s): s for ref in self.nodes if (node := ref()) is not None
+                for s in node.subscriptions}
         for key in list(self.attached):
             if key not in subs:
                 sub, cond = self.attached.pop(key)
@@ -716,7 +721,7 @@ class _Executor:
                 self.waitset.attach(sub._condition)
                 self.attached[key] = (sub, sub._condition)
         self.subs = [sub for sub, _ in self.attached.values()]
-        self.timers = [t for ref in self.nodes if ref() is not None for t in ref().timers]
+        self.timers = [t for ref in self.nodes if (node := ref()) is not None for t in node.timers]
 
     def _run_ready(self):
         subs = self.subs

@@ -70,7 +70,7 @@ def _rmw():
         return os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
 
 RMW = _rmw()
-_nodes = _weakref.WeakSet()
+_nodes: '_weakref.WeakSet[Node]' = _weakref.WeakSet()
 
 class Node(_RclpyNode):
     """rclpy's Node, destroyed with its context.
@@ -122,7 +122,8 @@ def new_context(args=None):
     init(args=args, context=ctx)
     return ctx
 
-_executors = _weakref.WeakValueDictionary()
+_executors: '_weakref.WeakValueDictionary[tuple[int, ...], _NodesExecutor]' = (
+    _weakref.WeakValueDictionary())
 
 class _NodesExecutor:
     """A SingleThreadedExecutor over a fixed set of nodes.
