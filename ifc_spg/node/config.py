@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields
 import math
 import os
 import sys
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
@@ -162,7 +162,7 @@ class Param(NamedTuple):
     name: str
     field: str
     description: str
-    range: tuple = None
+    range: tuple[float, float] | None = None
 
 
 PARAMETERS = (
@@ -225,7 +225,7 @@ PARAMETERS = (
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 TICKS = ('joint_states', 'timer')
 
-_DEFAULTS = {f.name: f.default for f in fields(SpgConfig)}
+_DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(SpgConfig)}  # field -> default
 _BY_NAME = {p.name: p for p in PARAMETERS}
 # Parameters a ROS node may carry without us declaring them.
 _FOREIGN_OK = ('use_sim_time', 'qos_overrides.')
@@ -299,7 +299,7 @@ def declare_parameters(node):
     from ifc_spg import ros  # imports rclpy: only where a node is given
     from ifc_spg.ros.parameters import declare_checked, overrides
 
-    values = {}
+    values: dict[str, Any] = {}  # SpgConfig field -> value
     gains = None
     for p in PARAMETERS:
         default = _DEFAULTS[p.field]

@@ -38,7 +38,7 @@ import dataclasses
 import json
 import math
 import time
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -258,7 +258,7 @@ class SpgRunner:
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         #: ``spg/obstacles``: checks the markers, moves obstacles at tick boundaries
         self.obstacles = ObstacleInput(base_frames(self.robot) + (config.markers_frame,))
-        self.errors = deque(maxlen=_MAX_ERRORS)
+        self.errors: deque[dict[str, Any]] = deque(maxlen=_MAX_ERRORS)
         self.last_error = ''
         self.ticks = 0
         self.watchdog_trips = 0
@@ -280,10 +280,10 @@ class SpgRunner:
         self._pending_name = None
         self._last_stamp = None
         self._last_seen = None
-        self._last_q = None
+        self._last_q: np.ndarray | None = None
         self._last_command = None
-        self._period = deque(maxlen=500)    # stamp differences [s]
-        self._tick_times = deque(maxlen=500)
+        self._period: deque[float] = deque(maxlen=500)    # stamp differences [s]
+        self._tick_times: deque[float] = deque(maxlen=500)
 
     # -- inputs -------------------------------------------------------------------------
     def handle_task_stack(self, text, source=None):
@@ -498,9 +498,9 @@ class SpgRunner:
         if 'pspm_stall' in events:  # the first stall of this episode (stack activation or
             # restart), or one of joints that had not stalled in it
             self.pspm_stalls += 1
-            self.last_stall = info.message
-            self._error('pspm', info.message)
-            self._events.append(Event('pspm_stall', info.message))
+            self.last_stall = info.message or ''
+            self._error('pspm', self.last_stall)
+            self._events.append(Event('pspm_stall', self.last_stall))
         self.ticks += 1
         self._tick_times.append(info.tick_time or 0.0)
         self._update_streams()
@@ -670,8 +670,9 @@ class SpgRunner:
         n = self._n
         streams = tuple((STREAM_FIELD + b.task.name, b.dim) for b in stream_bounds(self.spg.tasks))
         obstacles = tuple((OBSTACLE_FIELD + name, 7) for name in obstacle_poses(self.spg.tasks))
-        return _base_layout(n) + (('warm_start', self.spg.snapshot().warm_start.size),) + \
-            streams + obstacles
+        warm_start = self.spg.snapshot().warm_start
+        assert warm_start is not None  # snapshot() always gives it
+        return _base_layout(n) + (('warm_start', warm_start.size),) + streams + obstacles
 
     def state_vector(self):
         """The ``spg/state`` data after the last tick.
@@ -686,6 +687,8 @@ class SpgRunner:
         x, y, z [m], qx, qy, qz, qw in its frame), which it uses instead of ``spg/obstacles``.
         """
         snap = self.spg.snapshot()
+        # after a tick: q measured, q_v set, and snapshot() always gives the warm start
+        assert self._last_q is not None and snap.q_v is not None and snap.warm_start is not None
         nan = np.full(self._n, np.nan)
         sec, nsec = split_ns(self._last_stamp or 0)
         return np.concatenate((

@@ -189,7 +189,7 @@ class MarkerPublisher:
     def publish(self):
         """Publish the targets of the last tick (nothing before the first tick)."""
         spg = self.runner.spg
-        if spg.q_v is None or not spg.tasks:
+        if self.pub is None or spg.q_v is None or not spg.tasks:
             return
         t = spg.info.task_time if spg.info.task_time is not None else 0.0
         targets = cartesian_targets(spg.tasks, spg.kin, t)

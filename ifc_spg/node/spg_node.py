@@ -193,7 +193,7 @@ class SpgNode:
                              '(install ros-jazzy-visualization-msgs, requirements.txt)')
         self._watchdog_timer = self._diag_timer = None
         self._latest, self._last_tick_ns = None, -1   # tick: timer
-        self._ages = deque(maxlen=1000)                # [s] state age at each timer tick
+        self._ages: deque[float] = deque(maxlen=1000)  # [s] state age at each timer tick
         self.timer_periods = PeriodCounter(c.dt)       # tick: timer, late or missed periods
         if c.tick == 'timer':
             node.create_timer(c.dt, self.on_timer_tick)
