@@ -34,6 +34,7 @@ import math
 import signal
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -61,16 +62,16 @@ class BridgeParams:
     mode: str = 'realtime'
     rate: float = 500.0
     timestep: float = 0.001
-    q0: tuple = ()
+    q0: tuple[float, ...] = ()
     duration: float = 0.0
     push_duration: float = 0.5
     ft_raw: bool = False
-    stiffness: tuple = ()
-    damping: tuple = ()
+    stiffness: tuple[float, ...] = ()
+    damping: tuple[float, ...] = ()
     wait_for_subscribers: int = 0
     command_interface: str = 'joint_state'
     command_topic: str = 'command/joint_position'
-    command_joints: tuple = ()
+    command_joints: tuple[str, ...] = ()
     state_rate: float = 0.0
 
 
@@ -112,10 +113,10 @@ _DESCRIPTIONS = {
 
 def declare(node):
     """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
-    values = {}
+    values: dict[str, Any] = {}  # parameter values (ROS parameter types)
     gains = None
-    for name, default in BridgeParams.__dataclass_fields__.items():
-        default = default.default
+    for name, spec in BridgeParams.__dataclass_fields__.items():
+        default: Any = spec.default
         if name == 'q0':
             default = [0.0]  # typed as a double array; [] would be untyped
         elif name in ('stiffness', 'damping', 'command_joints'):  # the robot's own values

@@ -16,8 +16,10 @@ a new command (after the first one) keeps the last q_v and is counted in
 ``State.missed_commands``.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -43,6 +45,10 @@ def default_interface(model):
     if model.ifc == 'cartesian_admittance':
         return 'accrea'
     return 'icub' if np.any(model.stiff_mask) else 'lbr_fri'
+
+
+# a gain or property per joint, or one for all joints
+PerJoint = float | Sequence[float] | np.ndarray
 
 
 @dataclass(frozen=True)
@@ -73,25 +79,26 @@ class SimConfig:
             first chain with an F/T sensor, else the first chain).
     """
 
-    robot: object = 'lbr_iiwa14'
-    interface: str = None
+    robot: str | RobotModel = 'lbr_iiwa14'
+    interface: str | None = None
     scene: str = 'free'
-    scene_options: dict = field(default_factory=dict)
-    q0: tuple = None
+    scene_options: dict[str, Any] = field(default_factory=dict)  # scene options, from JSON
+    q0: Sequence[float] | None = None
     timestep: float = 0.001
     command_period: float = 0.002
-    stiffness: object = None
-    damping: object = None
-    joint_damping: object = None
-    frictionloss: object = None
-    armature: object = None
-    stiff_gains: tuple = (2000.0, 20.0)
-    admittance: dict = None
-    admittance_gains: dict = field(default_factory=dict)
-    contact_chain: str = None
+    stiffness: PerJoint | None = None
+    damping: PerJoint | None = None
+    joint_damping: PerJoint | None = None
+    frictionloss: PerJoint | None = None
+    armature: PerJoint | None = None
+    stiff_gains: tuple[float, float] = (2000.0, 20.0)
+    admittance: dict[str, Any] | None = None  # keyword options, from YAML/JSON
+    admittance_gains: dict[str, Any] = field(default_factory=dict)
+    contact_chain: str | None = None
 
 
-def _per_joint(value, n, what, names):
+def _per_joint(value: 'PerJoint | None', n: int, what: str,
+               names: Sequence[str]) -> np.ndarray | None:
     if value is None:
         return None
     a = np.asarray(value, dtype=float)
@@ -102,7 +109,7 @@ def _per_joint(value, n, what, names):
     return a
 
 
-def _load_model(robot):
+def _load_model(robot: str | RobotModel) -> RobotModel:
     """The RobotModel of a configuration name, or ``robot`` itself."""
     if isinstance(robot, str):
         return RobotModel.from_config(robot)
@@ -143,7 +150,7 @@ class Simulation(RobotInterface):
                                  f'of timestep {config.timestep} s')
         self.dt = float(config.timestep)
         self._steps_per_command = round(ratio)
-        self.joint_names = tuple(robot.joint_names)
+        self.joint_names: tuple[str, ...] = tuple(robot.joint_names)
         n = len(self.joint_names)
         q0 = robot.q_home if config.q0 is None else check_vector(config.q0, n, 'q0',
                                                                  self.joint_names)
