@@ -275,7 +275,7 @@ def _metrics(spec, where):
         if name not in _METRICS:
             raise _err(where, f"unknown metric {name!r}{did_you_mean(str(name), _METRICS)}; "
                        f"metrics: {', '.join(_METRICS)}")
-        out[name] = dict(opts)
+        out[name] = dict(opts or {})  # (a None opts raised above)
     return out
 
 
