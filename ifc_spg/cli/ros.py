@@ -14,6 +14,7 @@ message classes against rosbags.
 """
 
 import argparse
+import functools
 import json
 import math
 import random
@@ -133,7 +134,7 @@ def listener(argv):
             integer=True)).value
         timeout_s = node.declare_parameter('timeout_s', 60.0, _descriptor(
             'Exit after this long [s].', 0.0, 86400.0)).value
-        first = [None]
+        first: list[float | None] = [None]
 
         def callback(msg):
             now = time.time_ns()
@@ -226,15 +227,14 @@ def bench(argv):
         data = messages.serialize(msg)
         typename = msg._TYPE
         rb = store.deserialize_cdr(data, typename)
-        ser = timeit.timeit(lambda msg=msg: messages.serialize(msg),
+        ser = timeit.timeit(functools.partial(messages.serialize, msg),
                             number=args.n) / args.n * 1e6
-        de = timeit.timeit(lambda msg=msg, data=data: messages.deserialize(type(msg), data),
+        de = timeit.timeit(functools.partial(messages.deserialize, type(msg), data),
                            number=args.n) / args.n * 1e6
-        rser = timeit.timeit(lambda rb=rb, typename=typename: store.serialize_cdr(rb, typename),
+        rser = timeit.timeit(functools.partial(store.serialize_cdr, rb, typename),
                              number=args.n) / args.n * 1e6
-        rde = timeit.timeit(
-            lambda data=data, typename=typename: store.deserialize_cdr(data, typename),
-            number=args.n) / args.n * 1e6
+        rde = timeit.timeit(functools.partial(store.deserialize_cdr, data, typename),
+                            number=args.n) / args.n * 1e6
         print(f'{label:<24} {ser:8.2f} {de:8.2f} {rser:12.2f} {rde:11.2f}')
     return 0
 
