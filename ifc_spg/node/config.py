@@ -13,6 +13,7 @@ ROS parameter names are grouped with dots (``pspm.initial_energy``, ``topics.com
 in a params file they are nested mappings under ``ros__parameters``.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 import math
 import os
@@ -22,6 +23,7 @@ from typing import Any, NamedTuple
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
 from ifc_spg.pspm import PspmConfig
+from ifc_spg.ros.protocols import Node as RosNode
 
 __all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
            'config_from_parameters', 'config_file']
@@ -107,7 +109,7 @@ class SpgConfig:
     markers_rate: float = 30.0
     markers_frame: str = 'world'
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for p in PARAMETERS:
             value = getattr(self, p.field)
             if isinstance(_DEFAULTS[p.field], tuple) and isinstance(value, list):  # from JSON
@@ -120,7 +122,7 @@ class SpgConfig:
             if p.field.endswith('_topic') and not getattr(self, p.field):
                 raise ParameterError(f"parameter '{p.name}' must name a topic, got ''")
 
-    def _check_choices(self):
+    def _check_choices(self) -> None:
         """Raise ParameterError for a robot, solver, tick or command interface not known."""
         if self.robot not in _ROBOTS:
             raise ParameterError(f"parameter 'robot': unknown robot '{self.robot}'"
@@ -138,7 +140,7 @@ class SpgConfig:
                 f"{', '.join(COMMAND_INTERFACES)}"
                 f'{did_you_mean(self.command_interface, COMMAND_INTERFACES)}')
 
-    def pspm_config(self):
+    def pspm_config(self) -> PspmConfig | bool:
         """The :class:`~ifc_spg.pspm.PspmConfig`, or False when PSPM is off."""
         if not self.pspm:
             return False
@@ -231,7 +233,7 @@ _BY_NAME = {p.name: p for p in PARAMETERS}
 _FOREIGN_OK = ('use_sim_time', 'qos_overrides.')
 
 
-def config_from_parameters(values):
+def config_from_parameters(values: Mapping[str, Any]) -> 'SpgConfig':
     """Build an :class:`SpgConfig` from ``{ROS parameter name: value}`` (missing: default).
 
     Raises:
@@ -264,7 +266,7 @@ def _descriptor(ros, p, default):
     return desc
 
 
-def _check_value(p, value):
+def _check_value(p: Param, value: Any) -> None:  # value: a ROS parameter's
     """Raise ParameterError unless ``value`` has the type and range of parameter ``p``."""
     default = _DEFAULTS[p.field]
     if type(value) is not type(default) and not (
@@ -285,7 +287,7 @@ def _check_value(p, value):
                              f'[{p.range[0]}, {p.range[1]}] ({p.description})')
 
 
-def declare_parameters(node):
+def declare_parameters(node: RosNode) -> 'SpgConfig':
     """Declare every parameter of :data:`PARAMETERS` on ``node``; return the SpgConfig.
 
     Each parameter is declared once, with its description and range; the value comes from
@@ -318,7 +320,7 @@ def declare_parameters(node):
     return config_from_parameters(values)
 
 
-def config_file(robot):
+def config_file(robot: str) -> str:
     """Path of ``config/<robot>.yaml``: the source tree's, else the installed share dir.
 
     Raises:

@@ -8,6 +8,7 @@ rclpy imports; use that module, not this one.
 import os
 import sys
 import time as _time
+from typing import TYPE_CHECKING
 import weakref as _weakref
 
 from rcl_interfaces.msg import (
@@ -32,6 +33,7 @@ from rclpy.qos import (
 )
 from rclpy.signals import SignalHandlerOptions
 
+from ifc_spg.ros import protocols as _protocols
 from ifc_spg.ros.ros_args import parse_ros_args
 
 __all__ = [
@@ -203,3 +205,8 @@ def spin_until(condition, timeout_sec=5.0, nodes=None):
             return bool(condition())
         ex.spin_once(timeout_sec=min(remaining, 0.1))
     return True
+
+
+if TYPE_CHECKING:  # this backend's Node meets the Protocol node code is typed with
+    def _meets_protocol(node: Node) -> _protocols.Node:
+        return node
