@@ -7,6 +7,7 @@ is answered by the module that implements VERB. The benchmarks are not part of t
 ``ifc-spg bench`` runs them from the ``benchmarks/`` folder of a checkout (:mod:`.bench`).
 """
 
+from collections.abc import Sequence
 import importlib
 import sys
 
@@ -36,7 +37,7 @@ def _usage():
     return '\n'.join(lines)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ifc-spg``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help', 'help'):

@@ -14,6 +14,7 @@ message classes against rosbags.
 """
 
 import argparse
+from collections.abc import Sequence
 import functools
 import json
 import math
@@ -22,6 +23,7 @@ import signal
 import sys
 import time
 import timeit
+from types import FrameType
 
 from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError
@@ -34,7 +36,7 @@ __all__ = ['main', 'talker', 'listener', 'echo', 'bench']
 
 
 def _install_signal_shutdown():
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> None:
         if ros.ok():
             ros.shutdown()
 
@@ -53,7 +55,7 @@ def _descriptor(description, low=None, high=None, integer=False):
     return desc
 
 
-def talker(argv):
+def talker(argv: Sequence[str]) -> int:
     """Publish JointState messages; see the module docstring. Returns the exit code."""
     ros.init(args=['ifc-spg', *argv])
     _install_signal_shutdown()
@@ -121,7 +123,7 @@ def _percentile(sorted_values, q):
     return sorted_values[lo] + (sorted_values[hi] - sorted_values[lo]) * (k - lo)
 
 
-def listener(argv):
+def listener(argv: Sequence[str]) -> int:
     """Receive JointState messages and print a JSON latency summary. Returns the exit code."""
     ros.init(args=['ifc-spg', *argv])
     _install_signal_shutdown()
@@ -173,7 +175,7 @@ def listener(argv):
             ros.shutdown()
 
 
-def echo(argv):
+def echo(argv: Sequence[str]) -> int:
     """Print messages of TOPIC (type TYPE, e.g. std_msgs/msg/String) as they arrive."""
     parser = argparse.ArgumentParser(prog='ifc-spg ros echo')
     parser.add_argument('topic')
@@ -203,7 +205,7 @@ def echo(argv):
     return 0
 
 
-def bench(argv):
+def bench(argv: Sequence[str]) -> int:
     """Time CDR serialize/deserialize of every built-in message class, vs rosbags."""
     from rosbags.typesys import Stores, get_typestore  # optional: the comparison only
 
@@ -242,7 +244,7 @@ def bench(argv):
 _COMMANDS = {'talker': talker, 'listener': listener, 'echo': echo, 'bench': bench}
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ifc-spg ros``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help'):
