@@ -44,6 +44,7 @@ tolerance, 1 when it is not (or commands are missing), 2 on an unreadable bag.
 import bisect
 import dataclasses
 import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -603,7 +604,7 @@ def _run_ticks(spg, states, plan, tally, rec):
     return warnings
 
 
-def replay(path, robot=None):
+def replay(path: str | Path, robot: str | None = None) -> ReplayResult:
     """Recompute the commands of a bag; returns a :class:`ReplayResult`.
 
     A bag with ``spg/state`` (a live run, recorded from any tick on) is replayed from the
