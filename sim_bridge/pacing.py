@@ -73,7 +73,7 @@ class DeadlinePacer:
             self._next = self._clock() + self.period
         return late
 
-    def stats(self):
+    def stats(self) -> dict[str, float]:
         """Lateness statistics in [s]: p50, p99, max, and the overrun count."""
         if not self._lateness:
             return {'p50': 0.0, 'p99': 0.0, 'max': 0.0, 'overruns': self.overruns, 'n': 0}

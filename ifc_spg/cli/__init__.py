@@ -30,7 +30,7 @@ VERBS = {
 }
 
 
-def _usage():
+def _usage() -> str:
     lines = ['usage: ifc-spg VERB [ARGS...]   (ifc-spg VERB --help for a verb)', '', 'verbs:']
     for verb, (_, text) in VERBS.items():
         lines.append(f'  {verb:<9} {text}')

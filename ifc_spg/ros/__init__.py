@@ -40,14 +40,14 @@ ROSPY_WHEELS = ('ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-sensor-msg
                 'ros-jazzy-std-msgs ros-jazzy-geometry-msgs ros-jazzy-diagnostic-msgs')
 
 
-def _choice():
+def _choice() -> str:
     value = os.environ.get('IFC_SPG_ROS_BACKEND', '').strip().lower() or 'auto'
     if value not in ('auto', 'rclpy', 'cyclonedds'):
         raise ImportError(f"IFC_SPG_ROS_BACKEND='{value}' is not one of auto, rclpy, cyclonedds")
     return value
 
 
-def _rclpy_available(choice):
+def _rclpy_available(choice: str) -> bool:
     if choice == 'cyclonedds':
         return False
     try:
@@ -117,7 +117,7 @@ else:
         wait_for_acks,
     )
 
-def describe():
+def describe() -> str:
     """The backend line every node logs at start-up.
 
     For example ``ROS 2 backend: rclpy on rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``.
