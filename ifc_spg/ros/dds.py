@@ -17,6 +17,7 @@ WaitSet (subscription read conditions and a guard condition) until data arrives 
 is due, and runs one callback.
 """
 
+from collections.abc import Callable
 import os
 import re
 import sys
@@ -43,7 +44,7 @@ from ifc_spg.ros.parameters import (
     SetParametersResult,
     check_parameter_value,
 )
-from ifc_spg.ros.qos import as_qos, latched, to_dds_qos
+from ifc_spg.ros.qos import QoSProfile, as_qos, latched, to_dds_qos
 from ifc_spg.ros.ros_args import parse_ros_args
 
 __all__ = ['Context', 'Node', 'Publisher', 'Subscription', 'Timer', 'init', 'shutdown', 'ok',
@@ -248,7 +249,7 @@ class Publisher:
         """The fully qualified topic name (rclpy's ``Publisher.topic``)."""
         return self.topic_name
 
-    def publish(self, msg):
+    def publish(self, msg: messages.Message) -> None:
         """Serialize and write one message.
 
         Raises:
@@ -277,7 +278,7 @@ class Publisher:
         if ret < 0:
             raise IfcSpgError(f"DDS write on '{self.topic_name}' failed with code {ret}")
 
-    def get_subscription_count(self):
+    def get_subscription_count(self) -> int:
         """Number of matched DDS readers (subscriptions) of this publisher."""
         return len(self._writer.get_matched_subscriptions())
 
@@ -355,7 +356,7 @@ class Subscription:
         self._queue.clear()
         return out
 
-    def get_publisher_count(self):
+    def get_publisher_count(self) -> int:
         """Number of matched DDS writers (publishers) of this subscription."""
         return len(self._reader.get_matched_publications())
 
@@ -379,11 +380,11 @@ class Timer:
         self._canceled = not autostart
         self._next = time.monotonic_ns() + self.timer_period_ns
 
-    def is_canceled(self):
+    def is_canceled(self) -> bool:
         """True after cancel()."""
         return self._canceled
 
-    def cancel(self):
+    def cancel(self) -> None:
         """Stop calling the callback."""
         self._canceled = True
 
@@ -460,15 +461,15 @@ class Node:
 
     # names ------------------------------------------------------------------------------------
 
-    def get_name(self):
+    def get_name(self) -> str:
         """The node name."""
         return self._name
 
-    def get_namespace(self):
+    def get_namespace(self) -> str:
         """The absolute namespace."""
         return self._namespace
 
-    def get_fully_qualified_name(self):
+    def get_fully_qualified_name(self) -> str:
         """``/ns/name``."""
         return fully_qualified_node_name(self._name, self._namespace)
 
@@ -479,7 +480,7 @@ class Node:
         """
         return dict(self._overrides)
 
-    def resolve_topic_name(self, topic, *, only_expand=False):
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str:
         """Expand (and remap) a topic name as rcl does for this node."""
         expanded = expand_topic_name(topic, self._name, self._namespace)
         if only_expand:
@@ -488,22 +489,26 @@ class Node:
 
     # entities ---------------------------------------------------------------------------------
 
-    def create_publisher(self, msg_type, topic, qos_profile, **_ignored):
+    def create_publisher(self, msg_type: type[messages.Message], topic: str,
+                         qos_profile: QoSProfile | int, **_ignored: object) -> Publisher:
         """Create a Publisher of ``msg_type`` on ``topic`` with a QoSProfile or int depth."""
         pub = Publisher(self, msg_type, topic, qos_profile)
         self.publishers.append(pub)
         self.context.changed()
         return pub
 
-    def create_subscription(self, msg_type, topic, callback, qos_profile, **_ignored):
+    def create_subscription(self, msg_type: type[messages.Message], topic: str,
+                            callback: Callable[[Any], object], qos_profile: QoSProfile | int,
+                            **_ignored: object) -> 'Subscription':
         """Create a Subscription calling ``callback(msg)`` for each message."""
         sub = Subscription(self, msg_type, topic, callback, qos_profile)
         self.subscriptions.append(sub)
         self.context.changed()
         return sub
 
-    def create_timer(self, timer_period_sec, callback, callback_group=None, clock=None,
-                     autostart=True):
+    def create_timer(self, timer_period_sec: float, callback: Callable[[], object],
+                     callback_group: object = None, clock: object = None,
+                     autostart: bool = True) -> 'Timer':
         """Create a Timer calling ``callback()`` every ``timer_period_sec`` [s]."""
         timer = Timer(self, timer_period_sec, callback, autostart)
         self.timers.append(timer)
@@ -534,7 +539,7 @@ class Node:
                 ex.waitset.detach(entry[1])
                 ex.subs = [s for s in ex.subs if s is not sub]
 
-    def count_publishers(self, topic_name):
+    def count_publishers(self, topic_name: str) -> int:
         """Publishers matched on ``topic_name``, as seen by this node's subscriptions to it.
 
         rclpy counts the whole graph; the built-in backend knows the writers its readers
@@ -544,7 +549,7 @@ class Node:
         return max((s.get_publisher_count() for s in self.subscriptions
                     if s.topic_name == name), default=0)
 
-    def count_subscribers(self, topic_name):
+    def count_subscribers(self, topic_name: str) -> int:
         """Subscriptions matched on ``topic_name`` by this node's publishers to it."""
         name = self.resolve_topic_name(topic_name)
         return max((p.get_subscription_count() for p in self.publishers
@@ -677,11 +682,11 @@ class Node:
 
     # misc -------------------------------------------------------------------------------------
 
-    def get_logger(self):
+    def get_logger(self) -> Logger:
         """The node's Logger."""
         return self._logger
 
-    def get_clock(self):
+    def get_clock(self) -> Clock:
         """The node's Clock (system time)."""
         return self._clock
 
