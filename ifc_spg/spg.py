@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import math
 import time
 from types import ModuleType
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Union
 
 import numpy as np
 
@@ -32,9 +32,15 @@ from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
-from ifc_spg.model import JOINT_IMPEDANCE
+from ifc_spg.model import JOINT_IMPEDANCE, RobotModel
 from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, StallReport, stall_message
 from ifc_spg.tasks.task import Level, Task
+
+if TYPE_CHECKING:  # task_stack builds on the SPG's tasks: no import at run time
+    from ifc_spg.task_stack import TaskStack
+
+#: What set_stack takes: a TaskStack (built for the robot) or the tasks themselves
+StackInput = Union['TaskStack', Sequence[Task]]
 
 __all__ = ['Activation', 'SetPointGenerator', 'SpgInfo', 'SpgState']
 
@@ -245,7 +251,7 @@ class SetPointGenerator:
             cannot take them.
     """
 
-    def __init__(self, robot: Any, stack: Any = None, *, dt: float = 0.002,
+    def __init__(self, robot: RobotModel, stack: StackInput | None = None, *, dt: float = 0.002,
                  pspm: bool | PspmConfig = True, solver: str | Cascade = 'daqp',
                  rho: float = 0.01, torque_limits: bool = True,
                  kernels: ModuleType | None = None, warm_up: bool = True):
@@ -285,7 +291,7 @@ class SetPointGenerator:
         self._reporting: list = []  # tasks with a report() for info.distances
         self._pending: tuple | None = None
         self._t0: float | None = None
-        self.stack: Any = None
+        self.stack: StackInput | None = None
         #: ``[first, latest]`` :class:`Activation` of the running stack's tasks (the first
         #: fixes orientation references, the latest the ``init`` values after a restart)
         self.activations: list[Activation] = []
@@ -366,7 +372,7 @@ class SetPointGenerator:
 
     # -- stack management -----------------------------------------------------------
     @property
-    def pending_stack(self) -> Any:
+    def pending_stack(self) -> StackInput | None:
         """The stack that the next tick takes over, or None.
 
         The stack given to :meth:`set_stack` that the next tick will take over (it becomes
@@ -379,7 +385,7 @@ class SetPointGenerator:
         """The tasks of :attr:`pending_stack` (empty when no swap is pending)."""
         return [] if self._pending is None else list(self._pending[1])
 
-    def set_stack(self, stack: Any) -> None:
+    def set_stack(self, stack: StackInput) -> None:
         """Replace the running stack at the next tick (hot swap, no jump in q_v).
 
         ``init`` values are captured when the new stack becomes active. Building the tasks

@@ -101,7 +101,7 @@ class _Chain:
     denom: np.ndarray = field(default_factory=lambda: np.ones(6))
     dx: np.ndarray = field(default_factory=lambda: np.zeros(6))
     dxd: np.ndarray = field(default_factory=lambda: np.zeros(6))
-    h_f: np.ndarray = None
+    h_f: np.ndarray | None = None
 
 
 class CartesianAdmittanceLaw:

@@ -18,7 +18,9 @@ Sign conventions (all wrenches are ``[fx, fy, fz, tx, ty, tz]``):
   (e.g. the tool tip). This is the ``h`` the Cartesian admittance law reacts to.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -52,37 +54,41 @@ class State:
     """
 
     t: float
-    joint_names: tuple
+    joint_names: tuple[str, ...]
     q: np.ndarray
     qd: np.ndarray
     tau_measured: np.ndarray
     tau_ext_est: np.ndarray
     q_v: np.ndarray
-    ft_wrench: dict = field(default_factory=dict)
-    ft_frames: dict = field(default_factory=dict)
-    ft_external: dict = field(default_factory=dict)
+    ft_wrench: dict[str, np.ndarray] = field(default_factory=dict)
+    ft_frames: dict[str, Any] = field(default_factory=dict)
+    ft_external: dict[str, np.ndarray] = field(default_factory=dict)
     contact_wrench: np.ndarray = field(default_factory=lambda: np.zeros(6))
-    env_joint_names: tuple = ()
+    env_joint_names: tuple[str, ...] = ()
     env_q: np.ndarray = field(default_factory=lambda: np.zeros(0))
     env_qd: np.ndarray = field(default_factory=lambda: np.zeros(0))
     missed_commands: int = 0
 
 
+_Interface = TypeVar('_Interface', bound='RobotInterface')
+
+
 class RobotInterface:
     """Base class of the robot backends: the simulation and the fake."""
 
-    joint_names = ()
+    joint_names: tuple[str, ...] = ()
     dt = 0.001
 
-    def reset(self, q0=None):
+    def reset(self, q0: Sequence[float] | np.ndarray | None = None) -> None:
         """Reset to joint positions ``q0`` in [rad] (default: the home pose), at rest."""
         raise NotImplementedError
 
-    def read_state(self):
+    def read_state(self) -> State:
         """Return the current :class:`State`."""
         raise NotImplementedError
 
-    def write_command(self, q_v, qd_v=None):
+    def write_command(self, q_v: Sequence[float] | np.ndarray,
+                      qd_v: Sequence[float] | np.ndarray | None = None) -> None:
         """Set the virtual joint positions q_v in [rad] (held until the next command).
 
         Args:
@@ -91,31 +97,32 @@ class RobotInterface:
         """
         raise NotImplementedError
 
-    def step(self, n=1):
+    def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps of ``dt`` seconds."""
         raise NotImplementedError
 
-    def step_until(self, t):
+    def step_until(self, t: float) -> None:
         """Advance whole physics steps until the time is >= ``t`` - dt/2 (t in [s])."""
         n = round((t - self.read_time()) / self.dt)
         if n > 0:
             self.step(n)
 
-    def read_time(self):
+    def read_time(self) -> float:
         """Current time in [s]."""
         return self.read_state().t
 
-    def close(self):
+    def close(self) -> None:
         """Release resources; further calls are errors."""
 
-    def __enter__(self):
+    def __enter__(self: _Interface) -> _Interface:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def check_vector(x, n, what, names=()):
+def check_vector(x: Sequence[float] | np.ndarray, n: int, what: str,
+                 names: Sequence[str] = ()) -> np.ndarray:
     """Return ``x`` as a float array of length ``n`` or raise :class:`ParameterError`."""
     a = np.asarray(x, dtype=float).reshape(-1)
     if a.shape != (n,):
@@ -139,7 +146,8 @@ class FakeInterface(RobotInterface):
         dt: Step in [s].
     """
 
-    def __init__(self, joint_names, stiffness=200.0, omega=30.0, dt=0.001):
+    def __init__(self, joint_names: Sequence[str], stiffness: float | Sequence[float] = 200.0,
+                 omega: float = 30.0, dt: float = 0.001) -> None:
         self.joint_names = tuple(joint_names)
         n = len(self.joint_names)
         self._k = np.broadcast_to(np.asarray(stiffness, dtype=float), (n,)).copy()
@@ -148,7 +156,7 @@ class FakeInterface(RobotInterface):
         self._closed = False
         self.reset()
 
-    def reset(self, q0=None):
+    def reset(self, q0: Sequence[float] | np.ndarray | None = None) -> None:
         """At rest at ``q0`` [rad] (default zeros), commanding it, at t = 0."""
         n = len(self.joint_names)
         self._q = np.zeros(n) if q0 is None else check_vector(q0, n, 'q0', self.joint_names)
@@ -157,7 +165,7 @@ class FakeInterface(RobotInterface):
         self._t = 0.0
         self._missed = 0
 
-    def read_state(self):
+    def read_state(self) -> State:
         """The current :class:`State`."""
         self._check_open()
         n = len(self.joint_names)
@@ -166,12 +174,13 @@ class FakeInterface(RobotInterface):
                      tau_ext_est=np.zeros(n), q_v=self._q_v.copy(),
                      missed_commands=self._missed)
 
-    def write_command(self, q_v, qd_v=None):
+    def write_command(self, q_v: Sequence[float] | np.ndarray,
+                      qd_v: Sequence[float] | np.ndarray | None = None) -> None:
         """Command the virtual joint positions ``q_v`` [rad] (``qd_v`` is ignored)."""
         self._check_open()
         self._q_v = check_vector(q_v, len(self.joint_names), 'q_v', self.joint_names)
 
-    def step(self, n=1):
+    def step(self, n: int = 1) -> None:
         """Advance ``n`` steps of ``dt``: each joint a damped spring towards q_v."""
         self._check_open()
         w = self._omega
@@ -181,14 +190,14 @@ class FakeInterface(RobotInterface):
             self._q = self._q + self.dt * self._qd
             self._t += self.dt
 
-    def read_time(self):
+    def read_time(self) -> float:
         """The simulated time [s]."""
         return self._t
 
-    def close(self):
+    def close(self) -> None:
         """Close it; further calls raise."""
         self._closed = True
 
-    def _check_open(self):
+    def _check_open(self) -> None:
         if self._closed:
             raise ParameterError('this FakeInterface was closed; create a new one')

@@ -27,6 +27,7 @@ absolute deadlines; a period without a command holds the last q_v (as FRI does) 
 counted and reported.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import gc
 import json
@@ -34,6 +35,7 @@ import math
 import signal
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -42,6 +44,7 @@ from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
 from ifc_spg.ros import msg
 from ifc_spg.ros.parameters import declare_checked
+from ifc_spg.ros.protocols import Node as RosNode
 from sim_bridge.pacing import DeadlinePacer
 from sim_bridge.simulation import SimConfig, Simulation
 
@@ -61,16 +64,16 @@ class BridgeParams:
     mode: str = 'realtime'
     rate: float = 500.0
     timestep: float = 0.001
-    q0: tuple = ()
+    q0: tuple[float, ...] = ()
     duration: float = 0.0
     push_duration: float = 0.5
     ft_raw: bool = False
-    stiffness: tuple = ()
-    damping: tuple = ()
+    stiffness: tuple[float, ...] = ()
+    damping: tuple[float, ...] = ()
     wait_for_subscribers: int = 0
     command_interface: str = 'joint_state'
     command_topic: str = 'command/joint_position'
-    command_joints: tuple = ()
+    command_joints: tuple[str, ...] = ()
     state_rate: float = 0.0
 
 
@@ -110,12 +113,12 @@ _DESCRIPTIONS = {
 }
 
 
-def declare(node):
+def declare(node: RosNode) -> 'BridgeParams':
     """Declare every parameter on ``node`` and return the :class:`BridgeParams`."""
-    values = {}
+    values: dict[str, Any] = {}  # parameter values (ROS parameter types)
     gains = None
-    for name, default in BridgeParams.__dataclass_fields__.items():
-        default = default.default
+    for name, spec in BridgeParams.__dataclass_fields__.items():
+        default: Any = spec.default
         if name == 'q0':
             default = [0.0]  # typed as a double array; [] would be untyped
         elif name in ('stiffness', 'damping', 'command_joints'):  # the robot's own values
@@ -206,7 +209,7 @@ class SimBridge:
         spin: ``spin(timeout_s)`` processing incoming messages (default: spin ``node``).
     """
 
-    def __init__(self, node, spin=None):
+    def __init__(self, node: RosNode, spin: Callable[[float], object] | None = None) -> None:
         self.node = node
         self.params = p = declare(node)
         self._msg = msg
@@ -238,11 +241,12 @@ class SimBridge:
         node.create_subscription(msg.WrenchStamped, 'sim/apply_wrench', self._on_push, 10)
         self._names = list(self.sim.joint_names)
         self._index = {n: i for i, n in enumerate(self._names)}
-        self._command = None
-        self._pushes = []
-        self._published_stamp = None
-        self._sent_at = {}      # stamp -> monotonic time the state was first published
-        self.latencies = []     # [s] state published -> its command received, here
+        self._command: tuple[np.ndarray, Any] | None = None  # (q_v, stamp of either backend)
+        self._pushes: list[tuple[str, list[float], float]] = []  # (target, wrench, duration)
+        self._published_stamp: tuple[int, int] | None = None
+        # stamp -> monotonic time the state was first published
+        self._sent_at: dict[tuple[int, int], float] = {}
+        self.latencies: list[float] = []  # [s] state published -> its command received, here
         self.ticks = 0
         self._reported_missed = 0
         node.get_logger().info(

@@ -60,6 +60,7 @@ after 5 cm out and back within 2 mm).
 
 from dataclasses import dataclass, field
 import inspect
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -148,11 +149,11 @@ class SceneInfo:
     """
 
     name: str
-    env_joints: tuple = ()
-    latches: tuple = ()
-    handle_site: str = None
-    grasp: str = None
-    options: dict = field(default_factory=dict)
+    env_joints: tuple[str, ...] = ()
+    latches: tuple[Latch, ...] = ()
+    handle_site: str | None = None
+    grasp: str | None = None
+    options: dict[str, Any] = field(default_factory=dict)  # scene options, from JSON
 
 
 def _scene_geom(body, **kw):
@@ -362,7 +363,7 @@ def _drawer(spec, anchor, vertical, mass=1.2, travel=0.3, damping=1.0, grasp='we
     _box(body, [0.02 + depth / 2, 0, -0.02], [depth / 2, 0.18, 0.05], mass=0.6 * box_mass,
          name='drawer_box', rgba=(0.5, 0.4, 0.3, 1))
     grasp_eq = _add_handle(spec, body, anchor, grasp, [0, 1, 0])
-    latches = ()
+    latches: tuple[Latch, ...] = ()
     if breakaway > 0:
         # Slide joint: the constraint carries a force, lever 1 makes torque == force.
         latches = (_latch(spec, 'drawer', breakaway, 1.0),)

@@ -16,8 +16,10 @@ a new command (after the first one) keeps the last q_v and is counted in
 ``State.missed_commands``.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -38,11 +40,15 @@ _EXTERNAL_CONSTRAINTS = (
     mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL, mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)
 
 
-def default_interface(model):
+def default_interface(model: RobotModel) -> str:
     """The IFC emulation a robot model implies: accrea, icub (stiff joints) or lbr_fri."""
     if model.ifc == 'cartesian_admittance':
         return 'accrea'
     return 'icub' if np.any(model.stiff_mask) else 'lbr_fri'
+
+
+# a gain or property per joint, or one for all joints
+PerJoint = float | Sequence[float] | np.ndarray
 
 
 @dataclass(frozen=True)
@@ -73,25 +79,26 @@ class SimConfig:
             first chain with an F/T sensor, else the first chain).
     """
 
-    robot: object = 'lbr_iiwa14'
-    interface: str = None
+    robot: str | RobotModel = 'lbr_iiwa14'
+    interface: str | None = None
     scene: str = 'free'
-    scene_options: dict = field(default_factory=dict)
-    q0: tuple = None
+    scene_options: dict[str, Any] = field(default_factory=dict)  # scene options, from JSON
+    q0: Sequence[float] | None = None
     timestep: float = 0.001
     command_period: float = 0.002
-    stiffness: object = None
-    damping: object = None
-    joint_damping: object = None
-    frictionloss: object = None
-    armature: object = None
-    stiff_gains: tuple = (2000.0, 20.0)
-    admittance: dict = None
-    admittance_gains: dict = field(default_factory=dict)
-    contact_chain: str = None
+    stiffness: PerJoint | None = None
+    damping: PerJoint | None = None
+    joint_damping: PerJoint | None = None
+    frictionloss: PerJoint | None = None
+    armature: PerJoint | None = None
+    stiff_gains: tuple[float, float] = (2000.0, 20.0)
+    admittance: dict[str, Any] | None = None  # keyword options, from YAML/JSON
+    admittance_gains: dict[str, Any] = field(default_factory=dict)
+    contact_chain: str | None = None
 
 
-def _per_joint(value, n, what, names):
+def _per_joint(value: 'PerJoint | None', n: int, what: str,
+               names: Sequence[str]) -> np.ndarray | None:
     if value is None:
         return None
     a = np.asarray(value, dtype=float)
@@ -102,7 +109,7 @@ def _per_joint(value, n, what, names):
     return a
 
 
-def _load_model(robot):
+def _load_model(robot: str | RobotModel) -> RobotModel:
     """The RobotModel of a configuration name, or ``robot`` itself."""
     if isinstance(robot, str):
         return RobotModel.from_config(robot)
@@ -120,7 +127,7 @@ class Simulation(RobotInterface):
         ModelError: The robot model cannot be loaded into MuJoCo.
     """
 
-    def __init__(self, config=None, **overrides):
+    def __init__(self, config: SimConfig | None = None, **overrides: Any) -> None:
         config = SimConfig(**overrides) if config is None else config
         self.config = config
         self.robot = _load_model(config.robot)
@@ -143,7 +150,7 @@ class Simulation(RobotInterface):
                                  f'of timestep {config.timestep} s')
         self.dt = float(config.timestep)
         self._steps_per_command = round(ratio)
-        self.joint_names = tuple(robot.joint_names)
+        self.joint_names: tuple[str, ...] = tuple(robot.joint_names)
         n = len(self.joint_names)
         q0 = robot.q_home if config.q0 is None else check_vector(config.q0, n, 'q0',
                                                                  self.joint_names)
@@ -286,7 +293,7 @@ class Simulation(RobotInterface):
                       tool_body=rspec.tool_bodies[chain])
 
     # -- the interface -------------------------------------------------------------------
-    def reset(self, q0=None):
+    def reset(self, q0: Sequence[float] | np.ndarray | None = None) -> None:
         """Reset to ``q0`` [rad] (default: the construction q0), at rest, pushes cleared.
 
         Scenes stay where they were built (at the tool pose of the construction q0).
@@ -297,7 +304,8 @@ class Simulation(RobotInterface):
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[self.qpos_index] = q0
-        self._pushes = []
+        # (body id, site id or None, wrench (6,), end time [s])
+        self._pushes: list[tuple[int, int | None, np.ndarray, float]] = []
         self._latch_armed = [False] * len(self._latches)
         self._step_count = 0
         self._fresh_command = False
@@ -307,7 +315,9 @@ class Simulation(RobotInterface):
         self.law.reset(self, self._q_v)
         mujoco.mj_forward(m, d)
 
-    def write_command(self, q_v, qd_v=None, tau_offset=None):
+    def write_command(self, q_v: Sequence[float] | np.ndarray,
+                      qd_v: Sequence[float] | np.ndarray | None = None,
+                      tau_offset: Sequence[float] | np.ndarray | None = None) -> None:
         """Set q_v [rad] (held until the next command); ``tau_offset`` [Nm]: iCub only."""
         self._check_open()
         q_v = check_vector(q_v, len(self.joint_names), 'q_v', self.joint_names)
@@ -319,7 +329,7 @@ class Simulation(RobotInterface):
         self._fresh_command = True
         self._commanded = True
 
-    def step(self, n=1):
+    def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps."""
         self._check_open()
         m, d, law = self.model, self.data, self.law
@@ -337,17 +347,17 @@ class Simulation(RobotInterface):
                 self._update_latches()
             self._step_count += 1
 
-    def step_until(self, t):
+    def step_until(self, t: float) -> None:
         """Advance whole physics steps until the time reaches ``t`` [s] (within dt/2)."""
         n = math.floor((t - self.data.time) / self.dt + 0.5)
         if n > 0:
             self.step(n)
 
-    def read_time(self):
+    def read_time(self) -> float:
         """Simulation time in [s]."""
         return float(self.data.time)
 
-    def read_state(self):
+    def read_state(self) -> State:
         """Return the current :class:`~sim_bridge.interface.State`."""
         self._check_open()
         m, d = self.model, self.data
@@ -367,17 +377,17 @@ class Simulation(RobotInterface):
             env_joint_names=self.env_joint_names, env_q=d.qpos[self._env_qadr].copy(),
             env_qd=d.qvel[self._env_dadr].copy(), missed_commands=self.missed_commands)
 
-    def close(self):
+    def close(self) -> None:
         """Release the MuJoCo model and data."""
         self._closed = True
         self.model = self.data = self._kin_data = None
 
-    def _check_open(self):
+    def _check_open(self) -> None:
         if self._closed:
             raise ParameterError('this Simulation was closed; create a new one')
 
     # -- measurements --------------------------------------------------------------------
-    def _tau_ext(self):
+    def _tau_ext(self) -> np.ndarray:
         """External joint torque (environment on robot), FRI-like, in [Nm].
 
         Contact and equality (grasp) constraint forces mapped through the constraint
@@ -414,7 +424,7 @@ class Simulation(RobotInterface):
         out[3:] = tau_s + _cross(p_s - p_c, f)
         return out
 
-    def contact_wrench(self):
+    def contact_wrench(self) -> np.ndarray:
         """Ground-truth wrench the environment exerts on the contact chain's tool.
 
         Sum of contact and equality (grasp) forces on the tool subtree (MuJoCo
@@ -472,7 +482,7 @@ class Simulation(RobotInterface):
         s = self.site_id(chain)
         return self.data.site_xpos[s].copy(), self.data.site_xmat[s].reshape(3, 3).copy()
 
-    def warnings(self):
+    def warnings(self) -> dict[str, int]:
         """Return {warning name: count} of the MuJoCo warnings raised so far (nonzero only)."""
         counts = self.data.warning.number
         return {mujoco.mjtWarning(i).name: int(c) for i, c in enumerate(counts) if c}
@@ -513,7 +523,7 @@ class Simulation(RobotInterface):
         """The pushes acting now: (body id, site id or None, wrench, end time [s]) each."""
         return tuple(self._pushes)
 
-    def clear_wrenches(self):
+    def clear_wrenches(self) -> None:
         """Remove every push."""
         for body, *_ in self._pushes:
             self.data.xfrc_applied[body] = 0.0

@@ -7,6 +7,7 @@ is answered by the module that implements VERB. The benchmarks are not part of t
 ``ifc-spg bench`` runs them from the ``benchmarks/`` folder of a checkout (:mod:`.bench`).
 """
 
+from collections.abc import Sequence
 import importlib
 import sys
 
@@ -29,14 +30,14 @@ VERBS = {
 }
 
 
-def _usage():
+def _usage() -> str:
     lines = ['usage: ifc-spg VERB [ARGS...]   (ifc-spg VERB --help for a verb)', '', 'verbs:']
     for verb, (_, text) in VERBS.items():
         lines.append(f'  {verb:<9} {text}')
     return '\n'.join(lines)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ifc-spg``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help', 'help'):

@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.offline.bag`
 """
 
 import argparse
+from collections.abc import Sequence
 import sys
 
 from ifc_spg.errors import IfcSpgError
@@ -12,7 +13,7 @@ from ifc_spg.offline.bag import info, play, record
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg bag record|play|info``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     ros_args = []
@@ -40,8 +41,8 @@ def main(argv=None):
     p.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
                    help='after --delay, wait (up to 30 s) until every topic has N matched '
                         'subscriptions (discovery can take seconds)')
-    i = sub.add_parser('info', help='topics, types, counts, duration')
-    i.add_argument('bag')
+    info_parser = sub.add_parser('info', help='topics, types, counts, duration')
+    info_parser.add_argument('bag')
     opts = parser.parse_args(argv)
     try:
         if opts.cmd == 'info':

@@ -19,7 +19,7 @@ from ifc_spg.task_stack.task_stack import TaskStack
 __all__ = ['main']
 
 
-def _parser():
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog='ifc-spg check', description=__doc__.split('\n\n')[0].split(': ', 1)[1],
         formatter_class=argparse.RawDescriptionHelpFormatter)

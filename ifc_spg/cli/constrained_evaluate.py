@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.offline.cons
 """
 
 import argparse
+from collections.abc import Sequence
 import json
 import sys
 
@@ -12,7 +13,7 @@ from ifc_spg.offline.constrained_evaluate import QUICK_COMPARISON, accrea, compa
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Command line entry: print the JSON report; exit 1 if the trend does not hold."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--only', choices=('comparison', 'mechanisms', 'accrea'), default=None)

@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.tools.demo`.
 """
 
 import argparse
+from collections.abc import Sequence
 import sys
 
 from ifc_spg.errors import IfcSpgError
@@ -12,7 +13,7 @@ from ifc_spg.tools.demo import run_demo, summary
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg demo``."""
     parser = argparse.ArgumentParser(prog='ifc-spg demo', description=__doc__.split('\n')[0])
     parser.add_argument('--duration', type=float, default=None,

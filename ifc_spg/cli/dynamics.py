@@ -14,6 +14,7 @@ The problem-file format is in :mod:`ifc_spg.dynamics.scenarios`.
 """
 
 import argparse
+from collections.abc import Sequence
 import os
 import sys
 
@@ -130,7 +131,7 @@ def _plot(prob, fr, sr, tau_ext, plot_dir):
     return files
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ifc-spg dynamics``; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == 'bench':

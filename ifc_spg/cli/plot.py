@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.tools.plot`.
 """
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 import sys
 
@@ -13,7 +14,7 @@ from ifc_spg.tools.plot import plot_bag
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg plot BAG -o DIR``."""
     parser = argparse.ArgumentParser(prog='ifc-spg plot', description=__doc__.split('\n')[0])
     parser.add_argument('bag', help='bag directory')

@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.tools.render
 """
 
 import argparse
+from collections.abc import Sequence
 import sys
 
 from ifc_spg.errors import IfcSpgError
@@ -12,7 +13,7 @@ from ifc_spg.tools.render import render
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg render BAG -o FILE``."""
     parser = argparse.ArgumentParser(prog='ifc-spg render', description=__doc__.split('\n')[0])
     parser.add_argument('bag', help='bag directory')

@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.offline.repl
 """
 
 import argparse
+from collections.abc import Sequence
 import dataclasses
 import json
 import sys
@@ -14,7 +15,7 @@ from ifc_spg.offline.replay import replay
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg replay BAG``."""
     parser = argparse.ArgumentParser(prog='ifc-spg replay', description=__doc__.split('\n')[0])
     parser.add_argument('bag', help='bag directory')

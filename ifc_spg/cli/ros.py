@@ -14,6 +14,8 @@ message classes against rosbags.
 """
 
 import argparse
+from collections.abc import Sequence
+import functools
 import json
 import math
 import random
@@ -21,6 +23,7 @@ import signal
 import sys
 import time
 import timeit
+from types import FrameType
 
 from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError
@@ -33,7 +36,7 @@ __all__ = ['main', 'talker', 'listener', 'echo', 'bench']
 
 
 def _install_signal_shutdown():
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> None:
         if ros.ok():
             ros.shutdown()
 
@@ -52,7 +55,7 @@ def _descriptor(description, low=None, high=None, integer=False):
     return desc
 
 
-def talker(argv):
+def talker(argv: Sequence[str]) -> int:
     """Publish JointState messages; see the module docstring. Returns the exit code."""
     ros.init(args=['ifc-spg', *argv])
     _install_signal_shutdown()
@@ -123,7 +126,7 @@ def _percentile(sorted_values, q):
     return sorted_values[lo] + (sorted_values[hi] - sorted_values[lo]) * (k - lo)
 
 
-def listener(argv):
+def listener(argv: Sequence[str]) -> int:
     """Receive JointState messages and print a JSON latency summary. Returns the exit code."""
     ros.init(args=['ifc-spg', *argv])
     _install_signal_shutdown()
@@ -136,7 +139,7 @@ def listener(argv):
             integer=True)).value
         timeout_s = node.declare_parameter('timeout_s', 60.0, _descriptor(
             'Exit after this long [s].', 0.0, 86400.0)).value
-        first = [None]
+        first: list[float | None] = [None]
 
         def callback(msg):
             now = time.time_ns()
@@ -178,7 +181,7 @@ def listener(argv):
             ros.shutdown()
 
 
-def echo(argv):
+def echo(argv: Sequence[str]) -> int:
     """Print messages of TOPIC (type TYPE, e.g. std_msgs/msg/String) as they arrive."""
     parser = argparse.ArgumentParser(prog='ifc-spg ros echo')
     parser.add_argument('topic')
@@ -208,7 +211,7 @@ def echo(argv):
     return 0
 
 
-def bench(argv):
+def bench(argv: Sequence[str]) -> int:
     """Time CDR serialize/deserialize of every built-in message class, vs rosbags."""
     from rosbags.typesys import Stores, get_typestore  # optional: the comparison only
 
@@ -232,15 +235,14 @@ def bench(argv):
         data = messages.serialize(msg)
         typename = msg._TYPE
         rb = store.deserialize_cdr(data, typename)
-        ser = timeit.timeit(lambda msg=msg: messages.serialize(msg),
+        ser = timeit.timeit(functools.partial(messages.serialize, msg),
                             number=args.n) / args.n * 1e6
-        de = timeit.timeit(lambda msg=msg, data=data: messages.deserialize(type(msg), data),
+        de = timeit.timeit(functools.partial(messages.deserialize, type(msg), data),
                            number=args.n) / args.n * 1e6
-        rser = timeit.timeit(lambda rb=rb, typename=typename: store.serialize_cdr(rb, typename),
+        rser = timeit.timeit(functools.partial(store.serialize_cdr, rb, typename),
                              number=args.n) / args.n * 1e6
-        rde = timeit.timeit(
-            lambda data=data, typename=typename: store.deserialize_cdr(data, typename),
-            number=args.n) / args.n * 1e6
+        rde = timeit.timeit(functools.partial(store.deserialize_cdr, data, typename),
+                            number=args.n) / args.n * 1e6
         print(f'{label:<24} {ser:8.2f} {de:8.2f} {rser:12.2f} {rde:11.2f}')
     return 0
 
@@ -248,7 +250,7 @@ def bench(argv):
 _COMMANDS = {'talker': talker, 'listener': listener, 'echo': echo, 'bench': bench}
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ifc-spg ros``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help'):

@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.offline.runn
 """
 
 import argparse
+from collections.abc import Sequence
 import json
 import sys
 
@@ -13,7 +14,7 @@ from ifc_spg.offline.runner import StopRequest, run_scenario, stop_request
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg run SCENARIO.yaml -o DIR``."""
     parser = argparse.ArgumentParser(prog='ifc-spg run', description=__doc__.split('\n')[0])
     parser.add_argument('scenario', help='scenario YAML file (or a name in config/scenarios)')

@@ -15,11 +15,13 @@ some failed (their rows say why), 2 on a bad sweep file or usage, 130 when inter
 """
 
 import argparse
+from collections.abc import Sequence
 import os
 from pathlib import Path
 import signal
 import sys
 import threading
+from types import FrameType
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.offline.sweep import run_sweep
@@ -29,7 +31,7 @@ from ifc_spg.tools.sweep import plot_sweep
 __all__ = ['main']
 
 
-def _parser():
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='ifc-spg sweep', description=__doc__.split('\n')[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('file', help='sweep file (YAML; see ifc_spg.offline.sweep_spec)')
@@ -65,7 +67,7 @@ def _interrupt_on_signals():
     if threading.current_thread() is not threading.main_thread():
         return {}
 
-    def interrupt(signum, frame):
+    def interrupt(signum: int, frame: FrameType | None) -> None:
         raise _Interrupted(signal.Signals(signum).name)
     return {s: signal.signal(s, interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
 
@@ -87,7 +89,7 @@ def _usage_error(opts):
     return None
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ifc-spg sweep``; the exit status."""
     try:
         opts = _parser().parse_args(sys.argv[1:] if argv is None else argv)

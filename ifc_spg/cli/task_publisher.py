@@ -23,8 +23,10 @@ Exit codes: 0 done, 1 no subscriber in time (``--once`` / ``--wait-subscribers``
 """
 
 import argparse
+from collections.abc import Sequence
 import signal
 import sys
+from types import FrameType
 
 from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError
@@ -34,7 +36,7 @@ from ifc_spg.task_stack import TaskStackError
 __all__ = ['main']
 
 
-def _parser():
+def _parser() -> argparse.ArgumentParser:
     """The command-line parser (the ROS arguments removed first)."""
     p = argparse.ArgumentParser(
         prog='task_publisher', description='Publish task-stack files (latched).',
@@ -55,7 +57,7 @@ def _parser():
     return p
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``task_publisher`` executable; returns the exit code."""
     argv = list(sys.argv if argv is None else argv)
     user = ros.remove_ros_args(argv)[1:]
@@ -75,7 +77,7 @@ def main(argv=None):
         return 2
     stop = []
 
-    def on_signal(signum, frame):
+    def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.append(signum)
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}

@@ -4,6 +4,7 @@ The command line (parser, output, exit status) around :mod:`ifc_spg.tools.view`.
 """
 
 import argparse
+from collections.abc import Sequence
 import sys
 import time
 
@@ -13,7 +14,7 @@ from ifc_spg.tools.view import Cockpit, LiveCockpit, load_bag
 __all__ = ['main']
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """``ifc-spg view BAG``."""
     parser = argparse.ArgumentParser(prog='ifc-spg view', description=__doc__.split('\n')[0])
     parser.add_argument('bag', nargs='?', help='bag directory (ifc-spg run / bag record)')

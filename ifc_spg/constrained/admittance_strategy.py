@@ -274,6 +274,7 @@ class CartesianAdmittanceStrategy:
         qdot = np.asarray(qdot, dtype=float)
         if self.q_v is None:
             self.reset(q)
+        assert self.q_v is not None and self.p_v is not None and self.R_v is not None  # reset
         prm = self.params
         self.kin.update(q, qdot, self.q_v)
         p, R, J = self.kin.frame(self.frame_id, virtual=False)

@@ -95,6 +95,7 @@ class JointComplianceStrategy:
         qdot = np.asarray(qdot, dtype=float)
         if self.q_v is None:
             self.reset(q)
+        assert self.q_v is not None  # set by reset
         p = self.params
         kin = self.kin
         kin.update(q, qdot, self.q_v)

@@ -63,9 +63,9 @@ class Chain:
         tip_placement: (4, 4) pose of the tip frame in the last joint frame.
     """
 
-    model: object
+    model: pin.Model
     n: int
-    joint_names: tuple
+    joint_names: tuple[str, ...]
     revolute: np.ndarray
     axis: np.ndarray
     axis_skew: np.ndarray

@@ -9,6 +9,7 @@ A solver picks its kernel when it is created.
 """
 
 import os
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +20,7 @@ def _load():
     if os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0':
         return None
     try:
-        from ifc_spg.dynamics import _native_dynamics
+        import ifc_spg.dynamics._native_dynamics as _native_dynamics
     except ImportError:
         return None
     return _native_dynamics
@@ -40,13 +41,13 @@ def describe():
 def _compiled():
     """The compiled module even under IFC_SPG_NATIVE=0 (tests compare both), or None."""
     try:
-        from ifc_spg.dynamics import _native_dynamics
+        import ifc_spg.dynamics._native_dynamics as _native_dynamics
     except ImportError:
         return None
     return _native_dynamics
 
 
-_mod = _compiled()
+_mod: Any = _compiled()  # the C extension (no stubs): its Kernel is the base class below
 
 if _mod is not None:
     class NativeKernel(_mod.Kernel):
@@ -96,5 +97,5 @@ if _mod is not None:
                 return self.solve(q, qd, t, a0, fext, A, b, gauss)
 
             return base, G, combine
-else:
-    NativeKernel = None
+else:  # not built: the name says so (VereshchaginSolver checks it)
+    NativeKernel = None  # type: ignore[misc,assignment]

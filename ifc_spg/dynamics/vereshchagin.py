@@ -51,10 +51,13 @@ Conventions:
       LOCAL_WORLD_ALIGNED) at q̈ = 0 (plus Ẍ_0 moved to the tip) gives the same q̈.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import functools
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ifc_spg.dynamics import native
 from ifc_spg.dynamics.box_qp import box_qp
@@ -202,6 +205,34 @@ def _constraint(A, b):
         raise ParameterError(f'b_N must have shape ({A.shape[1]},) to match the '
                              f'{A.shape[1]} columns of A_N, got {b.shape}')
     return A, b
+
+
+class DynamicsKernel(Protocol):
+    """What a solver needs of its kernel: :class:`NumpyKernel` or ``native.NativeKernel``.
+
+    The inputs are those of :func:`check_inputs` (array-likes, None where optional).
+    """
+
+    def solve(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike | None, a0: ArrayLike | None,
+              fext: ArrayLike | None, A: ArrayLike | None, b: ArrayLike | None,
+              gauss: bool) -> 'VereshchaginResult':
+        """One solve (:meth:`VereshchaginSolver.solve`)."""
+        ...
+
+    def sensitivity(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike | None, joints: ArrayLike,
+                    a0: ArrayLike | None, fext: ArrayLike | None, A: ArrayLike | None,
+                    b: ArrayLike | None) -> tuple['VereshchaginResult', np.ndarray,
+                                                  Callable[..., 'VereshchaginResult']]:
+        """``(base, G, combine)`` (:meth:`VereshchaginSolver.solve_with_sensitivity`)."""
+        ...
+
+    def friction(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike | None, a0: ArrayLike | None,
+                 fext: ArrayLike | None, A: ArrayLike | None, b: ArrayLike | None,
+                 breakaway: np.ndarray, eps: float) -> tuple['VereshchaginResult', np.ndarray,
+                                                             np.ndarray, np.ndarray, np.ndarray,
+                                                             np.ndarray, bool]:
+        """The exact static-friction solve (:meth:`NumpyKernel.friction`)."""
+        ...
 
 
 class NumpyKernel:
@@ -536,7 +567,7 @@ class VereshchaginSolver:
                                   "which was not built; reinstall with a C compiler "
                                   "(./run setup) or use kernel='numpy'")
             check = functools.partial(check_inputs, self.chain, gravity0)
-            self.kernel = native.NativeKernel(self.chain, gravity0, self.rank_tol,
+            self.kernel: DynamicsKernel = native.NativeKernel(self.chain, gravity0, self.rank_tol,
                                               self.damping, VereshchaginResult, check)
         else:
             self.kernel = NumpyKernel(self.chain, gravity0, self.rank_tol, self.damping)

@@ -13,15 +13,17 @@ ROS parameter names are grouped with dots (``pspm.initial_energy``, ``topics.com
 in a params file they are nested mappings under ``ros__parameters``.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 import math
 import os
 import sys
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
 from ifc_spg.pspm import PspmConfig
+from ifc_spg.ros.protocols import Node as RosNode
 
 __all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
            'config_from_parameters', 'config_file']
@@ -113,7 +115,7 @@ class SpgConfig:
     markers_rate: float = 30.0
     markers_frame: str = 'world'
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for p in PARAMETERS:
             value = getattr(self, p.field)
             if isinstance(_DEFAULTS[p.field], tuple) and isinstance(value, list):  # from JSON
@@ -126,7 +128,7 @@ class SpgConfig:
             if p.field.endswith('_topic') and not getattr(self, p.field):
                 raise ParameterError(f"parameter '{p.name}' must name a topic, got ''")
 
-    def _check_choices(self):
+    def _check_choices(self) -> None:
         """Raise ParameterError for a robot, solver, tick or command interface not known."""
         if self.robot not in _ROBOTS:
             raise ParameterError(f"parameter 'robot': unknown robot '{self.robot}'"
@@ -148,7 +150,7 @@ class SpgConfig:
                 f"{', '.join(COMMAND_INTERFACES)}"
                 f'{did_you_mean(self.command_interface, COMMAND_INTERFACES)}')
 
-    def pspm_config(self):
+    def pspm_config(self) -> PspmConfig | bool:
         """The :class:`~ifc_spg.pspm.PspmConfig`, or False when PSPM is off."""
         if not self.pspm:
             return False
@@ -172,7 +174,7 @@ class Param(NamedTuple):
     name: str
     field: str
     description: str
-    range: tuple = None
+    range: tuple[float, float] | None = None
 
 
 PARAMETERS = (
@@ -238,13 +240,13 @@ COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 TICKS = ('joint_states', 'timer')
 HOT_PATHS = ('wait_set', 'executor')
 
-_DEFAULTS = {f.name: f.default for f in fields(SpgConfig)}
+_DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(SpgConfig)}  # field -> default
 _BY_NAME = {p.name: p for p in PARAMETERS}
 # Parameters a ROS node may carry without us declaring them.
 _FOREIGN_OK = ('use_sim_time', 'qos_overrides.')
 
 
-def config_from_parameters(values):
+def config_from_parameters(values: Mapping[str, Any]) -> 'SpgConfig':
     """Build an :class:`SpgConfig` from ``{ROS parameter name: value}`` (missing: default).
 
     Raises:
@@ -277,7 +279,7 @@ def _descriptor(ros, p, default):
     return desc
 
 
-def _check_value(p, value):
+def _check_value(p: Param, value: Any) -> None:  # value: a ROS parameter's
     """Raise ParameterError unless ``value`` has the type and range of parameter ``p``."""
     default = _DEFAULTS[p.field]
     if type(value) is not type(default) and not (
@@ -298,7 +300,7 @@ def _check_value(p, value):
                              f'[{p.range[0]}, {p.range[1]}] ({p.description})')
 
 
-def declare_parameters(node):
+def declare_parameters(node: RosNode) -> 'SpgConfig':
     """Declare every parameter of :data:`PARAMETERS` on ``node``; return the SpgConfig.
 
     Each parameter is declared once, with its description and range; the value comes from
@@ -312,7 +314,7 @@ def declare_parameters(node):
     from ifc_spg import ros  # imports rclpy: only where a node is given
     from ifc_spg.ros.parameters import declare_checked, overrides
 
-    values = {}
+    values: dict[str, Any] = {}  # SpgConfig field -> value
     gains = None
     for p in PARAMETERS:
         default = _DEFAULTS[p.field]
@@ -331,7 +333,7 @@ def declare_parameters(node):
     return config_from_parameters(values)
 
 
-def config_file(robot):
+def config_file(robot: str) -> str:
     """Path of ``config/<robot>.yaml``: the source tree's, else the installed share dir.
 
     Raises:

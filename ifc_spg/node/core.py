@@ -34,11 +34,12 @@ Task time comes from the stamps only; ``clock`` is used for the watchdog alone.
 """
 
 from collections import deque
+from collections.abc import Callable, Sequence
 import dataclasses
 import json
 import math
 import time
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -57,6 +58,8 @@ __all__ = ['SpgRunner', 'Command', 'StackEvent', 'DiagItem', 'REJECT_REASONS',
 REJECT_REASONS = ('wrong_count', 'unknown_name', 'duplicate_name', 'non_finite',
                   'stamp_backwards', 'duplicate_stamp')
 _MAX_ERRORS = 8
+#: a joint vector as a message gives it (list, array.array) or an array
+Vector = Sequence[float] | np.ndarray
 
 
 class Command(NamedTuple):
@@ -131,7 +134,7 @@ class DiagItem(NamedTuple):
     values: dict
 
 
-def parse_task_stack(text, source=None):
+def parse_task_stack(text: str, source: str | None = None) -> TaskStack:
     """Parse a task-stack document (YAML or JSON text) with :mod:`ifc_spg.task_stack`.
 
     Args:
@@ -186,7 +189,7 @@ def robot_params(robot):
             'q_max': floats(robot.q_max)}
 
 
-def status_json(status):
+def status_json(status: dict[str, Any]) -> str:
     """Serialize a status dict as strict JSON (non-finite numbers become null)."""
     return json.dumps(_finite(status), allow_nan=False, separators=(',', ':'))
 
@@ -243,7 +246,9 @@ class SpgRunner:
             :func:`parse_task_stack`).
     """
 
-    def __init__(self, config=None, robot=None, clock=time.monotonic, parse_stack=None):
+    def __init__(self, config: SpgConfig | None = None, robot: RobotModel | None = None,
+                 clock: Callable[[], float] = time.monotonic,
+                 parse_stack: Callable[..., TaskStack] | None = None) -> None:
         self.config = config = config or SpgConfig()
         self.robot = robot or robot_gains(RobotModel.from_config(config.robot), config)
         self.spg = SetPointGenerator(self.robot, None, dt=config.dt, pspm=config.pspm_config(),
@@ -254,11 +259,12 @@ class SpgRunner:
         self.joint_names = tuple(self.robot.joint_names)
         self._n = len(self.joint_names)
         self._index = {n: i for i, n in enumerate(self.joint_names)}
-        self._perm = {}                 # names tuple -> index array (validated once)
+        # names tuple -> index array (validated once)
+        self._perm: dict[tuple[str, ...], np.ndarray] = {}
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         #: ``spg/obstacles``: checks the markers, moves obstacles at tick boundaries
         self.obstacles = ObstacleInput(base_frames(self.robot) + (config.markers_frame,))
-        self.errors = deque(maxlen=_MAX_ERRORS)
+        self.errors: deque[dict[str, Any]] = deque(maxlen=_MAX_ERRORS)
         self.last_error = ''
         self.ticks = 0
         self.watchdog_trips = 0
@@ -270,23 +276,23 @@ class SpgRunner:
         self._restart_requested = False
         self.stack_id = 0
         self.stack_name = ''
-        self._stack_since = None
+        self._stack_since: float | None = None
         self._config_sent = False
-        self.stack_text = None          # the running stack's document (spg/config)
-        self._pending_text = None
+        self.stack_text: str | None = None  # the running stack's document (spg/config)
+        self._pending_text: str | None = None
         self.config_version = 0         # grows when config_doc() changes (stack, restart)
         self._events: list[Event] = []   # the current tick's (see tick)
         self._next_id = 0
-        self._pending_name = None
-        self._last_stamp = None
-        self._last_seen = None
-        self._last_q = None
-        self._last_command = None
-        self._period = deque(maxlen=500)    # stamp differences [s]
-        self._tick_times = deque(maxlen=500)
+        self._pending_name: str | None = None
+        self._last_stamp: int | None = None  # [ns]
+        self._last_seen: float | None = None  # clock() [s]
+        self._last_q: np.ndarray | None = None
+        self._last_command: Command | None = None
+        self._period: deque[float] = deque(maxlen=500)    # stamp differences [s]
+        self._tick_times: deque[float] = deque(maxlen=500)
 
     # -- inputs -------------------------------------------------------------------------
-    def handle_task_stack(self, text, source=None):
+    def handle_task_stack(self, text: str, source: str | None = None) -> 'StackEvent':
         """Parse, build and schedule a task stack; a bad one leaves the running one.
 
         Args:
@@ -323,7 +329,7 @@ class SpgRunner:
         """
         return streams_of(self.spg.tasks) + streams_of(self.spg.pending_tasks)
 
-    def handle_reference(self, topic, message):
+    def handle_reference(self, topic: str, message: Any) -> bool:  # a message of the backend
         """A message on a streamed task's ``topic`` (as the stack wrote it); False if rejected."""
         now_ns = int(self.clock() * 1e9)
         ok = True
@@ -357,12 +363,14 @@ class SpgRunner:
                             f"'{stream.topic}' for {stream.age:.3f} s > stale_after "
                             f'{stream.stale_after:g} s; holding the last one')
 
-    def tick(self, names, position, velocity, stamp_ns) -> Outcome:
+    def tick(self, names: Sequence[str], position: Vector, velocity: Vector,
+             stamp_ns: int) -> Outcome:
         """:meth:`handle_joint_state`, and the events of the tick (what a node reports)."""
         command = self.handle_joint_state(names, position, velocity, stamp_ns)
         return Outcome(command, tuple(self._events))
 
-    def handle_joint_state(self, names, position, velocity, stamp_ns):
+    def handle_joint_state(self, names: Sequence[str], position: Vector, velocity: Vector,
+                           stamp_ns: int) -> Command | None:
         """One tick for one joint-state message; None when the message is rejected.
 
         Args:
@@ -498,9 +506,9 @@ class SpgRunner:
         if 'pspm_stall' in events:  # the first stall of this episode (stack activation or
             # restart), or one of joints that had not stalled in it
             self.pspm_stalls += 1
-            self.last_stall = info.message
-            self._error('pspm', info.message)
-            self._events.append(Event('pspm_stall', info.message))
+            self.last_stall = info.message or ''
+            self._error('pspm', self.last_stall)
+            self._events.append(Event('pspm_stall', self.last_stall))
         self.ticks += 1
         self._tick_times.append(info.tick_time or 0.0)
         self._update_streams()
@@ -548,7 +556,7 @@ class SpgRunner:
         self.last_error = message
 
     # -- watchdog ----------------------------------------------------------------------
-    def check_watchdog(self):
+    def check_watchdog(self) -> bool:
         """Trip the watchdog if the last tick is older than the timeout; True if it tripped."""
         timeout = self.config.watchdog_timeout
         if not timeout or self.stale or self._last_seen is None:
@@ -561,7 +569,7 @@ class SpgRunner:
             return True
         return False
 
-    def mark_stale(self, message='marked stale'):
+    def mark_stale(self, message: str = 'marked stale') -> None:
         """Trip the watchdog now (offline replay of a recorded ``watchdog`` status event)."""
         if not self.stale:
             self._trip(message)
@@ -573,14 +581,14 @@ class SpgRunner:
         self._events.append(Event('watchdog', message))
 
     @property
-    def state(self):
+    def state(self) -> str:
         """'waiting' (no state yet), 'running' or 'stale' (watchdog tripped)."""
         if self.stale:
             return 'stale'
         return 'running' if self.started else 'waiting'
 
     # -- outputs -----------------------------------------------------------------------
-    def status(self, event=None):
+    def status(self, event: str | None = None) -> dict[str, Any]:  # JSON document
         """The ``spg/status`` document (JSON-ready dict; use :func:`status_json`).
 
         Keys: robot, state, tick, stamp [s], stack {id, name, since [s] (stamp of its first
@@ -639,7 +647,7 @@ class SpgRunner:
             self._config_sent = True
         return doc
 
-    def config_doc(self):
+    def config_doc(self) -> dict[str, Any]:  # JSON document
         """The ``spg/config`` document (JSON-ready).
 
         What a replay needs besides the recorded joint states to recompute q_v from any
@@ -670,10 +678,11 @@ class SpgRunner:
         n = self._n
         streams = tuple((STREAM_FIELD + b.task.name, b.dim) for b in stream_bounds(self.spg.tasks))
         obstacles = tuple((OBSTACLE_FIELD + name, 7) for name in obstacle_poses(self.spg.tasks))
-        return _base_layout(n) + (('warm_start', self.spg.snapshot().warm_start.size),) + \
-            streams + obstacles
+        warm_start = self.spg.snapshot().warm_start
+        assert warm_start is not None  # snapshot() always gives it
+        return _base_layout(n) + (('warm_start', warm_start.size),) + streams + obstacles
 
-    def state_vector(self):
+    def state_vector(self) -> np.ndarray:
         """The ``spg/state`` data after the last tick.
 
         Floats in the layout ``state_layout`` of :meth:`config_doc` (NaN where there are no
@@ -686,6 +695,8 @@ class SpgRunner:
         x, y, z [m], qx, qy, qz, qw in its frame), which it uses instead of ``spg/obstacles``.
         """
         snap = self.spg.snapshot()
+        # after a tick: q measured, q_v set, and snapshot() always gives the warm start
+        assert self._last_q is not None and snap.q_v is not None and snap.warm_start is not None
         nan = np.full(self._n, np.nan)
         sec, nsec = split_ns(self._last_stamp or 0)
         return np.concatenate((
@@ -798,7 +809,7 @@ class SpgRunner:
             doc['stalls'] = self.pspm_stalls
         return doc
 
-    def diagnostics(self):
+    def diagnostics(self) -> 'DiagItem':
         """A :class:`DiagItem` summarizing the node (for a ~1 Hz DiagnosticArray).
 
         A PSPM stall (an empty tank clipping the stack) is a WARN naming the joints, the

@@ -13,11 +13,17 @@ task's commanded force (green), live and in the bags, and in the bags of ``ifc-s
 the measured contact force (orange).
 """
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
 
 from ifc_spg.node.obstacles import obstacle_markers
+from ifc_spg.ros.protocols import Node as RosNode
 from ifc_spg.ros.stamps import set_stamp
+
+if TYPE_CHECKING:  # core imports this module
+    from ifc_spg.node.core import SpgRunner
 
 __all__ = ['MarkerPublisher', 'cartesian_targets', 'marker_array', 'wrench_arrows']
 
@@ -168,7 +174,8 @@ class MarkerPublisher:
         frame: Frame id of the markers (the robot's base frame in your tf tree).
     """
 
-    def __init__(self, node, runner, rate, frame='world'):
+    def __init__(self, node: RosNode, runner: 'SpgRunner', rate: float,
+                 frame: str = 'world') -> None:
         from ifc_spg import ros
         from ifc_spg.ros import msg
 
@@ -186,10 +193,10 @@ class MarkerPublisher:
         self.pub = node.create_publisher(msg.MarkerArray, 'spg/markers', ros.QoSProfile(depth=1))
         self.timer = node.create_timer(1.0 / rate, self.publish)
 
-    def publish(self):
+    def publish(self) -> None:
         """Publish the targets of the last tick (nothing before the first tick)."""
         spg = self.runner.spg
-        if spg.q_v is None or not spg.tasks:
+        if self.pub is None or spg.q_v is None or not spg.tasks:
             return
         t = spg.info.task_time if spg.info.task_time is not None else 0.0
         targets = cartesian_targets(spg.tasks, spg.kin, t)

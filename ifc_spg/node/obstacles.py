@@ -112,7 +112,7 @@ def obstacle_tasks(tasks):
 
 def obstacle_poses(tasks):
     """Obstacle name -> pose (7,) the collision tasks of ``tasks`` use (the first task's)."""
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for task in obstacle_tasks(tasks):
         for name, pose in task.obstacle_poses.items():
             out.setdefault(name, pose)

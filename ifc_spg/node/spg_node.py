@@ -49,11 +49,13 @@ it to topics and timers.
 """
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import replace
 import gc
 import signal
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -64,6 +66,8 @@ from ifc_spg.node.core import SpgRunner, status_json
 from ifc_spg.node.markers import MarkerPublisher
 from ifc_spg.node.stream_subscriptions import StreamSubscriptions
 from ifc_spg.ros import msg
+from ifc_spg.ros.protocols import Node as RosNode
+from ifc_spg.ros.protocols import Timer as RosTimer
 from ifc_spg.ros.stamps import set_stamp, stamp_to_ns
 
 __all__ = ['SpgNode', 'main']
@@ -157,7 +161,7 @@ class SpgNode:
         clock: Monotonic clock in [s] for the watchdog (tests may pass a fake one).
     """
 
-    def __init__(self, node, clock=time.monotonic):
+    def __init__(self, node: RosNode, clock: Callable[[], float] = time.monotonic) -> None:
         self.node = node
         self.config = c = declare_parameters(node)
         self.runner = SpgRunner(c, clock=clock)
@@ -181,7 +185,7 @@ class SpgNode:
         self.pub_config = node.create_publisher(msg.String, 'spg/config', ros.latched(1))
         self.pub_state = node.create_publisher(msg.Float64MultiArray, 'spg/state',
                                                ros.latched(1))
-        self._config_version = None
+        self._config_version: int | None = None
         self.sub_states = node.create_subscription(msg.JointState, c.joint_states_topic,
                                                    self.on_joint_state, 10)
         self.sub_stack = node.create_subscription(msg.String, c.task_stack_topic,
@@ -196,15 +200,18 @@ class SpgNode:
         else:
             self.log.warning('spg/obstacles is off: rclpy has no visualization_msgs here '
                              '(install ros-jazzy-visualization-msgs, requirements.txt)')
-        self._watchdog_timer = self._diag_timer = None
-        self._latest, self._last_tick_ns = None, -1   # tick: timer
-        self._ages = deque(maxlen=1000)                # [s] state age at each timer tick
+        self._watchdog_timer: RosTimer | None = None
+        self._diag_timer: RosTimer | None = None
+        # tick: timer: the latest (state message, monotonic time of arrival)
+        self._latest: tuple[Any, float] | None = None
+        self._last_tick_ns = -1
+        self._ages: deque[float] = deque(maxlen=1000)  # [s] state age at each timer tick
         self.timer_periods = PeriodCounter(c.dt)       # tick: timer, late or missed periods
         if c.tick == 'timer':
             node.create_timer(c.dt, self.on_timer_tick)
         self._start_timers()
         node.add_on_set_parameters_callback(self.on_set_parameters)
-        self._logged = {}
+        self._logged: dict[str, tuple[float, int]] = {}  # kind -> (last logged, suppressed)
         self.commands_sent = 0
         self.log.info(f"spg_node: robot '{c.robot}' ({self.runner.robot.n} joints), dt {c.dt} s,"
                       f" solver {c.solver}, pspm {'on' if c.pspm else 'off'}, watchdog "

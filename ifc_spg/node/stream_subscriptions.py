@@ -8,8 +8,13 @@ topic as the stack wrote it. The readers are best effort (they match reliable an
 best-effort publishers; a teleoperation stream wants the newest sample, not every one).
 """
 
+import functools
+from typing import Any
+
 from ifc_spg import ros
+from ifc_spg.node.core import SpgRunner
 from ifc_spg.ros import msg
+from ifc_spg.ros.protocols import Node as RosNode
 
 __all__ = ['StreamSubscriptions']
 
@@ -26,12 +31,15 @@ class StreamSubscriptions:
         runner: The :class:`~ifc_spg.node.core.SpgRunner`.
     """
 
-    def __init__(self, node, runner):
+    def __init__(self, node: RosNode, runner: SpgRunner) -> None:
         self.node, self.runner = node, runner
-        self.subs = {}  # topic -> subscription
-        self._key = None
+        self.subs: dict[str, Any] = {}  # topic -> subscription (of either backend)
+        self._key: tuple[int, ...] | None = None
 
-    def sync(self):
+    def _on_reference(self, topic: str, message: Any) -> None:
+        self.runner.handle_reference(topic, message)
+
+    def sync(self) -> None:
         """Subscribe to the topics of the running and pending stacks' streams (only them)."""
         streams = self.runner.streams()
         key = tuple(id(s) for s in streams)
@@ -44,8 +52,7 @@ class StreamSubscriptions:
         for topic, msgtype in wanted.items():
             if topic not in self.subs:
                 self.subs[topic] = self.node.create_subscription(
-                    _CLASSES[msgtype], topic,
-                    lambda message, t=topic: self.runner.handle_reference(t, message),
+                    _CLASSES[msgtype], topic, functools.partial(self._on_reference, topic),
                     ros.qos_profile_sensor_data)
                 self.node.get_logger().info(f"following '{topic}' ({msgtype}) for a "
                                             'streamed task')

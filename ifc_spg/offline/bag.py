@@ -24,13 +24,16 @@ already received are written, then the MCAP index and ``metadata.yaml``. It also
 ``--robot`` or ``spg/config`` names (:mod:`ifc_spg.offline.foxglove`; ``--no-tf``: not).
 """
 
+from collections.abc import Collection
 import importlib
 from pathlib import Path
 import signal
 import time
+from typing import Any
 
 from mcap.writer import CompressionType, Writer
 from rosbags.interfaces import (
+    ConnectionExtRosbag2,
     Qos,
     QosDurability,
     QosHistory,
@@ -309,8 +312,10 @@ class BagReader:
                                  'the bag directory written by ifc-spg run/bag record')
         self._reader = Reader(self.path)
         self._reader.open()
-        self.topics = {}
+        # topic -> (type, message count, offered QoS profiles)
+        self.topics: dict[str, tuple[str, int, list[Any]]] = {}
         for c in self._reader.connections:
+            assert isinstance(c.ext, ConnectionExtRosbag2)  # a rosbag2 reader's connection
             old = self.topics.get(c.topic)
             count = c.msgcount + (old[1] if old else 0)
             self.topics[c.topic] = (c.msgtype, count, list(c.ext.offered_qos_profiles))
@@ -401,6 +406,20 @@ class _Recording:
     """
 
     _last_discovery = 0.0
+    # set by the recorders: the node (of either backend), the subscriptions (None: a topic
+    # that cannot be recorded), the topics asked for, whether to record every topic
+    node: Any
+    _subs: dict[str, Any]
+    _wanted: Collection[str]
+    discover_all: bool
+
+    def drain(self) -> int:
+        """Write what arrived; return how many messages."""
+        raise NotImplementedError
+
+    def discover(self) -> None:
+        """Subscribe to the wanted topics that appeared on the graph."""
+        raise NotImplementedError
 
     @property
     def recording(self):
@@ -443,7 +462,7 @@ class Recorder(_Recording):
         self.writer = writer
         self.discover_all = discover_all
         self._subs = {}
-        self._wanted = {}
+        self._wanted: dict[str, bool] = {}
         self._waitset = WaitSet(node.context.participant)
         self._waitset.attach(node.context.guard)
         if topics is None:
@@ -555,8 +574,9 @@ class RclpyRecorder(_Recording):
                                            f"for '{msgtype}'")
             self._subs[topic] = None
             return
-        reader_qos = ros.QoSProfile(depth=1000, reliability=int(qos.reliability),
-                                    durability=int(qos.durability))
+        reader_qos = ros.QoSProfile(depth=1000,
+                                    reliability=ros.ReliabilityPolicy(int(qos.reliability)),
+                                    durability=ros.DurabilityPolicy(int(qos.durability)))
         pending = self._pending
         self._subs[topic] = self.node.create_subscription(
             cls, topic, lambda data, t=topic: pending.append((t, time.time_ns(), data)),
@@ -740,8 +760,9 @@ def _publishers(node, bag, topics):
         default = TOPICS.get(topic.lstrip('/'), (None, QoSProfile(depth=10)))[1]
         qos = from_rosbags_qos(profiles, default)
         if ros.BACKEND != 'cyclonedds':
-            qos = ros.QoSProfile(depth=qos.depth, reliability=int(qos.reliability),
-                                 durability=int(qos.durability))
+            qos = ros.QoSProfile(depth=qos.depth,
+                                 reliability=ros.ReliabilityPolicy(int(qos.reliability)),
+                                 durability=ros.DurabilityPolicy(int(qos.durability)))
         pubs[topic] = node.create_publisher(cls, topic, qos)
     return pubs
 

@@ -12,6 +12,7 @@ with the direction the mechanism actually moved.
 
 from dataclasses import dataclass, field, replace
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -166,16 +167,16 @@ class Scenario:
     scene: str = 'drawer_vertical'
     params: StrategyParams = field(default_factory=StrategyParams)
     initial_error_deg: float = 45.0
-    error_axis: str = None
+    error_axis: str | None = None
     fixed_direction: bool = False
     duration: float = 20.0
     target: float = 0.29
     settle: float = 0.0
     force_limit: float = 60.0
-    scene_options: dict = field(default_factory=dict)
-    sim: dict = field(default_factory=dict)
-    q0_deg: tuple = None
-    strategy_options: dict = field(default_factory=dict)
+    scene_options: dict[str, Any] = field(default_factory=dict)  # options from YAML/JSON
+    sim: dict[str, Any] = field(default_factory=dict)
+    q0_deg: tuple[float, ...] | None = None
+    strategy_options: dict[str, Any] = field(default_factory=dict)
 
 
 #: Right arm of the ACCREA in its home pose [deg] (it only holds still).
@@ -236,10 +237,10 @@ class RunLog:
     static_force: np.ndarray
     estimate: np.ndarray
     true_direction: np.ndarray
-    metrics: dict
-    warnings: dict
-    q: np.ndarray = None
-    ik_residual: np.ndarray = None
+    metrics: dict[str, Any]
+    warnings: dict[str, Any]
+    q: np.ndarray | None = None
+    ik_residual: np.ndarray | None = None
 
 
 class _HandleDirection:
@@ -348,7 +349,8 @@ def run(scenario):
         kin = Kinematics(robot)
         ticks = round(scenario.duration / period)
         steps = round(period / sim.dt)
-        rows = {k: [] for k in ('t', 'env_q', 'force', 'fs', 'est', 'true', 'q', 'ik')}
+        rows: dict[str, list[Any]] = {
+            k: [] for k in ('t', 'env_q', 'force', 'fs', 'est', 'true', 'q', 'ik')}
         t_open = None
         for _ in range(ticks):
             s = sim.read_state()

@@ -148,7 +148,8 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
 def mechanisms(duration=30.0):
     """Each joint-level strategy (and the admittance strategy on the LBR) on three scenes."""
     out = {}
-    scenes = (('drawer_vertical', 0.29, {}, None),
+    scenes: tuple[tuple[str, float, dict[str, str], EstimatorParams | None], ...] = (
+              ('drawer_vertical', 0.29, {}, None),
               ('crank', math.pi / 2, {'grasp': 'connect'}, CRANK_ESTIMATOR),
               ('microwave_door', 0.4, {'grasp': 'connect'}, None))
     for scene, target, options, est in scenes:
@@ -163,7 +164,7 @@ def mechanisms(duration=30.0):
 
 
 #: ACCREA cases: (scene, target travel [m or rad], scene options).
-ACCREA_SCENES = (('drawer_vertical', 0.29, {}),
+ACCREA_SCENES: tuple[tuple[str, float, dict[str, str]], ...] = (('drawer_vertical', 0.29, {}),
                  ('crank', math.pi / 2, {'grasp': 'connect'}),
                  ('microwave_door', 0.4, {'grasp': 'connect'}))
 

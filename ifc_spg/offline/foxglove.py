@@ -163,7 +163,7 @@ class RecordingObserver:
 
     def __init__(self, writer, robot=None, tf_period=0.01, max_pending=10000):
         self.writer, self.tf_period, self.max_pending = writer, tf_period, max_pending
-        self.topics = None
+        self.topics: FoxgloveTopics | None = None
         self.failed = None
         self._pending = []
         if robot is not None:
@@ -222,6 +222,7 @@ class RecordingObserver:
         from ifc_spg.errors import IfcSpgError
         from ifc_spg.ros import messages
 
+        assert self.topics is not None  # called once the robot is known
         if self.topics._static_written is False:
             self.topics.write_static(t_ns)
         try:

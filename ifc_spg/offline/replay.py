@@ -44,6 +44,8 @@ tolerance, 1 when it is not (or commands are missing), 2 on an unreadable bag.
 import bisect
 import dataclasses
 import json
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -95,16 +97,16 @@ class ReplayResult:
     """
 
     max_abs_diff: float
-    worst_stamp: float
+    worst_stamp: float | None
     worst_joint: str
     ticks: int
     compared: int
     missing: int
     stacks: int
-    config: dict
-    robot_params: dict = None
+    config: dict[str, Any]  # JSON document
+    robot_params: dict[str, Any] | None = None  # JSON document
     gains_recorded: bool = False
-    warnings: list = dataclasses.field(default_factory=list)
+    warnings: list[str] = dataclasses.field(default_factory=list)
     skipped: int = 0
     unanswered: int = 0
     resumed: bool = False
@@ -235,7 +237,8 @@ def replay_robot(config, doc, where='bag'):
 
 def _activation_times(stack_msgs, statuses, accepted):
     """Stamp [s] before whose tick each stack message is handed to the SPG (None: never)."""
-    since, first_seen = {}, {}
+    since: dict[int, float] = {}
+    first_seen: dict[int, float] = {}
     for _, doc in statuses:
         st = doc.get('stack') if isinstance(doc, dict) else None
         if not st or not st.get('id'):
@@ -245,9 +248,9 @@ def _activation_times(stack_msgs, statuses, accepted):
             since.setdefault(sid, float(st['since']))
         if doc.get('stamp') is not None:
             first_seen.setdefault(sid, float(doc['stamp']))
-    out = []
+    out: list[float | None] = []
     next_id = 0
-    ids = []
+    ids: list[int | None] = []
     for ok in accepted:
         if ok:
             next_id += 1
@@ -256,13 +259,13 @@ def _activation_times(stack_msgs, statuses, accepted):
             ids.append(None)
     known = {**first_seen, **since}
     for i, (t_log, _) in enumerate(stack_msgs):
-        sid = ids[i]
+        stack_id = ids[i]
         if known:
-            if sid is None:
+            if stack_id is None:
                 out.append(None)  # rejected: no effect on q_v
                 continue
             # a stack overridden before it ran has no status: hand it over with the next one
-            later = [known[j] for j in range(sid, next_id + 1) if j in known]
+            later = [known[j] for j in range(stack_id, next_id + 1) if j in known]
             out.append(later[0] if later else None)
         else:
             out.append(t_log * 1e-9)
@@ -283,7 +286,7 @@ def _resume_point(snapshots, state_stamps):
     Returns:
         The snapshot vector of tick j, or None.
     """
-    by_tick = {}
+    by_tick: dict[int, np.ndarray] = {}
     for vec in snapshots:
         by_tick.setdefault(int(vec[0]), vec)
     for tick in sorted(by_tick):
@@ -373,7 +376,7 @@ class _Plan:
     stack_msgs: list        # (when, text) of the stacks to hand over
     pending: list           # sorted (when [s], index into stack_msgs)
     trips: list             # tick counts after which the runner is marked stale
-    after: int = None       # stamp [ns] of the restored state (None: from the first tick)
+    after: int | None = None  # stamp [ns] of the restored state (None: from the first tick)
 
 
 def _resume_plan(spg, rec, start, trips, path):
@@ -579,7 +582,7 @@ def _run_ticks(spg, states, plan, tally, rec):
         Warnings (lost ticks the replay could not resynchronise after).
     """
     trips = plan.trips
-    snapshots = {}
+    snapshots: dict[int, np.ndarray] = {}
     for vec in rec.snapshots:
         snapshots.setdefault(_snapshot_stamp(vec), vec)
     not_ticked = _not_ticked(rec.snapshots, [stamp for stamp, _ in states], rec.commands)
@@ -601,7 +604,7 @@ def _run_ticks(spg, states, plan, tally, rec):
     return warnings
 
 
-def replay(path, robot=None):
+def replay(path: str | Path, robot: str | None = None) -> ReplayResult:
     """Recompute the commands of a bag; returns a :class:`ReplayResult`.
 
     A bag with ``spg/state`` (a live run, recorded from any tick on) is replayed from the

@@ -58,6 +58,7 @@ robot exerts along a base axis, from ``sim/contact_wrench``, vs a target; with `
 distance to its bounds, over ``components`` (indices) if given).
 """
 
+from collections.abc import Mapping
 import dataclasses
 import json
 import math
@@ -67,6 +68,7 @@ import signal
 import sys
 import threading
 import time
+from typing import Any, TextIO
 
 import numpy as np
 import yaml
@@ -74,7 +76,7 @@ import yaml
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.model import RobotModel
-from ifc_spg.node.config import PARAMETERS, config_from_parameters
+from ifc_spg.node.config import PARAMETERS, SpgConfig, config_from_parameters
 from ifc_spg.node.core import SpgRunner, parse_task_stack, robot_params, status_json
 from ifc_spg.node.markers import wrench_arrows
 from ifc_spg.offline.bag import TOPICS, BagWriter
@@ -111,7 +113,7 @@ _SIM_KEYS = ('joint_damping', 'frictionloss', 'armature', 'contact_chain', 'stif
              'damping')
 
 
-def find_config_dir():
+def find_config_dir() -> Path:
     """The ``config/`` directory: the source tree's, else the installed share dir."""
     here = Path(__file__).resolve().parents[2] / 'config'
     if here.is_dir():
@@ -134,7 +136,7 @@ class Push:
 
     at: float
     target: str
-    wrench: tuple
+    wrench: tuple[float, ...]
     duration: float
 
 
@@ -144,19 +146,19 @@ class Scenario:
 
     name: str
     robot: str
-    interface: str
+    interface: str | None  # None: the robot's own
     scene: str
-    scene_options: dict
-    q0: tuple
+    scene_options: dict[str, Any]  # YAML options of the scene
+    q0: tuple[float, ...] | None
     dt: float
     timestep: float
-    spg: object
+    spg: SpgConfig
     duration: float
-    stacks: tuple
-    pushes: tuple
-    metrics: dict
+    stacks: tuple[StackEntry, ...]
+    pushes: tuple[Push, ...]
+    metrics: dict[str, dict[str, Any]]  # metric name -> its YAML options
     progress: float
-    sim: dict
+    sim: dict[str, Any]  # YAML overrides of the simulation
     description: str = ''
     path: str = ''
 
@@ -241,7 +243,8 @@ def params_file_values(path):
     return out
 
 
-def _spg_config(spec, robot, dt, where):
+def _spg_config(spec: Mapping[str, Any] | None, robot: str, dt: float,
+                where: str) -> SpgConfig:
     spec = dict(spec or {})
     fields = {p.field: p.name for p in PARAMETERS}
     values = {'robot': robot, 'dt': dt}
@@ -275,11 +278,11 @@ def _metrics(spec, where):
         if name not in _METRICS:
             raise _err(where, f"unknown metric {name!r}{did_you_mean(str(name), _METRICS)}; "
                        f"metrics: {', '.join(_METRICS)}")
-        out[name] = dict(opts)
+        out[name] = dict(opts or {})  # (a None opts raised above)
     return out
 
 
-def load_scenario(path, overrides=None):
+def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Read and validate a scenario file.
 
     Args:
@@ -342,7 +345,8 @@ def _push(p, item):
                                            positive=True))
 
 
-def scenario_from_dict(data, where='scenario', base=Path('.')):
+def scenario_from_dict(data: Mapping[str, Any], where: str = 'scenario',
+                       base: Path = Path('.')) -> Scenario:
     """Validate a scenario mapping (the parsed file); see :func:`load_scenario`."""
     unknown = [k for k in data if k not in _SCENARIO_KEYS]
     if unknown:
@@ -428,7 +432,9 @@ class RunResult:
     metrics: dict
 
 
-def run_scenario(scenario, out_dir, duration=None, quiet=False, stream=None):
+def run_scenario(scenario: Scenario | str | Path, out_dir: str | Path,
+                 duration: float | None = None, quiet: bool = False,
+                 stream: TextIO | None = None) -> 'RunResult':
     """Run ``scenario`` (a :class:`Scenario` or a path) and write ``out_dir/bag`` + metrics.
 
     Args:

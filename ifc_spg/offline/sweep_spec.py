@@ -121,7 +121,7 @@ class SweepSpec:
         grid = [a for a in self.axes if not a.random]
         rand = [a for a in self.axes if a.random]
         draws = [_draw(rand, self.seed, s) for s in range(self.samples)] if rand else [{}]
-        out = []
+        out: list[Point] = []
         for combo in itertools.product(*(a.spec for a in grid)):
             for s, drawn in enumerate(draws):
                 values = dict(zip((a.path for a in grid), combo))
@@ -171,7 +171,7 @@ def point_key(scenario, version, sample=0):
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-_VERSION_CACHE = {}
+_VERSION_CACHE: dict[str, str] = {}
 
 
 def code_version():

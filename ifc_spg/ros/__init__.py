@@ -25,6 +25,7 @@ executor over a set of nodes), ``spin_until`` and ``describe`` (the start-up log
 """
 
 import os
+from typing import TYPE_CHECKING
 
 from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
@@ -41,14 +42,14 @@ ROSPY_WHEELS = ('ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-sensor-msg
                 'ros-jazzy-std-msgs ros-jazzy-geometry-msgs ros-jazzy-diagnostic-msgs')
 
 
-def _choice():
+def _choice() -> str:
     value = os.environ.get('IFC_SPG_ROS_BACKEND', '').strip().lower() or 'auto'
     if value not in ('auto', 'rclpy', 'cyclonedds'):
         raise ImportError(f"IFC_SPG_ROS_BACKEND='{value}' is not one of auto, rclpy, cyclonedds")
     return value
 
 
-def _rclpy_available(choice):
+def _rclpy_available(choice: str) -> bool:
     if choice == 'cyclonedds':
         return False
     try:
@@ -63,7 +64,9 @@ def _rclpy_available(choice):
     return True
 
 
-if _rclpy_available(_choice()):
+# mypy checks the code written against this module with the built-in backend's names (always
+# importable, and the API both backends share); rclpy_backend.py is checked on its own
+if not TYPE_CHECKING and _rclpy_available(_choice()):
     from ifc_spg.ros.rclpy_backend import (
         BACKEND,
         RMW,
@@ -118,7 +121,7 @@ else:
         wait_for_acks,
     )
 
-def describe():
+def describe() -> str:
     """The backend line every node logs at start-up.
 
     For example ``ROS 2 backend: rclpy on rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``.

@@ -3,6 +3,9 @@
 Imported by :mod:`ifc_spg.ros` when rclpy is not used; use that module, not this one.
 """
 
+from typing import TYPE_CHECKING
+
+from ifc_spg.ros import protocols as _protocols
 from ifc_spg.ros.dds import Context as _Context
 from ifc_spg.ros.dds import Node, init, ok, spin, spin_once, spin_until
 from ifc_spg.ros.dds import shutdown as _shutdown
@@ -85,3 +88,8 @@ def wait_for_acks(publisher, timeout_sec=1.0):
     True if they did within ``timeout_sec`` [s].
     """
     return publisher.wait_for_acks(timeout_sec)
+
+
+if TYPE_CHECKING:  # this backend's Node meets the Protocol node code is typed with
+    def _meets_protocol(node: Node) -> _protocols.Node:
+        return node

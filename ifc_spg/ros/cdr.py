@@ -15,6 +15,7 @@ known statically are packed with one ``struct`` call, and numeric sequences go t
 import array
 import struct
 import sys
+from typing import Any
 
 import numpy as np
 
@@ -474,7 +475,7 @@ def compile_codec(cls, registry):
         already holds the 4-byte CDR header); ``de(view, pos)`` reads a message from memoryview
         ``view`` of the payload (header stripped) and returns ``(msg, new_pos)``.
     """
-    env = {
+    env: dict[str, Any] = {
         '_Z': tuple(b'\0' * i for i in range(8)),
         '_U32': struct.Struct('<I'),
         '_byte1': _byte1,

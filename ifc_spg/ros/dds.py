@@ -17,10 +17,12 @@ WaitSet (subscription read conditions and a guard condition) until data arrives 
 is due, and runs one callback.
 """
 
+from collections.abc import Callable
 import os
 import re
 import sys
 import time
+from typing import Any
 import weakref
 
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
@@ -42,7 +44,7 @@ from ifc_spg.ros.parameters import (
     SetParametersResult,
     check_parameter_value,
 )
-from ifc_spg.ros.qos import as_qos, latched, to_dds_qos
+from ifc_spg.ros.qos import QoSProfile, as_qos, latched, to_dds_qos
 from ifc_spg.ros.ros_args import parse_ros_args
 
 __all__ = ['Context', 'Node', 'Publisher', 'Subscription', 'Timer', 'init', 'shutdown', 'ok',
@@ -74,16 +76,18 @@ def domain_id_from_env(environ=None):
 
 # DDS (IDL) types for topic creation: wire layout + XTypes info for tools like `cyclonedds typeof`
 
-_IDL_TYPES = {}
+_IDL_TYPES: dict[type[messages.Message], Any] = {}  # IdlStruct classes made at run time
 
 
 def _idl_field(ftype):
+    # cyclonedds' IDL annotations (bounded_str, sequence, array) are indexed through a
+    # metaclass mypy does not see: hence the type: ignore[misc] below
     from cyclonedds.idl import types as t
 
     base, kind, length = parse_field_type(ftype)
     if base == 'string':
         bound = re.match(r'string<=(\d+)', ftype)
-        inner = t.bounded_str[int(bound.group(1))] if bound else str
+        inner: Any = t.bounded_str[int(bound.group(1))] if bound else str  # type: ignore[misc]
     elif base in PRIMITIVES:
         inner = {'bool': bool, 'byte': t.byte, 'char': t.uint8, 'int8': t.int8, 'uint8': t.uint8,
                  'int16': t.int16, 'uint16': t.uint16, 'int32': t.int32, 'uint32': t.uint32,
@@ -92,9 +96,9 @@ def _idl_field(ftype):
     else:
         inner = idl_type(messages.REGISTRY[base])
     if kind == 'sequence':
-        return t.sequence[inner, length] if length else t.sequence[inner]
+        return t.sequence[inner, length] if length else t.sequence[inner]  # type: ignore[misc]
     if kind == 'array':
-        return t.array[inner, length]
+        return t.array[inner, length]  # type: ignore[misc]
     return inner
 
 
@@ -131,7 +135,7 @@ class Context:
         self.ros_args = parse_ros_args(sys.argv if args is None else args)
         self.domain_id = domain_id_from_env() if domain_id is None else int(domain_id)
         enclave = self.ros_args.enclave or '/'
-        self.participant = DomainParticipant(
+        self.participant: DomainParticipant | None = DomainParticipant(
             self.domain_id, qos=Qos(Policy.Userdata(data=f'enclave={enclave};'.encode())))
         self.gid = self.participant.get_guid().bytes
         self.guard = GuardCondition(self.participant)
@@ -144,7 +148,7 @@ class Context:
         self._info_topic = self.topic('ros_discovery_info', info_type)
         from cyclonedds.pub import DataWriter
 
-        self._info_writer = DataWriter(self.participant, self._info_topic,
+        self._info_writer: DataWriter | None = DataWriter(self.participant, self._info_topic,
                                        to_dds_qos(latched(1), info_type._HASH))
         self._info_ser = messages._codec(info_type)[0]
 
@@ -158,6 +162,8 @@ class Context:
                 if name == dds_name and other is not cls:
                     raise ParameterError(f"topic '{dds_name}' is already used with type "
                                          f'{other._TYPE}, not {cls._TYPE}')
+            if self.participant is None:
+                raise IfcSpgError('the DDS context is shut down')
             self._topics[key] = Topic(self.participant, dds_name, idl_type(cls))
         return self._topics[key]
 
@@ -243,7 +249,7 @@ class Publisher:
         """The fully qualified topic name (rclpy's ``Publisher.topic``)."""
         return self.topic_name
 
-    def publish(self, msg):
+    def publish(self, msg: messages.Message) -> None:
         """Serialize and write one message.
 
         Raises:
@@ -272,7 +278,7 @@ class Publisher:
         if ret < 0:
             raise IfcSpgError(f"DDS write on '{self.topic_name}' failed with code {ret}")
 
-    def get_subscription_count(self):
+    def get_subscription_count(self) -> int:
         """Number of matched DDS readers (subscriptions) of this publisher."""
         return len(self._writer.get_matched_subscriptions())
 
@@ -350,7 +356,7 @@ class Subscription:
         self._queue.clear()
         return out
 
-    def get_publisher_count(self):
+    def get_publisher_count(self) -> int:
         """Number of matched DDS writers (publishers) of this subscription."""
         return len(self._reader.get_matched_publications())
 
@@ -374,11 +380,11 @@ class Timer:
         self._canceled = not autostart
         self._next = time.monotonic_ns() + self.timer_period_ns
 
-    def is_canceled(self):
+    def is_canceled(self) -> bool:
         """True after cancel()."""
         return self._canceled
 
-    def cancel(self):
+    def cancel(self) -> None:
         """Stop calling the callback."""
         self._canceled = True
 
@@ -455,15 +461,15 @@ class Node:
 
     # names ------------------------------------------------------------------------------------
 
-    def get_name(self):
+    def get_name(self) -> str:
         """The node name."""
         return self._name
 
-    def get_namespace(self):
+    def get_namespace(self) -> str:
         """The absolute namespace."""
         return self._namespace
 
-    def get_fully_qualified_name(self):
+    def get_fully_qualified_name(self) -> str:
         """``/ns/name``."""
         return fully_qualified_node_name(self._name, self._namespace)
 
@@ -474,7 +480,7 @@ class Node:
         """
         return dict(self._overrides)
 
-    def resolve_topic_name(self, topic, *, only_expand=False):
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str:
         """Expand (and remap) a topic name as rcl does for this node."""
         expanded = expand_topic_name(topic, self._name, self._namespace)
         if only_expand:
@@ -483,22 +489,26 @@ class Node:
 
     # entities ---------------------------------------------------------------------------------
 
-    def create_publisher(self, msg_type, topic, qos_profile, **_ignored):
+    def create_publisher(self, msg_type: type[messages.Message], topic: str,
+                         qos_profile: QoSProfile | int, **_ignored: object) -> Publisher:
         """Create a Publisher of ``msg_type`` on ``topic`` with a QoSProfile or int depth."""
         pub = Publisher(self, msg_type, topic, qos_profile)
         self.publishers.append(pub)
         self.context.changed()
         return pub
 
-    def create_subscription(self, msg_type, topic, callback, qos_profile, **_ignored):
+    def create_subscription(self, msg_type: type[messages.Message], topic: str,
+                            callback: Callable[[Any], object], qos_profile: QoSProfile | int,
+                            **_ignored: object) -> 'Subscription':
         """Create a Subscription calling ``callback(msg)`` for each message."""
         sub = Subscription(self, msg_type, topic, callback, qos_profile)
         self.subscriptions.append(sub)
         self.context.changed()
         return sub
 
-    def create_timer(self, timer_period_sec, callback, callback_group=None, clock=None,
-                     autostart=True):
+    def create_timer(self, timer_period_sec: float, callback: Callable[[], object],
+                     callback_group: object = None, clock: object = None,
+                     autostart: bool = True) -> 'Timer':
         """Create a Timer calling ``callback()`` every ``timer_period_sec`` [s]."""
         timer = Timer(self, timer_period_sec, callback, autostart)
         self.timers.append(timer)
@@ -529,7 +539,7 @@ class Node:
                 ex.waitset.detach(entry[1])
                 ex.subs = [s for s in ex.subs if s is not sub]
 
-    def count_publishers(self, topic_name):
+    def count_publishers(self, topic_name: str) -> int:
         """Publishers matched on ``topic_name``, as seen by this node's subscriptions to it.
 
         rclpy counts the whole graph; the built-in backend knows the writers its readers
@@ -539,7 +549,7 @@ class Node:
         return max((s.get_publisher_count() for s in self.subscriptions
                     if s.topic_name == name), default=0)
 
-    def count_subscribers(self, topic_name):
+    def count_subscribers(self, topic_name: str) -> int:
         """Subscriptions matched on ``topic_name`` by this node's publishers to it."""
         name = self.resolve_topic_name(topic_name)
         return max((p.get_subscription_count() for p in self.publishers
@@ -672,11 +682,11 @@ class Node:
 
     # misc -------------------------------------------------------------------------------------
 
-    def get_logger(self):
+    def get_logger(self) -> Logger:
         """The node's Logger."""
         return self._logger
 
-    def get_clock(self):
+    def get_clock(self) -> Clock:
         """The node's Clock (system time)."""
         return self._clock
 
@@ -705,8 +715,8 @@ class _Executor:
         if self.generation == self.context.generation:
             return
         self.generation = self.context.generation
-        subs = {id(s): s for ref in self.nodes if ref() is not None
-                for s in ref().subscriptions}
+        subs = {id(s): s for ref in self.nodes if (node := ref()) is not None
+                for s in node.subscriptions}
         for key in list(self.attached):
             if key not in subs:
                 sub, cond = self.attached.pop(key)
@@ -716,7 +726,7 @@ class _Executor:
                 self.waitset.attach(sub._condition)
                 self.attached[key] = (sub, sub._condition)
         self.subs = [sub for sub, _ in self.attached.values()]
-        self.timers = [t for ref in self.nodes if ref() is not None for t in ref().timers]
+        self.timers = [t for ref in self.nodes if (node := ref()) is not None for t in node.timers]
 
     def _run_ready(self):
         subs = self.subs

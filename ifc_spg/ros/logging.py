@@ -6,6 +6,7 @@ Lines go to stderr as rcutils formats them by default:
 
 import sys
 import time
+from typing import Any, TextIO
 
 __all__ = ['Logger', 'LEVELS']
 
@@ -15,24 +16,25 @@ LEVELS = {'debug': 10, 'info': 20, 'warn': 30, 'error': 40, 'fatal': 50}
 class Logger:
     """Severity-filtered logger; ``once=True`` and ``throttle_duration_sec=`` as rclpy."""
 
-    def __init__(self, name, level='info', stream=None):
+    def __init__(self, name: str, level: str = 'info', stream: TextIO | None = None) -> None:
         self.name = name
         self.level = LEVELS.get(level, 20)
         self.stream = stream
-        self._once = set()
-        self._last = {}
+        self._once: set[int | None] = set()  # call-site line numbers
+        self._last: dict[int | None, float] = {}
 
-    def set_level(self, level):
+    def set_level(self, level: str) -> None:
         """Set the severity threshold ('debug', 'info', 'warn', 'error', 'fatal')."""
         self.level = LEVELS.get(str(level).lower(), self.level)
 
-    def get_child(self, suffix):
+    def get_child(self, suffix: str) -> 'Logger':
         """A logger named ``name.suffix`` with the same level."""
         child = Logger(f'{self.name}.{suffix}', stream=self.stream)
         child.level = self.level
         return child
 
-    def _log(self, severity, message, once=False, throttle_duration_sec=None, **_):
+    def _log(self, severity: str, message: str, once: bool = False,
+             throttle_duration_sec: float | None = None, **_: object) -> bool:
         if LEVELS[severity] < self.level:
             return False
         key = sys._getframe(2).f_lineno if (once or throttle_duration_sec) else None
@@ -51,24 +53,24 @@ class Logger:
         (self.stream or sys.stderr).write(line)
         return True
 
-    def debug(self, message, **kwargs):
+    def debug(self, message: str, **kwargs: Any) -> bool:
         """Log at DEBUG."""
         return self._log('debug', message, **kwargs)
 
-    def info(self, message, **kwargs):
+    def info(self, message: str, **kwargs: Any) -> bool:
         """Log at INFO."""
         return self._log('info', message, **kwargs)
 
-    def warn(self, message, **kwargs):
+    def warn(self, message: str, **kwargs: Any) -> bool:
         """Log at WARN."""
         return self._log('warn', message, **kwargs)
 
     warning = warn
 
-    def error(self, message, **kwargs):
+    def error(self, message: str, **kwargs: Any) -> bool:
         """Log at ERROR."""
         return self._log('error', message, **kwargs)
 
-    def fatal(self, message, **kwargs):
+    def fatal(self, message: str, **kwargs: Any) -> bool:
         """Log at FATAL."""
         return self._log('fatal', message, **kwargs)

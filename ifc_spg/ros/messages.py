@@ -13,6 +13,8 @@ Jazzy type hash (``_HASH``, RIHS01, checked against rosbags in the tests).
 """
 
 import array
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -28,7 +30,7 @@ __all__ = [
     'UVCoordinate', 'MeshFile', 'Marker', 'MarkerArray',
 ]
 
-REGISTRY = {}
+REGISTRY: dict[str, type['Message']] = {}
 
 
 def dds_type_name(ros_type):
@@ -104,9 +106,19 @@ class Message:
     """Base of the built-in message classes: keyword constructor, equality, repr."""
 
     __slots__ = ()
-    _TYPE = ''
-    _FIELDS = ()
-    _DEFAULTS = {}
+    _TYPE: ClassVar[str] = ''
+    _FIELDS: ClassVar[tuple[tuple[str, str], ...]] = ()
+    _DEFAULTS: ClassVar[dict[str, Any]] = {}
+    _HASH: ClassVar[str]
+    _DDS_TYPE: ClassVar[str]
+    _FACTORIES: ClassVar[tuple[tuple[str, Callable[[], Any], Callable[[Any], Any] | None], ...]]
+    _codec: ClassVar[tuple[Callable[..., Any], Callable[..., Any]] | None]
+
+    if TYPE_CHECKING:
+        # the fields (the subclass's __slots__, from _FIELDS) are set in __init__: a message's
+        # field values are the dynamic seam shared with rclpy's generated classes
+        def __getattr__(self, name: str) -> Any: ...
+        def __setattr__(self, name: str, value: Any) -> None: ...
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -16,7 +16,7 @@ _NODE_RE = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')
 _TOKEN_RE = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')
 
 
-def validate_node_name(name):
+def validate_node_name(name: str) -> str:
     """Raise ParameterError unless ``name`` is a valid node name: ``[A-Za-z_][A-Za-z0-9_]*``."""
     if not isinstance(name, str) or not _NODE_RE.match(name):
         raise ParameterError(f"invalid node name '{name}': use letters, digits and '_', not "
@@ -24,7 +24,7 @@ def validate_node_name(name):
     return name
 
 
-def validate_namespace(namespace):
+def validate_namespace(namespace: str) -> str:
     """Return ``namespace`` normalised to an absolute namespace ('' or None -> '/').
 
     Raises:
@@ -43,13 +43,13 @@ def validate_namespace(namespace):
     return namespace
 
 
-def fully_qualified_node_name(name, namespace):
+def fully_qualified_node_name(name: str, namespace: str) -> str:
     """``/ns/name`` of a node."""
     namespace = validate_namespace(namespace)
     return f'/{name}' if namespace == '/' else f'{namespace}/{name}'
 
 
-def expand_topic_name(name, node_name, namespace):
+def expand_topic_name(name: str, node_name: str, namespace: str) -> str:
     """Expand a topic name against a node, as rcl_expand_topic_name does.
 
     Args:

@@ -9,8 +9,10 @@ from array import array as _array
 import dataclasses
 import enum
 import math
+from typing import Any
 
 from ifc_spg.errors import ParameterError
+from ifc_spg.ros.protocols import Node
 
 __all__ = ['Parameter', 'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange',
            'ParameterType', 'check_parameter_value', 'declare_checked', 'overrides']
@@ -149,7 +151,7 @@ def check_parameter_value(name, value, descriptor, expected_type=None):
                     (f' ({descriptor.description})' if descriptor.description else ''))
 
 
-def overrides(node):
+def overrides(node: Node) -> dict[str, Any]:  # values of ROS parameter types
     """``{name: value}`` of the -p / --params-file values given to ``node``.
 
     The built-in backend's node offers them as ``parameter_overrides()``. Used to refuse
@@ -170,7 +172,7 @@ def overrides(node):
     return out
 
 
-def declare_checked(node, name, default, descriptor):
+def declare_checked(node: Node, name: str, default: Any, descriptor: Any) -> Any:
     """``node.declare_parameter(name, default, descriptor).value``, an override checked first.
 
     The override's type and range are checked with

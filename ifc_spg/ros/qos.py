@@ -58,7 +58,7 @@ class QoSProfile:
     durability: DurabilityPolicy = DurabilityPolicy.VOLATILE
     history: HistoryPolicy = HistoryPolicy.KEEP_LAST
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.history != HistoryPolicy.KEEP_ALL and not (
                 isinstance(self.depth, int) and self.depth >= 1):
             raise ParameterError(f'QoS depth {self.depth!r} is invalid: KEEP_LAST needs an int '
@@ -69,12 +69,12 @@ qos_profile_sensor_data = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST
 qos_profile_system_default = QoSProfile(depth=1)
 
 
-def latched(depth=1):
+def latched(depth: int = 1) -> QoSProfile:
     """Reliable, transient-local, keep-last ``depth`` profile (late joiners get the last ones)."""
     return QoSProfile(depth=depth, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-def as_qos(qos):
+def as_qos(qos: 'QoSProfile | int') -> QoSProfile:
     """Accept a QoSProfile or an int depth (as rclpy's create_publisher does)."""
     if isinstance(qos, QoSProfile):
         return qos

@@ -8,6 +8,7 @@ rclpy imports; use that module, not this one.
 import os
 import sys
 import time as _time
+from typing import TYPE_CHECKING
 import weakref as _weakref
 
 from rcl_interfaces.msg import (
@@ -33,6 +34,7 @@ from rclpy.qos import (
 )
 from rclpy.signals import SignalHandlerOptions
 
+from ifc_spg.ros import protocols as _protocols
 from ifc_spg.ros.ros_args import parse_ros_args
 
 __all__ = [
@@ -72,7 +74,7 @@ def _rmw():
         return os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
 
 RMW = _rmw()
-_nodes = _weakref.WeakSet()
+_nodes: '_weakref.WeakSet[Node]' = _weakref.WeakSet()
 
 class Node(_RclpyNode):
     """rclpy's Node, destroyed with its context.
@@ -124,7 +126,8 @@ def new_context(args=None):
     init(args=args, context=ctx)
     return ctx
 
-_executors = _weakref.WeakValueDictionary()
+_executors: '_weakref.WeakValueDictionary[tuple[int, ...], _NodesExecutor]' = (
+    _weakref.WeakValueDictionary())
 
 class _NodesExecutor:
     """A SingleThreadedExecutor over a fixed set of nodes.
@@ -208,12 +211,14 @@ def spin_hot(node, subscription, timeout_sec=0.1, until=None):
     group, subscription.callback_group = subscription.callback_group, _Claimed()
     handle, msg_type, raw = subscription.handle, subscription.msg_type, subscription.raw
     callback, timeout_ns = subscription.callback, round(timeout_sec * 1e9)
-    context, entities, wait_set = node.context, None, None
+    context = node.context
+    entities = _entities(node)
+    wait_set = _WaitSet(context, entities)
     try:
         while context.ok() and not (until is not None and until()):
             now = _entities(node)
             if now != entities:
-                entities, wait_set = now, _WaitSet(node.context, now)
+                entities, wait_set = now, _WaitSet(context, now)
             ready = wait_set.wait(timeout_ns)
             hot = handle.pointer in ready
             if hot:
@@ -305,3 +310,8 @@ def spin_until(condition, timeout_sec=5.0, nodes=None):
             return bool(condition())
         ex.spin_once(timeout_sec=min(remaining, 0.1))
     return True
+
+
+if TYPE_CHECKING:  # this backend's Node meets the Protocol node code is typed with
+    def _meets_protocol(node: Node) -> _protocols.Node:
+        return node

@@ -15,6 +15,7 @@ matching rule wins.
 
 import dataclasses
 import re
+from typing import Any
 
 import yaml
 
@@ -182,7 +183,7 @@ def load_params_file(path):
     if not isinstance(data, dict):
         raise ParameterError(f"params file '{path}': expected a mapping of node names, e.g. "
                              "'/**: {ros__parameters: {rate: 500.0}}'")
-    sections = {}
+    sections: dict[str, dict[str, Any]] = {}  # YAML values
 
     def walk(prefix, mapping):
         for key, value in mapping.items():

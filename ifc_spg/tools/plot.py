@@ -22,6 +22,7 @@ import html
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -130,7 +131,7 @@ def _grid(n):
 
 def _task_series(s):
     """Task name -> dict(t, value, physical, lower, upper, type) from the statuses."""
-    out = {}
+    out: dict[str, dict[str, Any]] = {}
     for t, doc in zip(s.t_status, s.status):
         for task in doc.get('tasks') or []:
             d = out.setdefault(task['name'], {'t': [], 'value': [], 'physical': [], 'lower': [],

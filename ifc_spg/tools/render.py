@@ -175,11 +175,14 @@ def _ffmpeg_writer(path, fps, size):
          f'{w}x{h}', '-r', f'{fps}', '-i', '-', '-an', '-vcodec', 'libx264', '-pix_fmt',
          'yuv420p', '-crf', '23', str(path)], stdin=subprocess.PIPE)
 
+    stdin = proc.stdin
+    assert stdin is not None  # stdin=PIPE
+
     def write(img):
-        proc.stdin.write(np.ascontiguousarray(img).tobytes())
+        stdin.write(np.ascontiguousarray(img).tobytes())
 
     def close():
-        proc.stdin.close()
+        stdin.close()
         if proc.wait() != 0:
             raise IfcSpgError(f"ffmpeg failed writing '{path}' (exit {proc.returncode})")
         return path.stat().st_size

@@ -53,7 +53,7 @@ def plot_sweep(spec, out_dir, points):
             x, labels = _axis_positions([r[axis.path] for r in ok])
             ax.plot(x, y, 'o', alpha=0.6, ms=4)
             if not axis.random:
-                means = {}
+                means: dict[float, list[float]] = {}
                 for xi, yi in zip(x, y):
                     means.setdefault(xi, []).append(yi)
                 xs = sorted(means)
@@ -82,7 +82,7 @@ def _heatmap(plt, spec, ok, metric, y, out_dir):
     fig, ax = plt.subplots(figsize=(5.6, 4.4))
     if not a.random and not b.random:
         ua, ub = sorted(set(xa)), sorted(set(xb))
-        cells = [[[] for _ in ua] for _ in ub]
+        cells: list[list[list[float]]] = [[[] for _ in ua] for _ in ub]
         for i, j, v in zip(xa, xb, y):
             cells[ub.index(j)][ua.index(i)].append(v)
         grid = [[sum(c) / len(c) if c else math.nan for c in row] for row in cells]

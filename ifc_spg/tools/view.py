@@ -19,6 +19,7 @@ also steers needs; rerun is a logging viewer with its own binary and data model.
 
 import threading
 import time
+from typing import Any
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -103,7 +104,11 @@ def _read(path):
     from ifc_spg.offline.bag import BagReader
     from ifc_spg.ros import messages
 
-    states, commands, targets, forces, status = {}, {}, [], [], []
+    states: dict[int, Any] = {}  # stamp [ns] -> JointState
+    commands: dict[int, Any] = {}
+    targets: list[tuple[float, Any]] = []
+    forces: list[tuple[float, Any]] = []
+    status: list[tuple[float, Any]] = []  # (t, JSON document)
     urdf = robot = None
     with BagReader(path) as bag:
         topics = {t.lstrip('/'): t for t in bag.topics}
@@ -166,6 +171,14 @@ def load_bag(path):
     return ViewData(urdf, names, np.array(stamps), q, q_v, targets, status, forces)
 
 
+def _attribute(element: ET.Element, name: str) -> str:
+    """The attribute ``name`` of a URDF element (an error naming it where it lacks it)."""
+    value = element.get(name)
+    if value is None:
+        raise ParameterError(f"URDF <{element.tag}> has no '{name}' attribute")
+    return value
+
+
 def _visuals(urdf):
     """``{link: [(kind, size, SE3 in the link, rgb)]}`` of the URDF's visual elements."""
     out = {}
@@ -179,7 +192,7 @@ def _visuals(urdf):
                                       else '0 0 0').split()]
             M = pin.SE3(pin.rpy.rpyToMatrix(np.array(rpy)), np.array(xyz))
             color = vis.find('material/color')
-            rgba = [float(v) for v in color.get('rgba').split()] if color is not None \
+            rgba = [float(v) for v in _attribute(color, 'rgba').split()] if color is not None \
                 else [0.8, 0.8, 0.8, 1.0]
             rgb = tuple(int(255 * min(max(c, 0.0), 1.0)) for c in rgba[:3])
             geom = vis.find('geometry')
@@ -188,11 +201,11 @@ def _visuals(urdf):
                 if g is None:
                     continue
                 if kind == 'box':
-                    size = tuple(float(v) for v in g.get('size').split())
+                    size = tuple(float(v) for v in _attribute(g, 'size').split())
                 elif kind == 'sphere':
-                    size = (float(g.get('radius')),)
+                    size = (float(_attribute(g, 'radius')),)
                 else:
-                    size = (float(g.get('radius')), float(g.get('length')))
+                    size = (float(_attribute(g, 'radius')), float(_attribute(g, 'length')))
                 items.append((kind, size, M, rgb))
         if items:
             out[link.get('name')] = items
@@ -248,7 +261,7 @@ class _Scene:
         scene.add_grid('/floor', width=2.0, height=2.0, cell_size=0.1, section_size=0.5)
         cam = self.server.initial_camera  # looking at the robot from the front right
         cam.position, cam.look_at, cam.up = (1.6, -1.3, 1.2), (0.3, 0.0, 0.45), (0.0, 0.0, 1.0)
-        self.handles = {'robot': [], 'virtual': []}
+        self.handles: dict[str, list[Any]] = {'robot': [], 'virtual': []}  # viser handles
         for tree, opacity, tint in (('robot', None, None), ('virtual', 0.35, _GHOST)):
             for link in self.links:
                 frame = scene.add_frame(f'/{tree}/{link}', show_axes=False)
@@ -362,7 +375,7 @@ class Cockpit(_Scene):
         self.label = gui.add_markdown('')
         self.status = gui.add_markdown('')
         self.slider.on_update(lambda _: self.show(int(self.slider.value)))
-        self.index = None
+        self.index = 0  # the sample shown (show() sets it)
         self.show(0)
         self._player = threading.Thread(target=self._play, daemon=True)
         self._player.start()
@@ -395,7 +408,8 @@ class Cockpit(_Scene):
                 i = int(np.searchsorted(self.data.t, t))
                 if i >= len(self.data.t):
                     i = 0
-                self.slider.value = max(i, self.index + 1) % len(self.data.t)
+                # viser defines the value setter apart from its getter: mypy sees it read-only
+                self.slider.value = max(i, self.index + 1) % len(self.data.t)  # type: ignore[misc]
             last = now
 
 
@@ -481,7 +495,10 @@ class LiveCockpit(_Scene):
             M = data.oMf[fid]
             gizmo = self.server.scene.add_transform_controls(
                 f'/gizmos/{t.name}', scale=0.2, position=M.translation, wxyz=_wxyz(M.rotation))
-            gizmo.on_update(lambda _, name=t.name: self._publish(name))
+            def on_update(_: object, name: str = t.name) -> None:
+                self._publish(name)
+
+            gizmo.on_update(on_update)
             self.gizmos[t.name] = gizmo
 
     def _publish(self, name):
