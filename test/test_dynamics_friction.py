@@ -58,6 +58,7 @@ def _random_problem(rng, k):
     n = int(rng.integers(k, k + 4))
     model = random_chain_model(rng, n)
     solver = VereshchaginSolver(model, tip_frame='tip')
+    pin.seed(int(rng.integers(2**31 - 1)))  # pinocchio's global generator, from the test's
     q = pin.randomConfiguration(model, -np.pi * np.ones(model.nq), np.pi * np.ones(model.nq))
     qd = rng.normal(size=n)
     rest = rng.choice(n, k, replace=False)
