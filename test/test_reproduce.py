@@ -332,3 +332,16 @@ def test_fig_5_13_crank_turned_and_faster_exploration_costs_force(tmp_path):
     n = check.numbers
     assert len(n['runs']) == 5 and n['turned_share'] == 1.0
     assert n['kappa_force_ratio'] > 1.1
+
+
+def test_note_fields_come_from_the_run():
+    """Every {field} of a note has a getter in NOTE_FIELDS (numbers come from the run)."""
+    import string
+
+    for name, template in reproduce.NOTES.items():
+        fields = {f for _, f, _, _ in string.Formatter().parse(template) if f}
+        assert fields <= set(reproduce.NOTE_FIELDS.get(name, {})), name
+    text = reproduce.note_text('report_6', {'described': {'s2_qdd': -4.0},
+                                            'kdl': {'s2_qdd': -0.4444}})
+    assert 'qdd = -4 rad/s^2' in text and '(-0.444 rad/s^2)' in text
+    assert 'n/a' in reproduce.note_text('table_4_5', {})
