@@ -332,6 +332,9 @@ def test_fig_5_13_crank_turned_and_faster_exploration_costs_force(tmp_path):
     n = check.numbers
     assert len(n['runs']) == 5 and n['turned_share'] == 1.0
     assert n['kappa_force_ratio'] > 1.1
+    # the claims' estimate error leaves out the initial transient (second half of the turn)
+    assert all(0.0 < r['error_angle_at_half_turn_deg'] < 45.0 for r in n['runs'])
+    assert n['radius_error_ratio_second_half'] > 0.0
 
 
 def test_note_fields_come_from_the_run():
