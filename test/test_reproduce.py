@@ -293,8 +293,9 @@ def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
 def test_fig_5_11_static_erroneous_force_vanishes_once_the_estimate_converges(tmp_path):
     """Fig. 5.11, quick: the 45 deg initial error, (5.9) against trajectory following on the
     LBR (K = 40, kappa = 9 N/s, nu = 0.05 m/s), 0.29 m lift. With (5.9) the force builds up
-    at kappa until the drawer moves and the static erroneous force |f_s perp| collapses
-    once the estimate has converged; the claims are evaluated as written."""
+    at kappa until the drawer moves and the median of the static erroneous force |f_s perp|
+    over the second half is under a fifth of its first-half peak (its RMS need not fall:
+    the report prints both); the claims are evaluated as written."""
     check, fig, _ = reproduce.run_experiment(_BY_NAME['fig_5_11'], tmp_path, quick=True)
     n = check.numbers
     assert set(n) == {'joint_compliance_45', 'admittance_45'}
