@@ -1973,7 +1973,8 @@ def note_text(name, numbers, notes=None):
     for key, get in NOTE_FIELDS.get(name, {}).items():
         try:
             values[key] = get(numbers)
-        except (KeyError, IndexError, TypeError, ValueError, ZeroDivisionError):
+        except (KeyError, IndexError, TypeError, ValueError, ZeroDivisionError,
+                AttributeError):
             values[key] = 'n/a'
     return template.format_map(values)
 
