@@ -8,12 +8,14 @@ The harness (:mod:`experiments.reproduce`) evaluates the rules on the numbers of
 and prints per claim: thesis value, ours, rule, verdict. An experiment is reproduced when
 all of its claims pass. Nothing here is tuned to a run: a rule that fails, fails.
 
-Version 3 (issue 21): Sec. 5.3.4 (the ACCREA trials, Figs. 5.6/5.7) and Sec. 5.4.3
-(Figs. 5.11-5.13) added; Fig. 5.11 compares what the thesis compares; after its first
-results the nullspace baseline of the Ch. 3 claims takes the velocity box by SNS (every Ch.
-3 row says so). Version 2 (issue 21)
-wrote every rule from the thesis. Version 1 was the one-line checks in ``reproduce.py``
-(the summary texts of docs/REPRODUCTION.md before issue 21).
+Version 4 (issue 29): Fig. 5.13's estimate error leaves out the initial transient (the
+second half of the quarter turn); Table 3.2 and Figs. 3.14/3.15 run the thesis' static
+force model (their rules unchanged, the setup change named in their rows). Version 3 (issue
+21): Sec. 5.3.4 (the ACCREA trials, Figs. 5.6/5.7) and Sec. 5.4.3 (Figs. 5.11-5.13) added;
+Fig. 5.11 compares what the thesis compares; after its first results the nullspace baseline
+of the Ch. 3 claims takes the velocity box by SNS (every Ch. 3 row says so). Version 2
+(issue 21) wrote every rule from the thesis. Version 1 was the one-line checks in
+``reproduce.py`` (the summary texts of docs/REPRODUCTION.md before issue 21).
 """
 
 import dataclasses
@@ -21,7 +23,7 @@ import math
 
 __all__ = ['CLAIMS', 'Claim', 'evaluate', 'VERSION']
 
-VERSION = 3
+VERSION = 4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,6 +125,11 @@ _F511 = ("v2 ran task specification (5.5) against (5.9) under this figure's name
          "Nm/rad and kappa = 10 N/s; the thesis' Fig. 5.11 compares (5.9) with the "
          'trajectory-following strategy of Sec. 5.3 on the LBR at K = 40 Nm/rad, kappa = 9 '
          'N/s, nu = 0.05 m/s, N = 500, v_th = 0.01 m/s (Sec. 5.4.3); v3 runs that')
+_F513 = ('v4 (issue 29), after the v3 result had been seen: v3 took the RMS over the whole '
+         'turn, which holds the 45 deg starting error, so the run length alone predicted its '
+         'ratios (1.46 / 1.50 predicted, 1.50 / 1.43 seen); the thesis names the delay of the '
+         'filter (5.4) as the cause, a lag while turning, so the metric is now the second half '
+         'of the turn (crank angle 45-90 deg); threshold unchanged, written before the run')
 _OURS = ('threshold ours (the thesis prints plots only), unchanged since it was first '
          'written')
 
@@ -437,14 +444,19 @@ CLAIMS = (
     Claim('fig_5_13.success', 'fig_5_13', 'Sec. 5.4.3, Fig. 5.13', 'the new approach turns '
           'the crank, even for very small radii', 'runs that finish the quarter turn (of 5)',
           lambda n: n['turned_share'], '>=', 1.0, scale=100, unit='%', history=_V3),
-    Claim('fig_5_13.radius_error', 'fig_5_13', 'Sec. 5.4.3, Fig. 5.13 left', 'increasing '
-          'estimation errors when shortening the radius', 'RMS estimate error, R = 0.10 m / '
-          'R = 0.25 m (kappa = 9 N/s)', lambda n: n['radius_error_ratio'], '>', 1.1,
-          history=_V3 + '; margin 10 % as the sweeps of Ch. 3'),
-    Claim('fig_5_13.kappa_error', 'fig_5_13', 'Sec. 5.4.3, Fig. 5.13 right', 'increased '
-          'exploration speed leads to larger estimation errors', 'RMS estimate error, '
-          'kappa = 15 / 5 N/s (R = 0.17 m)', lambda n: n['kappa_error_ratio'], '>', 1.1,
-          history=_V3 + '; margin 10 %'),
+    Claim('fig_5_13.radius_error', 'fig_5_13', 'Sec. 5.4.3, Fig. 5.13 left', '"one '
+          'observes increasing estimation errors when shorten the radius" ("This comes from '
+          'the delay, introduced by the filter (5.4)")', 'RMS estimate error over the second '
+          'half of the quarter turn (crank angle 45-90 deg, after the initial transient), '
+          'R = 0.10 m / R = 0.25 m (kappa = 9 N/s)',
+          lambda n: n['radius_error_ratio_second_half'], '>', 1.1,
+          history=_V3 + '; margin 10 % as the sweeps of Ch. 3; ' + _F513),
+    Claim('fig_5_13.kappa_error', 'fig_5_13', 'Sec. 5.4.3, Fig. 5.13 right', '"increased '
+          'exploration speed leads to larger estimation errors" (the delay of filter (5.4))',
+          'RMS estimate error over the second half of the quarter turn (after the initial '
+          'transient), kappa = 15 / 5 N/s (R = 0.17 m)',
+          lambda n: n['kappa_error_ratio_second_half'], '>', 1.1,
+          history=_V3 + '; margin 10 %; ' + _F513),
     Claim('fig_5_13.kappa_force', 'fig_5_13', 'Sec. 5.4.3, Fig. 5.13 right', '... and '
           'larger erroneous forces', 'RMS |f_perp|, kappa = 15 / 5 N/s (R = 0.17 m)',
           lambda n: n['kappa_force_ratio'], '>', 1.1, history=_V3 + '; margin 10 %'),
@@ -469,3 +481,11 @@ CLAIMS = (
 #: Every Ch. 3 claim names the baseline change of v3 (its setup changed after a result).
 CLAIMS = tuple(dataclasses.replace(c, history=f'{c.history}; {_SNS}' if c.history else _SNS)
                if c.experiment in _CH3 else c for c in CLAIMS)
+#: The Table 3.2 stack's force model (v4): the setup changed after the v3 results.
+_STATIC = ("v4 (issue 29), after the v3 results: the force task runs the thesis' static "
+           'model J^+T K (q_v - q) (include_damping off); v1-v3 ran the shipped stack, whose '
+           'include_damping (ours, issue 18: the IFC damping -D qdot added to the estimate) '
+           'the report had not named; rule unchanged')
+CLAIMS = tuple(dataclasses.replace(c, history=f'{c.history}; {_STATIC}')
+               if c.experiment in ('table_3_2', 'k_sweep', 'speed_sweep') else c
+               for c in CLAIMS)

@@ -293,8 +293,9 @@ def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
 def test_fig_5_11_static_erroneous_force_vanishes_once_the_estimate_converges(tmp_path):
     """Fig. 5.11, quick: the 45 deg initial error, (5.9) against trajectory following on the
     LBR (K = 40, kappa = 9 N/s, nu = 0.05 m/s), 0.29 m lift. With (5.9) the force builds up
-    at kappa until the drawer moves and the static erroneous force |f_s perp| collapses
-    once the estimate has converged; the claims are evaluated as written."""
+    at kappa until the drawer moves and the median of the static erroneous force |f_s perp|
+    over the second half is under a fifth of its first-half peak (its RMS need not fall:
+    the report prints both); the claims are evaluated as written."""
     check, fig, _ = reproduce.run_experiment(_BY_NAME['fig_5_11'], tmp_path, quick=True)
     n = check.numbers
     assert set(n) == {'joint_compliance_45', 'admittance_45'}
@@ -332,3 +333,19 @@ def test_fig_5_13_crank_turned_and_faster_exploration_costs_force(tmp_path):
     n = check.numbers
     assert len(n['runs']) == 5 and n['turned_share'] == 1.0
     assert n['kappa_force_ratio'] > 1.1
+    # the claims' estimate error leaves out the initial transient (second half of the turn)
+    assert all(0.0 < r['error_angle_at_half_turn_deg'] < 45.0 for r in n['runs'])
+    assert n['radius_error_ratio_second_half'] > 0.0
+
+
+def test_note_fields_come_from_the_run():
+    """Every {field} of a note has a getter in NOTE_FIELDS (numbers come from the run)."""
+    import string
+
+    for name, template in reproduce.NOTES.items():
+        fields = {f for _, f, _, _ in string.Formatter().parse(template) if f}
+        assert fields <= set(reproduce.NOTE_FIELDS.get(name, {})), name
+    text = reproduce.note_text('report_6', {'described': {'s2_qdd': -4.0},
+                                            'kdl': {'s2_qdd': -0.4444}})
+    assert 'qdd = -4 rad/s^2' in text and '(-0.444 rad/s^2)' in text
+    assert 'n/a' in reproduce.note_text('table_4_5', {})
