@@ -1,4 +1,4 @@
-"""The shipped ACCREA self-collision stack (config/tasks/accrea_self_collision_hands_meet.yaml):
+"""The shipped ACCREA self-collision stack (config/tasks/table_4_1_accrea_self_collision.yaml):
 the two tools are sent through each other; the collision_avoidance level holds every
 self pair at its margin, and without it the tools pass through each other. Kinematic
 closed loop (q = q_v), distances checked with coal over all 218 self pairs, independently
@@ -15,7 +15,7 @@ from ifc_spg import RobotModel, SetPointGenerator, TaskStack
 from ifc_spg.geometry import CollisionGeometry, PairQuery
 
 STACK = Path(__file__).resolve().parent.parent / 'config' / 'tasks' / \
-    'accrea_self_collision_hands_meet.yaml'
+    'table_4_1_accrea_self_collision.yaml'
 DT, TICKS = 0.002, 1600  # 3.2 s: the reach takes 3 s
 
 
