@@ -11,6 +11,8 @@ import time
 
 import numpy as np
 
+from ifc_spg.errors import IfcSpgError
+
 __all__ = ['DeadlinePacer']
 
 
@@ -38,7 +40,8 @@ class DeadlinePacer:
 
     def time_to_deadline(self) -> float:
         """Seconds until the next deadline (negative when late; after start)."""
-        assert self._next is not None, 'start() the pacer first'
+        if self._next is None:
+            raise IfcSpgError('DeadlinePacer: start() the pacer first')
         return self._next - self._clock()
 
     def wait(self, idle: Callable[[float], object] | None = None) -> float:
@@ -54,7 +57,8 @@ class DeadlinePacer:
         """
         if self._next is None:
             self.start()
-        assert self._next is not None  # set by start()
+        if self._next is None:  # set by start()
+            raise IfcSpgError('internal: DeadlinePacer.start() set no deadline')
         while True:
             remaining = self._next - self._clock() - self.spin_margin
             if remaining <= 0:

@@ -52,7 +52,7 @@ import pinocchio as pin
 from ifc_spg.constrained.direction_estimator import DirectionEstimator
 from ifc_spg.constrained.joint_compliance_strategy import orientation_rate
 from ifc_spg.constrained.params import StrategyParams
-from ifc_spg.errors import ParameterError
+from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.kinematics import Kinematics
 
 __all__ = ['LIMIT_MARGIN', 'CartesianAdmittanceStrategy', 'chain_joints', 'solve_ik']
@@ -274,7 +274,8 @@ class CartesianAdmittanceStrategy:
         qdot = np.asarray(qdot, dtype=float)
         if self.q_v is None:
             self.reset(q)
-        assert self.q_v is not None and self.p_v is not None and self.R_v is not None  # reset
+        if self.q_v is None or self.p_v is None or self.R_v is None:  # set by reset
+            raise IfcSpgError('internal: the virtual state is unset after reset')
         prm = self.params
         self.kin.update(q, qdot, self.q_v)
         p, R, J = self.kin.frame(self.frame_id, virtual=False)

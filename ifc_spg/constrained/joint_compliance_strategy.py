@@ -20,7 +20,7 @@ import pinocchio as pin
 
 from ifc_spg.constrained.direction_estimator import DirectionEstimator
 from ifc_spg.constrained.params import StrategyParams
-from ifc_spg.errors import ParameterError
+from ifc_spg.errors import IfcSpgError, ParameterError
 from ifc_spg.kinematics import Kinematics
 from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.tasks.static_interaction import DAMPING, compliant_stiffness
@@ -95,7 +95,8 @@ class JointComplianceStrategy:
         qdot = np.asarray(qdot, dtype=float)
         if self.q_v is None:
             self.reset(q)
-        assert self.q_v is not None  # set by reset
+        if self.q_v is None:  # set by reset
+            raise IfcSpgError('internal: q_v is unset after reset')
         p = self.params
         kin = self.kin
         kin.update(q, qdot, self.q_v)

@@ -679,7 +679,8 @@ class SpgRunner:
         streams = tuple((STREAM_FIELD + b.task.name, b.dim) for b in stream_bounds(self.spg.tasks))
         obstacles = tuple((OBSTACLE_FIELD + name, 7) for name in obstacle_poses(self.spg.tasks))
         warm_start = self.spg.snapshot().warm_start
-        assert warm_start is not None  # snapshot() always gives it
+        if warm_start is None:  # snapshot() always gives it
+            raise IfcSpgError('internal: the SPG snapshot has no warm start')
         return _base_layout(n) + (('warm_start', warm_start.size),) + streams + obstacles
 
     def state_vector(self) -> np.ndarray:
@@ -696,7 +697,8 @@ class SpgRunner:
         """
         snap = self.spg.snapshot()
         # after a tick: q measured, q_v set, and snapshot() always gives the warm start
-        assert self._last_q is not None and snap.q_v is not None and snap.warm_start is not None
+        if self._last_q is None or snap.q_v is None or snap.warm_start is None:
+            raise IfcSpgError('internal: spg/state asked for before the first tick')
         nan = np.full(self._n, np.nan)
         sec, nsec = split_ns(self._last_stamp or 0)
         return np.concatenate((

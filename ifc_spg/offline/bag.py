@@ -315,7 +315,9 @@ class BagReader:
         # topic -> (type, message count, offered QoS profiles)
         self.topics: dict[str, tuple[str, int, list[Any]]] = {}
         for c in self._reader.connections:
-            assert isinstance(c.ext, ConnectionExtRosbag2)  # a rosbag2 reader's connection
+            if not isinstance(c.ext, ConnectionExtRosbag2):  # a rosbag2 reader's connection
+                raise ParameterError(f"bag '{self.path}': topic {c.topic} is not a rosbag2 "
+                                     'connection')
             old = self.topics.get(c.topic)
             count = c.msgcount + (old[1] if old else 0)
             self.topics[c.topic] = (c.msgtype, count, list(c.ext.offered_qos_profiles))

@@ -222,7 +222,8 @@ class RecordingObserver:
         from ifc_spg.errors import IfcSpgError
         from ifc_spg.ros import messages
 
-        assert self.topics is not None  # called once the robot is known
+        if self.topics is None:  # called once the robot is known
+            raise IfcSpgError('internal: Foxglove topics written before the robot is known')
         if self.topics._static_written is False:
             self.topics.write_static(t_ns)
         try:

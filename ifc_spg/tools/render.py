@@ -176,7 +176,8 @@ def _ffmpeg_writer(path, fps, size):
          'yuv420p', '-crf', '23', str(path)], stdin=subprocess.PIPE)
 
     stdin = proc.stdin
-    assert stdin is not None  # stdin=PIPE
+    if stdin is None:  # stdin=PIPE gives one
+        raise IfcSpgError(f"ffmpeg for '{path}' has no input pipe")
 
     def write(img):
         stdin.write(np.ascontiguousarray(img).tobytes())
