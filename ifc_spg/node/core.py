@@ -402,7 +402,8 @@ class SpgRunner:
         self.stale = False
         if last is not None and not restart:
             self._period.append((stamp_ns - last) * 1e-9)
-        self.obstacles.apply(list(self.spg.tasks) + self.spg.pending_tasks)  # at the tick boundary
+        if self.obstacles.due:  # at the tick boundary; no task list per tick otherwise
+            self.obstacles.apply(list(self.spg.tasks) + self.spg.pending_tasks)
         tick = self.spg.tick(q, qdot, stamp_ns * 1e-9)
         self._after_tick(stamp_ns, tick.events)
         self._last_stamp, self._last_q = stamp_ns, q

@@ -212,6 +212,11 @@ class ObstacleInput:
         vals[3:] /= norm
         return vals, None
 
+    @property
+    def due(self):
+        """Whether poses were accepted since the last :meth:`apply`."""
+        return bool(self._pending)
+
     def apply(self, tasks):
         """Move the obstacles of ``tasks`` to the poses accepted since the last call.
 
