@@ -52,10 +52,10 @@ def _parser() -> argparse.ArgumentParser:
 class _Interrupted(BaseException):
     """A stop asked for by SIGINT/SIGTERM; no ``except Exception`` (a failed run) catches it.
 
-    Not KeyboardInterrupt itself: CPython and libraries treat that one specially (CPython
-    ends the process with SIGINT once it saw one escape code run through ``PyRun_*``), and
-    once under load the CLI ended with status -2 (SIGINT) after ``main`` had printed its
-    message and returned 130. A private exception goes only where this module sends it.
+    Not KeyboardInterrupt itself: once under load the CLI ended with status -2 (SIGINT)
+    after ``main`` had printed its message and returned 130; the cause was not found (CPython
+    and libraries treat KeyboardInterrupt specially). A private exception goes only where
+    this module sends it.
     """
 
 
