@@ -18,8 +18,10 @@ of the Ch. 3 claims takes the velocity box by SNS (every Ch. 3 row says so). Ver
 ``reproduce.py`` (the summary texts of docs/REPRODUCTION.md before issue 21).
 """
 
+from collections.abc import Callable
 import dataclasses
 import math
+from typing import Any, cast
 
 __all__ = ['CLAIMS', 'Claim', 'evaluate', 'VERSION']
 
@@ -52,10 +54,10 @@ class Claim:
     source: str
     thesis: str
     metric: str
-    get: object
+    get: Callable[[dict], Any]
     op: str
     bound: float = 0.0
-    target: float = None
+    target: float | None = None
     scale: float = 1.0
     unit: str = ''
     quick: bool = True
@@ -64,13 +66,14 @@ class Claim:
     def rule(self):
         """The pass rule as text."""
         u = f' {self.unit}' if self.unit else ''
+        target = cast(float, self.target)  # set where the op reads it ('abs<=', 'factor')
         if self.op == 'true':
             return 'holds'
         if self.op == 'abs<=':
-            return f'{self.target * self.scale:g} +- {self.bound * self.scale:g}{u}'
+            return f'{target * self.scale:g} +- {self.bound * self.scale:g}{u}'
         if self.op == 'factor':
-            return (f'{self.target * self.scale / self.bound:.3g} ... '
-                    f'{self.target * self.scale * self.bound:.3g}{u} (x/ {self.bound:g})')
+            return (f'{target * self.scale / self.bound:.3g} ... '
+                    f'{target * self.scale * self.bound:.3g}{u} (x/ {self.bound:g})')
         return f'{self.op} {self.bound * self.scale:g}{u}'
 
 
@@ -133,7 +136,7 @@ _F513 = ('v4 (issue 29), after the v3 result had been seen: v3 took the RMS over
 _OURS = ('threshold ours (the thesis prints plots only), unchanged since it was first '
          'written')
 
-CLAIMS = (
+CLAIMS: tuple[Claim, ...] = (
     # -- Ch. 3, LBR (Sec. 3.3.1) ---------------------------------------------------------
     Claim('table_3_2.force', 'table_3_2', 'Table 3.2, Sec. 3.3.1, Fig. 3.12(a)',
           'constant 8 N contact force while tracking the circle', 'force error RMS [N]',

@@ -36,6 +36,7 @@ import os
 from pathlib import Path
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -57,6 +58,7 @@ DT = 0.002
 #: Success needs |f| <= FORCE_LIMIT [N] (ours; the thesis names no bound).
 FORCE_LIMIT = 60.0
 #: (device, target travel [rad or m], scene options).
+DEVICES: tuple[tuple[str, float, dict[str, str]], ...]
 DEVICES = (('cupboard_door', 0.6, {'grasp': 'connect'}),
            ('drawer_horizontal', 0.25, {}),
            ('microwave_door', 0.6, {'grasp': 'connect'}))
@@ -67,7 +69,7 @@ ERROR_RANGE_DEG = (40.0, 50.0)
 PATH = 0.25
 #: The Fig. 5.6/5.7 run: break-away force [N], nu [m/s], SMA window [s], initial error
 #: [deg], its axis (scene-frame u, v, z: about -v turns the -u pull downwards), target [m].
-BREAKAWAY = {'force': 20.0, 'nu': 0.03, 'window_s': 0.5, 'error_deg': 45.0,
+BREAKAWAY: dict[str, Any] = {'force': 20.0, 'nu': 0.03, 'window_s': 0.5, 'error_deg': 45.0,
              'error_axis': (0.0, -1.0, 0.0), 'target': 0.25, 'duration': 30.0}
 _MODES = ('projection', 'no_projection')
 

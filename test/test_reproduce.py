@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from experiments import claims, reproduce
+from experiments import ch3, ch5, claims, report, reproduce
 from ifc_spg.errors import ParameterError
 from ifc_spg.offline.runner import find_config_dir, load_scenario
 
@@ -46,12 +46,12 @@ def test_every_thesis_scenario_loads_and_names_its_table():
 def test_stiffness_override_reaches_simulation_and_spg(tmp_path):
     from ifc_spg.offline.runner import robot_with_ifc
 
-    over = reproduce._surface_overrides(stiffness=40.0)
+    over = ch3._surface_overrides(stiffness=40.0)
     sc = load_scenario(find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',
                        overrides=over)
     robot = robot_with_ifc(sc)
     np.testing.assert_allclose(robot.stiffness, 40.0)
-    np.testing.assert_allclose(robot.damping, reproduce._LBR4_DAMPING * np.sqrt(0.2), atol=1e-4)
+    np.testing.assert_allclose(robot.damping, ch3._LBR4_DAMPING * np.sqrt(0.2), atol=1e-4)
     with pytest.raises(ParameterError, match='sim.stiffness'):
         robot_with_ifc(load_scenario(
             find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml',
@@ -73,7 +73,7 @@ def test_report_table(tmp_path):
                         {'id': 'x.two', 'experiment': 'x', 'source': 'Fig. 9', 'thesis': 't',
                          'metric': 'm2', 'ours': '1', 'value': 1.0, 'rule': '> 0',
                          'passed': True, 'history': ''}]}]
-    reproduce.write_report(rows, tmp_path / 'R.md', wall_s=90.0)
+    report.write_report(rows, tmp_path / 'R.md', wall_s=90.0)
     text = (tmp_path / 'R.md').read_text()
     assert '| x.one | Fig. 9 | 8 N | m | 9 N | < 4 N | **fails** | widened |' in text
     assert '| x.two | Fig. 9 | t | m2 | 1 | > 0 | holds |  |' in text
@@ -274,7 +274,7 @@ def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
     the task-specification strategy has less than 30 % of the joint-compliance strategy's
     RMS |f_perp| (thesis: -70 % / -86 %), with the fixed direction and with the SMA
     estimator seeded 45 deg off."""
-    check, _, _ = reproduce.run_experiment(reproduce.TABLE_5_1, tmp_path, quick=True,
+    check, _, _ = reproduce.run_experiment(ch5.TABLE_5_1, tmp_path, quick=True,
                                            figures=False)
     n = check.numbers
     for case in ('fixed_direction', 'sma_estimator'):
@@ -318,7 +318,7 @@ def test_fig_5_12_horizontal_drawer_new_approach_has_less_erroneous_force(tmp_pa
                                            figures=False)
     n = check.numbers
     h_jc, h_tf = n['drawer_horizontal/joint_compliance'], n['drawer_horizontal/admittance']
-    assert h_jc['travel_m'] >= reproduce.F512_TARGET and h_tf['travel_m'] >= 0.25
+    assert h_jc['travel_m'] >= ch5.F512_TARGET and h_tf['travel_m'] >= 0.25
     assert n['horizontal_ratio'] == pytest.approx(h_jc['rms_f_perp_n'] / h_tf['rms_f_perp_n'])
     assert n['horizontal_ratio'] < 1.0
     got = {c['id']: c['passed'] for c in check.claims}
@@ -342,10 +342,10 @@ def test_note_fields_come_from_the_run():
     """Every {field} of a note has a getter in NOTE_FIELDS (numbers come from the run)."""
     import string
 
-    for name, template in reproduce.NOTES.items():
+    for name, template in report.NOTES.items():
         fields = {f for _, f, _, _ in string.Formatter().parse(template) if f}
-        assert fields <= set(reproduce.NOTE_FIELDS.get(name, {})), name
-    text = reproduce.note_text('report_6', {'described': {'s2_qdd': -4.0},
-                                            'kdl': {'s2_qdd': -0.4444}})
+        assert fields <= set(report.NOTE_FIELDS.get(name, {})), name
+    text = report.note_text('report_6', {'described': {'s2_qdd': -4.0},
+                                         'kdl': {'s2_qdd': -0.4444}})
     assert 'qdd = -4 rad/s^2' in text and '(-0.444 rad/s^2)' in text
-    assert 'n/a' in reproduce.note_text('table_4_5', {})
+    assert 'n/a' in report.note_text('table_4_5', {})

@@ -167,7 +167,7 @@ class Scenario:
     scene: str = 'drawer_vertical'
     params: StrategyParams = field(default_factory=StrategyParams)
     initial_error_deg: float = 45.0
-    error_axis: str | None = None
+    error_axis: str | tuple[float, float, float] | None = None
     fixed_direction: bool = False
     duration: float = 20.0
     target: float = 0.29
