@@ -134,6 +134,36 @@ def test_sim_bridge_imports_only_models_ros_and_errors_of_ifc_spg():
 
 
 
+
+def imported_packages(path):
+    """Top-level names of the packages a module imports (not under ``TYPE_CHECKING``)."""
+    tree = ast.parse(path.read_text(), str(path))
+    hidden = _type_checking_only(tree)
+    names = set()
+    for node in ast.walk(tree):
+        if id(node) in hidden:
+            continue
+        if isinstance(node, ast.Import):
+            names.update(a.name.split('.')[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split('.')[0])
+    return names
+
+
+# The robot models are data for the SPG (pinocchio); loading them into MuJoCo is the
+# simulator's (sim_bridge/models.py, sim_bridge/urdf.py).
+def test_the_models_import_neither_mujoco_nor_a_layer_above_them():
+    bad = sorted(f'{p.relative_to(ROOT)}: {name}'
+                 for p in (ROOT / 'ifc_spg' / 'model').rglob('*.py')
+                 for name in imported_packages(p) if name in ('mujoco', 'sim_bridge'))
+    assert not bad, f'ifc_spg/model imports the simulator: {bad}'
+    graph = import_graph()
+    above = sorted((mod, dep) for mod, deps in graph.items() if mod.startswith('ifc_spg.model')
+                   for dep in deps if not dep.startswith('ifc_spg.model')
+                   and dep not in ('ifc_spg', 'ifc_spg.errors'))
+    assert not above, f'ifc_spg/model imports layers above it: {above}'
+
+
 # Command lines live in ifc_spg/cli/, one module per verb (and per executable); the library
 # builds no parser.
 PARSERS_MAY_LIVE_IN = ('ifc_spg.cli',)
