@@ -3,11 +3,11 @@
 ``SetPointGenerator.step(q, qdot, t) -> q_v`` (ARCHITECTURE "Python API"):
 
 1. kinematics at the measured q and the virtual q_v,
-2. the velocity box: joint limits (SPEC 4) intersected with the PSPM passivity bounds
-   (SPEC 6), then the acceleration limit (soft: position safety and passivity win),
+2. the velocity box: joint limits (docs/SPEC.md §4) intersected with the PSPM passivity bounds
+   (docs/SPEC.md §6), then the acceleration limit (soft: position safety and passivity win),
 3. the levels: the implicit joint-torque-limit task |tau_s| <= tau_max on top (4.3), then
    the stack's tasks in priority order,
-4. the cascade (SPEC 3) or the nullspace baseline (SPEC 5),
+4. the cascade (docs/SPEC.md §3) or the nullspace baseline (docs/SPEC.md §5),
 5. q_v <- q_v + dT qdot_v, and the energy tanks are booked.
 
 A failed or non-finite solve, or an exception raised by a task or the solver, never

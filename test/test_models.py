@@ -1,7 +1,7 @@
 """Named robot models: pinocchio (SPG) and MuJoCo (simulator) load the same file and agree.
 
-References: the datasheet / SPEC 8 numbers are written out literally here (not imported from
-the tables under test); MuJoCo is the independent oracle for kinematics and inertias.
+References: the datasheet / docs/SPEC.md §8 numbers are written out literally here (not
+imported from the tables under test); MuJoCo is the independent oracle for kinematics and inertias.
 """
 
 import math

@@ -1,4 +1,4 @@
-"""Passive set-point modulation (SPEC 6): tanks never go negative and (4.84) holds."""
+"""Passive set-point modulation (docs/SPEC.md §6): tanks never go negative and (4.84) holds."""
 
 import numpy as np
 from plants import JointImpedancePlant

@@ -149,7 +149,7 @@ LBR_IIWA14 = ArmTable(
 
 # KUKA LBR-IV (LWR 4). Kinematics: 0.31 / 0.40 / 0.39 / 0.078 m. No inertias are
 # published: the iiwa 14 distribution scaled to the LBR-IV's segment lengths and ~15 kg
-# (14 kg moving links + 1 kg base). Limits: thesis Table B.1 (SPEC 8).
+# (14 kg moving links + 1 kg base). Limits: thesis Table B.1 (docs/SPEC.md §8).
 LBR4 = ArmTable(
     name='lbr4',
     base_mass=1.0, base_com=(0, 0, 0.05), base_inertia=(0.004, 0.004, 0.003),
@@ -228,7 +228,7 @@ def _accrea_admittance():
                                mass=np.array(_ACCREA_M_X))
 
 
-# iCub upper body (thesis 3.3.2, SPEC 8).
+# iCub upper body (thesis 3.3.2, docs/SPEC.md §8).
 ICUB_MODEL = 'iCubGazeboV2_7'
 _ICUB_ARM = ('shoulder_pitch', 'shoulder_roll', 'shoulder_yaw', 'elbow', 'wrist_prosup',
              'wrist_pitch', 'wrist_yaw')

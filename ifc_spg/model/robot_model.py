@@ -2,7 +2,7 @@
 
 A :class:`RobotModel` is immutable and shared: the pinocchio ``Model`` is never modified
 after construction, and every solver creates its own ``Data`` with :meth:`create_data`
-(STYLE #6).
+(docs/STYLE.md rule 6).
 """
 
 from __future__ import annotations
