@@ -117,7 +117,9 @@ def _mink_model(robot, task):
     """The robot's MJCF in MuJoCo with the obstacles as world geoms (every geom collides)."""
     import mujoco
 
-    spec = robot.mjcf_spec()
+    from sim_bridge.models import robot_mjcf_spec
+
+    spec = robot_mjcf_spec(robot)
     geometry = task.geometry
     for name, index in geometry.obstacles.items():
         obj = geometry.model.geometryObjects[index]

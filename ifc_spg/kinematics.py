@@ -2,9 +2,9 @@
 
 One :class:`Kinematics` object is owned by a :class:`~ifc_spg.spg.SetPointGenerator`; it
 owns two pinocchio ``Data`` (measured q, virtual q_v) and caches frame quantities for the
-current tick so that several tasks on the same frame share one computation (STYLE #7).
+current tick so that several tasks on the same frame share one computation (docs/STYLE.md rule 7).
 All Jacobians are 6 x n, LOCAL_WORLD_ALIGNED: linear velocity of the frame origin and
-angular velocity, both in the base frame (SPEC notation).
+angular velocity, both in the base frame (docs/SPEC.md, Notation).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Passive set-point modulation: per-joint energy tanks (SPEC 6, Sec. 4.2, Alg. C.4/C.5).
+"""Passive set-point modulation: per-joint energy tanks (docs/SPEC.md §6, Sec. 4.2, Alg. C.4/C.5).
 
 At each tick, with dq = q_v - q and the last two measurements, the energy surely
 dissipated by the IFC damper in the last period is E_Dmin = (D/dT)(q_i - q_{i-1})^2 (4.78).

@@ -3,11 +3,11 @@
 ``SetPointGenerator.step(q, qdot, t) -> q_v`` (ARCHITECTURE "Python API"):
 
 1. kinematics at the measured q and the virtual q_v,
-2. the velocity box: joint limits (SPEC 4) intersected with the PSPM passivity bounds
-   (SPEC 6), then the acceleration limit (soft: position safety and passivity win),
+2. the velocity box: joint limits (docs/SPEC.md §4) intersected with the PSPM passivity bounds
+   (docs/SPEC.md §6), then the acceleration limit (soft: position safety and passivity win),
 3. the levels: the implicit joint-torque-limit task |tau_s| <= tau_max on top (4.3), then
    the stack's tasks in priority order,
-4. the cascade (SPEC 3) or the nullspace baseline (SPEC 5),
+4. the cascade (docs/SPEC.md §3) or the nullspace baseline (docs/SPEC.md §5),
 5. q_v <- q_v + dT qdot_v, and the energy tanks are booked.
 
 A failed or non-finite solve, or an exception raised by a task or the solver, never
@@ -89,6 +89,9 @@ class Activation(NamedTuple):
 class SpgInfo:
     """What the last tick did (a frozen snapshot, built once per tick).
 
+    The snapshot holds values, not the SPG's live objects: the tank energies and refills
+    are copies taken at the tick, so an info kept across ticks still says what its tick did.
+
     Attributes:
         status: 'ok', 'fallback', 'hold', 'bad_input' or 'idle' (no stack).
         solver: Name of the solver.
@@ -96,7 +99,7 @@ class SpgInfo:
         slacks: Slack s* per level (list of arrays).
         residuals: Violation of each level's velocity bounds by the final qdot_v.
         at_limit: Indices of joints whose qdot_v sits on the velocity box.
-        tank_energy: PSPM tank energies in [J] (None without PSPM).
+        tank_energy: PSPM tank energies in [J] after the tick (a copy; None without PSPM).
         spring_energy_step: Change of spring energy 1/2 K dq^2 by this tick's step [J].
         solve_time: Cascade solve time in [s]; tick_time: whole tick in [s].
         task_time: Seconds since the stack became active.
@@ -112,7 +115,9 @@ class SpgInfo:
         failed_level: Index of the level that could not be solved, or -1.
         levels: The tick's levels (:class:`~ifc_spg.tasks.Level`, the torque limit first).
         box: The tick's :class:`~ifc_spg.limits.VelocityBox` on qdot_v.
-        tanks: The :class:`~ifc_spg.pspm.EnergyTanks` (None without PSPM).
+        max_power: The tanks' maximum refill rate in [W] (None without PSPM).
+        refilled: Energy the power budget has put into each tank so far in [J], up to and
+            including this tick (a copy; None without PSPM).
         joint_names: The robot's joint names (model order).
         distances: The tick's :class:`~ifc_spg.tasks.collision_avoidance.DistanceReport`
             per collision-avoidance task (at q_v); ``collision`` gives them as dicts
@@ -135,7 +140,8 @@ class SpgInfo:
     stall: StallReport | None = None
     stall_new: bool | None = None
     power_budget: float | None = None
-    tanks: EnergyTanks | None = None
+    max_power: float | None = None
+    refilled: np.ndarray | None = None
     joint_names: tuple | None = None
     distances: tuple = ()
 
@@ -156,14 +162,14 @@ class SpgInfo:
     @property
     def pspm(self) -> dict | None:
         """Power budget, refill and stall of the energy tanks (None without PSPM)."""
-        if self.tanks is None:
+        if self.refilled is None:
             return None
         stall = self.stall
         names = self.joint_names or ()
         return {
             'power_budget': float(self.power_budget or 0.0),
-            'max_power': float(self.tanks.config.max_power),
-            'refilled': [float(x) for x in self.tanks.refilled],
+            'max_power': float(self.max_power or 0.0),
+            'refilled': [float(x) for x in self.refilled],
             'stall': None if stall is None else {
                 'joints': [names[j] for j in stall.joints],
                 'requested_power': {names[j]: p for j, p in zip(stall.joints,
@@ -295,8 +301,11 @@ class SetPointGenerator:
         #: ``[first, latest]`` :class:`Activation` of the running stack's tasks (the first
         #: fixes orientation references, the latest the ``init`` values after a restart)
         self.activations: list[Activation] = []
-        self.info = SpgInfo(status='idle', solver=self._solver.name, tanks=self.tanks,
-                            power_budget=0.0, joint_names=tuple(robot.joint_names))
+        tanks = self.tanks
+        self.info = SpgInfo(status='idle', solver=self._solver.name, power_budget=0.0,
+                            max_power=None if tanks is None else tanks.config.max_power,
+                            refilled=None if tanks is None else tanks.refilled.copy(),
+                            joint_names=tuple(robot.joint_names))
         if warm_up:
             self._warm_up(pspm, torque_limits)
         if stack is not None:
@@ -588,15 +597,18 @@ class SetPointGenerator:
         self.q_v = q_next = self._kernels.integrate(q_v, self.dt, tick.qdot_v, self._q_min,
                                                     self._q_max)
         self.qdot_v = tick.qdot_v
+        tanks = self.tanks
         self.info = SpgInfo(
             status=tick.status, solver=self._solver.name, slacks=tick.slacks,
             levels=tick.levels, box=tick.box,
-            tank_energy=None if self.tanks is None else self.tanks.energy,
+            tank_energy=None if tanks is None else tanks.energy.copy(),
             spring_energy_step=energy_step, solve_time=solve_time,
             tick_time=time.perf_counter() - t_start, task_time=task_time,
             qdot_v=tick.qdot_v, message=message, failed_level=tick.failed, stall=stall,
             stall_new=stall is not None and self._stall is not None and self._stall.new,
-            power_budget=0.0 if self.tanks is None else self.tanks.power, tanks=self.tanks,
+            power_budget=0.0 if tanks is None else tanks.power,
+            max_power=None if tanks is None else tanks.config.max_power,
+            refilled=None if tanks is None else tanks.refilled.copy(),
             joint_names=self.robot.joint_names,
             distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None))
         return q_next
@@ -715,12 +727,15 @@ class SetPointGenerator:
         if self.q_v is None:  # step() resets from the first measurement before any hold
             raise IfcSpgError('internal: hold before the first measurement')
         self.qdot_v = np.zeros(self.n)
+        tanks = self.tanks
         self.info = SpgInfo(status=status, solver=self._solver.name, slacks=[], levels=[],
-                            tank_energy=None if self.tanks is None else self.tanks.energy.copy(),
+                            tank_energy=None if tanks is None else tanks.energy.copy(),
                             solve_time=0.0, tick_time=time.perf_counter() - t_start,
                             qdot_v=self.qdot_v, message=message, failed_level=-1,
-                            power_budget=0.0 if self.tanks is None else self.tanks.power,
-                            tanks=self.tanks, joint_names=self.robot.joint_names)
+                            power_budget=0.0 if tanks is None else tanks.power,
+                            max_power=None if tanks is None else tanks.config.max_power,
+                            refilled=None if tanks is None else tanks.refilled.copy(),
+                            joint_names=self.robot.joint_names)
         return Tick(self.q_v.copy(), self.qdot_v, self.info, (status,))
 
 

@@ -1,4 +1,4 @@
-"""The small interface every emulated (or real) robot backend implements (STYLE #5).
+"""The small interface every emulated (or real) robot backend implements (docs/STYLE.md rule 5).
 
 A backend is driven by four calls: :meth:`RobotInterface.reset`, :meth:`~RobotInterface.
 read_state`, :meth:`~RobotInterface.write_command` and :meth:`~RobotInterface.close`; a

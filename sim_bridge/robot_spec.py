@@ -10,12 +10,12 @@ away from itself anyway).
 """
 
 from dataclasses import dataclass
-import os
 
 import mujoco
 import numpy as np
 
 from ifc_spg.errors import ModelError, UnknownFrame, did_you_mean
+from sim_bridge.models import robot_mjcf_spec
 
 __all__ = ['ROBOT_CONAFFINITY', 'ROBOT_CONTYPE', 'FtSensor', 'RobotSpec', 'load_robot_spec']
 
@@ -60,16 +60,6 @@ class RobotSpec:
     chain_sites: dict
     ft_sensors: dict
     tool_bodies: dict
-
-
-def _spec_from_file(path):
-    if not os.path.isfile(str(path)):
-        raise ModelError(f"robot model file '{path}' does not exist; RobotModel.model_file "
-                         'must name the MJCF/URDF both pinocchio and MuJoCo load')
-    try:
-        return mujoco.MjSpec.from_file(str(path))
-    except ValueError as exc:
-        raise ModelError(f"MuJoCo could not load '{path}': {exc}") from exc
 
 
 def _body_chain(body):
@@ -121,8 +111,7 @@ def load_robot_spec(model):
     Raises:
         ModelError: The file cannot be loaded or lacks a joint/frame of ``model``.
     """
-    builder = getattr(model, 'mjcf_spec', None)
-    spec = builder() if callable(builder) else _spec_from_file(model.model_file)
+    spec = robot_mjcf_spec(model)
     joints = {j.name: j for j in spec.joints}
     missing = [j for j in model.joint_names if j not in joints]
     if missing:

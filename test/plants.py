@@ -1,7 +1,7 @@
 """Small closed-loop plants for tests and benchmarks (no simulator needed).
 
 :class:`JointImpedancePlant` integrates a rigid robot under an ideal joint-impedance IFC
-(SPEC B.1) with perfect gravity and Coriolis compensation::
+(docs/SPEC.md §1, thesis B.1) with perfect gravity and Coriolis compensation::
 
     M(q) qddot = K (q_v - q) - D qdot + tau_ext
 

@@ -1,4 +1,4 @@
-"""A slow, obviously-correct reference for the strict-priority cascade (SPEC 3).
+"""A slow, obviously-correct reference for the strict-priority cascade (docs/SPEC.md §3).
 
 Level by level, a fresh QP in (qdot, s) is written down exactly as (4.45)-(4.48): the
 current level's rows with their slack, every higher level's rows at their locked bounds,

@@ -25,7 +25,7 @@ def _settle(sim, q_v, seconds):
 
 
 def test_lbr_static_deflection_matches_inverse_stiffness_times_jt_f():
-    """SPEC 3.1: with a constant wrench f at the tool, q_v − q = K⁻¹Jᵀf_robot (5 %)."""
+    """docs/SPEC.md §1: a constant wrench f at the tool gives q_v − q = K⁻¹Jᵀf_robot (5 %)."""
     sim = Simulation(robot='lbr_iiwa14', scene='free')
     q_v = sim.q0.copy()
     f_push = np.array([6.0, -4.0, 9.0, 0.3, -0.2, 0.1])  # environment on robot

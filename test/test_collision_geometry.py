@@ -9,7 +9,7 @@ import pytest
 from ifc_spg import RobotModel
 from ifc_spg.errors import ParameterError
 from ifc_spg.geometry import CollisionGeometry, Obstacle, PairQuery, rpy_matrix
-from ifc_spg.model.registry import mujoco_indices
+from sim_bridge.models import mujoco_indices, robot_mjcf_spec
 
 OBSTACLES = (
     Obstacle('ball', 'sphere', (0.06,), position=(0.45, 0.1, 0.6)),
@@ -36,7 +36,7 @@ def _mj_size(obs):
 
 def _mujoco(robot, obstacles):
     """The robot's MJCF in MuJoCo with the obstacles added as geoms (the independent side)."""
-    spec = robot.mjcf_spec()
+    spec = robot_mjcf_spec(robot)
     for obs in obstacles:
         quat = pin.Quaternion(np.array(obs.rotation)).coeffs()  # x y z w
         if obs.frame == 'base':

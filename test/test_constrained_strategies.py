@@ -158,7 +158,7 @@ def test_microwave_door_opens(strategy):
 
 
 def test_task_specification_has_less_f_perp_than_joint_compliance_at_k200():
-    """SPEC 7 trend, fixed true direction (5.5.3), K = 200 Nm/rad, short run."""
+    """docs/SPEC.md §7 trend, fixed true direction (5.5.3), K = 200 Nm/rad, short run."""
     params = StrategyParams(stiffness=200.0)
     jc = _run('joint_compliance', params=params, fixed_direction=True, target=0.05,
               duration=8.0).metrics
@@ -282,7 +282,7 @@ def _limit_margin_deg(log, robot):
 
 
 def test_admittance_strategy_opens_the_vertical_drawer_on_the_accrea(accrea):
-    """SPEC 7 / issue 6: 0.3 m lift of 1.2 kg from a 45 deg initial error, peak < 40 N."""
+    """docs/SPEC.md §7 / issue 6: 0.3 m lift of 1.2 kg from a 45 deg initial error, peak < 40 N."""
     log = _accrea_run('drawer_vertical', 0.29, 9.0)
     m = log.metrics
     assert m['success'], m

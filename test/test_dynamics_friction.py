@@ -1,4 +1,4 @@
-"""Static friction (SPEC §10): report scenarios, exact QP vs the report's sampling method."""
+"""Static friction (docs/SPEC.md §10): report scenarios, exact QP vs the report's sampling."""
 
 import numpy as np
 import pinocchio as pin

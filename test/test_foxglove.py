@@ -16,9 +16,9 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from ifc_spg.model import RobotModel
-from ifc_spg.model.urdf import urdf_from_robot
 from ifc_spg.offline.bag import info
 from ifc_spg.offline.runner import find_config_dir, load_scenario, run_scenario
+from sim_bridge.urdf import urdf_from_robot
 
 
 @pytest.mark.parametrize('name', ['lbr_iiwa14', 'lbr4', 'accrea_dual_arm', 'icub_upper_body'])

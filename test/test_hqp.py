@@ -1,4 +1,4 @@
-"""The strict-priority cascade against a slow reference (SPEC 3) and its properties."""
+"""The strict-priority cascade against a slow reference (docs/SPEC.md §3) and its properties."""
 
 from pathlib import Path
 

@@ -134,6 +134,78 @@ def test_sim_bridge_imports_only_models_ros_and_errors_of_ifc_spg():
 
 
 
+
+def imported_packages(path):
+    """Top-level names of the packages a module imports (not under ``TYPE_CHECKING``)."""
+    tree = ast.parse(path.read_text(), str(path))
+    hidden = _type_checking_only(tree)
+    names = set()
+    for node in ast.walk(tree):
+        if id(node) in hidden:
+            continue
+        if isinstance(node, ast.Import):
+            names.update(a.name.split('.')[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split('.')[0])
+    return names
+
+
+# The robot models are data for the SPG (pinocchio); loading them into MuJoCo is the
+# simulator's (sim_bridge/models.py, sim_bridge/urdf.py).
+def test_the_models_import_neither_mujoco_nor_a_layer_above_them():
+    bad = sorted(f'{p.relative_to(ROOT)}: {name}'
+                 for p in (ROOT / 'ifc_spg' / 'model').rglob('*.py')
+                 for name in imported_packages(p) if name in ('mujoco', 'sim_bridge'))
+    assert not bad, f'ifc_spg/model imports the simulator: {bad}'
+    graph = import_graph()
+    above = sorted((mod, dep) for mod, deps in graph.items() if mod.startswith('ifc_spg.model')
+                   for dep in deps if not dep.startswith('ifc_spg.model')
+                   and dep not in ('ifc_spg', 'ifc_spg.errors'))
+    assert not above, f'ifc_spg/model imports layers above it: {above}'
+
+
+# offline/ runs without DDS: its bags are files. Recording and playing over DDS is live/'s.
+# Allowed of ros/: the wire format and its helpers (messages, cdr, qos, stamps, ...), not the
+# backend picker (``ifc_spg.ros`` itself) nor a transport.
+DDS_TRANSPORT = ('ifc_spg.ros', 'ifc_spg.ros.dds', 'ifc_spg.ros.builtin_backend',
+                 'ifc_spg.ros.rclpy_backend', 'ifc_spg.ros.msg')
+DDS_PACKAGES = ('rclpy', 'cyclonedds')
+
+
+def named_imports(path):
+    """Every module a source file names in an import (not under ``TYPE_CHECKING``):
+    ``from a import b`` names ``a.b`` if that is a module of the tree, else ``a``."""
+    files = {_module_name(p) for pkg in PACKAGES for p in (ROOT / pkg).rglob('*.py')}
+    tree = ast.parse(path.read_text(), str(path))
+    hidden = _type_checking_only(tree)
+    names = set()
+    for node in ast.walk(tree):
+        if id(node) in hidden:
+            continue
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            for a in node.names:
+                sub = f'{node.module}.{a.name}'
+                names.add(sub if sub in files else node.module)
+    return names
+
+
+def test_named_imports_tell_a_submodule_from_a_name_of_the_package(tmp_path):
+    path = tmp_path / 'm.py'
+    path.write_text('from ifc_spg.ros import messages\nfrom ifc_spg.ros import QoSProfile\n'
+                    'from ifc_spg import ros\n')
+    assert named_imports(path) == {'ifc_spg.ros.messages', 'ifc_spg.ros'}
+
+
+def test_offline_imports_no_dds_transport():
+    bad = sorted(f'{p.relative_to(ROOT)}: {name}'
+                 for p in (ROOT / 'ifc_spg' / 'offline').rglob('*.py')
+                 for name in named_imports(p)
+                 if name in DDS_TRANSPORT or name.split('.')[0] in DDS_PACKAGES)
+    assert not bad, f'offline/ imports the DDS transport (live record/play is live/): {bad}'
+
+
 # Command lines live in ifc_spg/cli/, one module per verb (and per executable); the library
 # builds no parser.
 PARSERS_MAY_LIVE_IN = ('ifc_spg.cli',)

@@ -1,4 +1,4 @@
-"""Joint limits (SPEC 4) and the closed-form torque-limit level (4.3) against references."""
+"""Joint limits (docs/SPEC.md §4) and the closed-form torque-limit level (4.3) vs references."""
 
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
 """Named robot models: pinocchio (SPG) and MuJoCo (simulator) load the same file and agree.
 
-References: the datasheet / SPEC 8 numbers are written out literally here (not imported from
-the tables under test); MuJoCo is the independent oracle for kinematics and inertias.
+References: the datasheet / docs/SPEC.md §8 numbers are written out literally here (not
+imported from the tables under test); MuJoCo is the independent oracle for kinematics and inertias.
 """
 
 import math
@@ -15,7 +15,9 @@ from ifc_spg.cli import generate  # the command line; generate.generate is the l
 from ifc_spg.errors import ModelError, ParameterError, UnknownJoint, UnknownRobot
 from ifc_spg.model import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, RobotModel
 from ifc_spg.model import registry as robots
-from ifc_spg.model.registry import ROBOTS, mjcf_spec, mujoco_indices
+from ifc_spg.model.registry import ROBOTS
+from sim_bridge import models as mj_models
+from sim_bridge.models import mjcf_spec, mujoco_indices, robot_mjcf_spec
 
 load_robot = RobotModel.from_config
 
@@ -26,7 +28,7 @@ N_RANDOM = 50
 def pair(request):
     """(RobotModel, MjModel, qpos addresses, dof addresses) of each named robot."""
     robot = load_robot(request.param)
-    mj = robot.mjcf_spec().compile()
+    mj = robot_mjcf_spec(robot).compile()
     qadr, dadr = mujoco_indices(robot, mj)
     return robot, mj, qadr, dadr
 
@@ -189,7 +191,7 @@ def test_unknown_robot_did_you_mean():
     with pytest.raises(UnknownRobot, match="did you mean 'icub_upper_body'"):
         RobotModel.from_config('icub_upperbody')
     with pytest.raises(UnknownRobot, match='available'):
-        robots.mjcf_spec('pr2')
+        mj_models.mjcf_spec('pr2')
 
 
 def test_mujoco_indices_unknown_joint():
@@ -287,16 +289,16 @@ def test_accrea_ft_sensor_reads_tool_weight():
 
 
 def test_robot_model_mjcf_spec_default_and_missing_file():
-    """Without a builder, RobotModel.mjcf_spec() loads model_file; without a file it raises."""
+    """Without a builder, robot_mjcf_spec(robot) loads model_file; without a file it raises."""
     path = robots.model_file('lbr4')
     robot = RobotModel.from_mjcf(path, name='mine', frames={'tool': 'tool'}, stiffness=100.0,
                                  damping=1.0, v_max=1.0)
-    mj = robot.mjcf_spec().compile()
+    mj = robot_mjcf_spec(robot).compile()
     assert [mj.joint(i).name for i in range(mj.njnt)] == list(robot.joint_names)
     bare = RobotModel(robot.model, name='bare', frames={}, stiffness=1.0, damping=0.0,
                       v_max=1.0)
     with pytest.raises(ModelError, match="model 'bare' has no model_file"):
-        bare.mjcf_spec()
+        robot_mjcf_spec(bare)
 
 
 def test_with_gains_builds_a_validated_model_whose_compliant_gains_follow():

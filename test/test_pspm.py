@@ -1,4 +1,4 @@
-"""Passive set-point modulation (SPEC 6): tanks never go negative and (4.84) holds."""
+"""Passive set-point modulation (docs/SPEC.md §6): tanks never go negative and (4.84) holds."""
 
 import numpy as np
 from plants import JointImpedancePlant
@@ -223,6 +223,30 @@ def test_an_empty_tank_that_stalls_the_stack_is_diagnosed_once_and_the_budget_fi
     span, new, reports, spg = _drive_a1_against_friction(power=need)
     assert span > 0.55 and new == 0 and not reports
     assert spg.tanks.refilled.sum() <= need * 6.0
+
+
+def test_the_info_is_a_snapshot_of_its_tick_not_the_live_tanks():
+    from ifc_spg.task_stack import TaskStack
+
+    stack = TaskStack.from_dict({
+        'version': 1, 'name': 'a1_sine', 'power_budget': 10.0,
+        'tasks': [{'name': 'a1', 'type': 'joint_position', 'joints': ['A1'], 'gain': 10.0,
+                   'equal': {'trajectory': 'sine', 'amplitude': 0.3, 'frequency': 0.5}},
+                  {'name': 'rest', 'type': 'joint_position', 'equal': 'init', 'gain': 5.0}]})
+    spg = SetPointGenerator(IIWA, stack, pspm=PspmConfig(max_power=10.0))
+    plant = JointImpedancePlant(IIWA, IIWA.q_home, substeps=4)
+    q, qd, t = plant.q, plant.qdot, 0.0
+    kept = []
+    for i in range(600):
+        q, qd, t = plant.step(spg.step(q, qd, t), tau_ext=np.r_[-2.0 * qd[0], np.zeros(6)])
+        if i % 100 == 0:
+            kept.append((spg.info, spg.info.tank_energy.copy(), spg.info.pspm))
+    assert not np.array_equal(kept[0][1], spg.tanks.energy)   # the tanks moved on ...
+    assert sum(kept[0][2]['refilled']) < spg.tanks.refilled.sum()
+    for info, energy, pspm in kept:  # ... the infos of earlier ticks did not
+        np.testing.assert_array_equal(info.tank_energy, energy)
+        assert info.pspm == pspm
+        assert not any(isinstance(getattr(info, f), EnergyTanks) for f in info.__slots__)
 
 
 def test_bounds_are_exact_and_contain_zero():

@@ -1,4 +1,4 @@
-"""One contract suite for every task archetype (STYLE #10, Table 3.1)."""
+"""One contract suite for every task archetype (docs/STYLE.md rule 10, Table 3.1)."""
 
 import numpy as np
 import pinocchio as pin

@@ -1,7 +1,7 @@
 """What every cascade solver shares.
 
 What every cascade solver shares: the result, the level violation, and the generic level-by-level
-loop of SPEC 3 (Alg. C.3) over a per-level QP.
+loop of docs/SPEC.md §3 (Alg. C.3) over a per-level QP.
 
 Variables w = [qdot_v; s] with s the slack of the current level. For i = 1..k::
 

@@ -1,4 +1,4 @@
-"""The strict-priority cascade with DAQP (SPEC 3, Sec. 4.1.4, Alg. C.3), the default solver.
+"""The strict-priority cascade with DAQP (docs/SPEC.md §3, Alg. C.3), the default solver.
 
 The level QPs are those of :mod:`ifc_spg.cascade.base`; this solver stacks the rows of all
 levels once per tick, keeps one warm-started DAQP model per level index, skips the QP of

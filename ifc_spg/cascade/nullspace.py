@@ -1,4 +1,4 @@
-"""Baseline: hierarchical nullspace mapping (SPEC 5, Sec. 3.2.6, Alg. C.1/C.2).
+"""Baseline: hierarchical nullspace mapping (docs/SPEC.md §5, Sec. 3.2.6, Alg. C.1/C.2).
 
 Kept for comparisons, not the default. Equality tasks only::
 

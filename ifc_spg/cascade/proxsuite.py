@@ -1,4 +1,4 @@
-"""The cascade with proxsuite's dense ProxQP (SPEC 3), level by level (for comparisons)."""
+"""The cascade with proxsuite's dense ProxQP (docs/SPEC.md §3), level by level (comparisons)."""
 
 import numpy as np
 

@@ -1,6 +1,7 @@
 """rosbag2 MCAP bags: write, read, record over DDS, play back, summarise (``ifc-spg bag``).
 
-The command line (parser, output, exit status) around :mod:`ifc_spg.offline.bag`.
+The command line (parser, output, exit status) around :mod:`ifc_spg.offline.bag` (bags on
+disk: ``info``) and :mod:`ifc_spg.live.bag` (over DDS: ``record``, ``play``).
 """
 
 import argparse
@@ -8,7 +9,8 @@ from collections.abc import Sequence
 import sys
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.offline.bag import info, play, record
+from ifc_spg.live.bag import play, record
+from ifc_spg.offline.bag import info
 
 __all__ = ['main']
 

@@ -1,4 +1,4 @@
-"""Constrained manipulation of unknown mechanisms (thesis Ch. 5, SPEC 7).
+"""Constrained manipulation of unknown mechanisms (thesis Ch. 5, docs/SPEC.md §7).
 
 - :class:`DirectionEstimator`: first-order constraint estimator (5.4/5.5),
 - :class:`CartesianAdmittanceStrategy` (5.3), :class:`JointComplianceStrategy`

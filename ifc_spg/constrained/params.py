@@ -4,7 +4,7 @@ The defaults are those of the joint-level experiments (Sec. 5.4.3): 500 Hz, K = 
 SMA order N = 500, dead band v_th = 0.01 m/s, exploration rate kappa = 9 N/s and
 exploration velocity nu = 0.05 m/s. ``config/constrained_manipulation.yaml`` holds the same
 numbers; :func:`load_params` reads it (or any file of that shape) and overrides the
-dataclass defaults, so the YAML only overrides (STYLE #4).
+dataclass defaults, so the YAML only overrides (docs/STYLE.md rule 4).
 """
 
 from dataclasses import dataclass, field, fields, replace

@@ -1,4 +1,4 @@
-"""Popov-Vereshchagin constrained hybrid dynamics with static friction (SPEC §9–§10).
+"""Popov-Vereshchagin constrained hybrid dynamics with static friction (docs/SPEC.md §9–§10).
 
 from ifc_spg.dynamics import VereshchaginSolver, StaticFrictionSolver
 """

@@ -1,4 +1,4 @@
-"""Static friction in the Popov-Vereshchagin solver (SPEC §10, report Ch. 5).
+"""Static friction in the Popov-Vereshchagin solver (docs/SPEC.md §10, report Ch. 5).
 
 Joints at rest (|q̇_j| ≤ ε, the set Θ₀) with breakaway torque f_j > 0 take a friction
 torque μ_j ∈ [−f_j, f_j]. The true motion is the saddle point (report eq. 5.2/5.5)

@@ -1,4 +1,4 @@
-"""Popov-Vereshchagin constrained hybrid dynamics for serial chains (SPEC §9, report Alg. 1).
+"""Popov-Vereshchagin constrained hybrid dynamics of serial chains (docs/SPEC.md §9, [R Alg. 1]).
 
 Given q, q̇, feed-forward torques τ, the base acceleration Ẍ_0, external wrenches on the
 segments and m ≤ 6 acceleration constraints A_Nᵀ Ẍ_N = b_N on the last segment, the

@@ -1,4 +1,4 @@
-"""Joint position, velocity and acceleration limits as bounds on qdot_v (SPEC 4, 4.29-4.33).
+"""Joint position, velocity and acceleration limits as bounds on qdot_v (docs/SPEC.md §4).
 
 The limits apply to the commanded q_v, so the shaping uses q_v (the sources write q)::
 

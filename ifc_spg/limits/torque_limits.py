@@ -6,7 +6,7 @@ The thesis puts |K (q_v - q)| <= tau_max as an inequality task at the top of eve
     min  rho qdot^2 + s^2   s.t.  beta_m <= K qdot - s <= beta_M,  lower <= qdot <= upper
 
 whose solution is the minimizer of rho qdot^2 + dist(K qdot, [beta_m, beta_M])^2 without
-the box, projected onto the box. Locking the level (SPEC 3) then confines qdot_v to
+the box, projected onto the box. Locking the level (docs/SPEC.md §3) then confines qdot_v to
 [(beta_m + s*)/K, (beta_M + s*)/K] (widened by the cascade's lock band): a box again. So
 the level is solved here and folded into the velocity box, exactly as the cascade would
 (tested against it), and the remaining levels carry n fewer rows and slacks.

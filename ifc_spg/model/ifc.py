@@ -12,7 +12,7 @@ CARTESIAN_ADMITTANCE = 'cartesian_admittance'
 
 @dataclass(frozen=True)
 class CartesianAdmittance:
-    """Cartesian admittance parameters h = M_x dd(x) + D_x d(x) + K_x x (SPEC 2.22/2.23).
+    """Cartesian admittance parameters h = M_x dd(x) + D_x d(x) + K_x x (docs/SPEC.md §1).
 
     Attributes:
         stiffness: K_x, 6 diagonal entries [N/m]*3 + [Nm/rad]*3.

@@ -12,34 +12,31 @@ Every named robot is built from ONE model file that both pinocchio (the SPG) and
   MuJoCo: static links fused, no sites, inertias re-diagonalised).
 - ``icub_upper_body``: the official iCub URDF of the ``icub-models`` wheel
   (``iCubGazeboV2_7``, CC-BY-SA-4.0, read in place, never copied), reduced to 17 joints;
-  :func:`icub_mjcf_spec` gives MuJoCo the same file reduced the same way.
+  ``sim_bridge.models.icub_mjcf_spec`` gives MuJoCo the same file reduced the same way.
 
 Velocity and acceleration limits are not representable in MJCF; they come from the
 tables here. Joint names of the KUKA arms follow KUKA's axis names ``A1`` ... ``A7``.
+This module is data: loading the files into MuJoCo (``mujoco.MjSpec``, joint addresses)
+is the simulator's, in :mod:`sim_bridge.models`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import partial
 import math
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from ifc_spg.errors import ModelError, UnknownJoint, UnknownRobot, did_you_mean
+from ifc_spg.errors import ModelError, UnknownRobot, did_you_mean
 from ifc_spg.model.ifc import CARTESIAN_ADMITTANCE, JOINT_IMPEDANCE, CartesianAdmittance
-
-if TYPE_CHECKING:  # annotations only: this module is data and does not import the class
-    from ifc_spg.model.robot_model import RobotModel
 
 __all__ = [
     'ArmTable', 'Link', 'ROBOTS', 'LBR4', 'LBR_IIWA14', 'ACCREA_ARM', 'DATA_DIR',
     'ICUB_JOINTS', 'ICUB_FRAMES', 'ICUB_WIPE_PAD', 'ICUB_WIPE_ARM_DEG',
-    'robot_arguments', 'model_file', 'mjcf_spec', 'icub_mjcf_spec',
-    'icub_urdf_path', 'mujoco_indices', 'accrea_home_deg',
+    'robot_arguments', 'model_file', 'icub_urdf_path', 'accrea_home_deg',
 ]
 
 DATA_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'data')
@@ -152,7 +149,7 @@ LBR_IIWA14 = ArmTable(
 
 # KUKA LBR-IV (LWR 4). Kinematics: 0.31 / 0.40 / 0.39 / 0.078 m. No inertias are
 # published: the iiwa 14 distribution scaled to the LBR-IV's segment lengths and ~15 kg
-# (14 kg moving links + 1 kg base). Limits: thesis Table B.1 (SPEC 8).
+# (14 kg moving links + 1 kg base). Limits: thesis Table B.1 (docs/SPEC.md §8).
 LBR4 = ArmTable(
     name='lbr4',
     base_mass=1.0, base_com=(0, 0, 0.05), base_inertia=(0.004, 0.004, 0.003),
@@ -231,7 +228,7 @@ def _accrea_admittance():
                                mass=np.array(_ACCREA_M_X))
 
 
-# iCub upper body (thesis 3.3.2, SPEC 8).
+# iCub upper body (thesis 3.3.2, docs/SPEC.md §8).
 ICUB_MODEL = 'iCubGazeboV2_7'
 _ICUB_ARM = ('shoulder_pitch', 'shoulder_roll', 'shoulder_yaw', 'elbow', 'wrist_prosup',
              'wrist_pitch', 'wrist_yaw')
@@ -298,8 +295,7 @@ def robot_arguments(name: str) -> dict[str, Any]:
         model=_mjcf_model(model_file(name)), model_file=model_file(name), name=name,
         frames={'flange': 'flange', 'tool': 'tool'},
         stiffness=table.stiffness, damping=table.damping, v_max=_deg(table.v_max_deg),
-        a_max=_deg(table.a_max_deg), q_home=_deg(table.q_home_deg), ifc=JOINT_IMPEDANCE,
-        spec_builder=partial(mjcf_spec, name))
+        a_max=_deg(table.a_max_deg), q_home=_deg(table.q_home_deg), ifc=JOINT_IMPEDANCE)
 
 
 def _load_accrea():
@@ -311,8 +307,7 @@ def _load_accrea():
         model_file=model_file('accrea_dual_arm'), name='accrea_dual_arm', frames=frames,
         stiffness=a.stiffness * 2, damping=a.damping * 2, v_max=_deg(a.v_max_deg * 2),
         a_max=_deg(a.a_max_deg * 2), q_home=_deg(accrea_home_deg()),
-        ifc=CARTESIAN_ADMITTANCE, admittance={'l_tool': adm, 'r_tool': adm},
-        spec_builder=partial(mjcf_spec, 'accrea_dual_arm'))
+        ifc=CARTESIAN_ADMITTANCE, admittance={'l_tool': adm, 'r_tool': adm})
 
 
 def accrea_home_deg() -> tuple[float, ...]:
@@ -349,12 +344,6 @@ def icub_urdf_path() -> str:
     return str(icub_models.get_model_file(ICUB_MODEL))
 
 
-def _icub_mesh_dir(urdf):
-    # <share>/iCub/robots/<model>/model.urdf -> <share>/iCub/meshes/simmechanics
-    return os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(urdf))), 'meshes',
-                        'simmechanics')
-
-
 def _load_icub():
     urdf = icub_urdf_path()
     model = pin.buildModelFromUrdf(urdf)
@@ -382,97 +371,9 @@ def _load_icub():
     return dict(
         model=model, name='icub_upper_body', frames=frames, stiffness=stiffness, damping=damping,
         v_max=_deg(v_max), a_max=math.radians(500.0), tau_max=tau, stiff_joints=ICUB_STIFF,
-        q_home=_deg(home), ifc=JOINT_IMPEDANCE, model_file=urdf, spec_builder=icub_mjcf_spec)
+        q_home=_deg(home), ifc=JOINT_IMPEDANCE, model_file=urdf)
 
 
 def _reorder(values, order):
     by_name = dict(zip(ICUB_JOINTS, values))
     return np.array([by_name[j] for j in order], dtype=float)
-
-
-def icub_mjcf_spec() -> Any:
-    """Return a ``mujoco.MjSpec`` of the iCub upper body from the same URDF as the SPG.
-
-    The URDF gets a ``<mujoco><compiler .../></mujoco>`` block (meshes from the wheel,
-    static links kept as bodies), every joint not in :data:`ICUB_JOINTS` is deleted (its
-    child welded at q = 0, exactly like pinocchio's reduction) and the added frames
-    (:data:`ICUB_FRAMES`) and the ``l_hand``/``r_hand`` link frames become sites, so every
-    chain of ``RobotModel.from_config('icub_upper_body')`` is a site of the same name. The
-    left forearm carries a massless wiping pad (:data:`ICUB_WIPE_PAD`, geom ``l_wipe_pad``).
-    The root link is fixed to the world at the origin (iCub convention: x backwards, z up).
-    MuJoCo orders the joints differently from pinocchio (right arm first): map them by name,
-    see :func:`mujoco_indices`.
-    """
-    import mujoco
-
-    urdf = icub_urdf_path()
-    with open(urdf, encoding='utf-8') as f:
-        text = f.read()
-    block = (f'<mujoco><compiler strippath="true" meshdir="{_icub_mesh_dir(urdf)}" '
-             'fusestatic="false" discardvisual="true" balanceinertia="false"/></mujoco>')
-    start = text.find('<robot')
-    end = text.find('>', start)
-    if start < 0 or end < 0:
-        raise ModelError(f"'{urdf}' is not a URDF file (no <robot> element)")
-    text = text[:end + 1] + block + text[end + 1:]
-    spec = mujoco.MjSpec.from_string(text)
-    for joint in list(spec.joints):
-        if joint.name not in ICUB_JOINTS:
-            spec.delete(joint)
-    for fname, (link, offset) in ICUB_FRAMES.items():
-        spec.body(link).add_site(name=fname, pos=list(offset), size=[0.005, 0, 0])
-    for side in 'lr':
-        spec.body(f'{side}_hand').add_site(name=f'{side}_hand', size=[0.005, 0, 0])
-    body, centre, radius = ICUB_WIPE_PAD
-    spec.body(body).add_geom(name='l_wipe_pad', type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                             size=[radius, 0.0, 0.0], pos=list(centre), mass=0.0)
-    for geom in spec.geoms:
-        geom.contype, geom.conaffinity = 1, 0  # no self-collision, collide with the scene
-    return spec
-
-
-def mjcf_spec(name: str) -> Any:
-    """Return a ``mujoco.MjSpec`` of robot ``name``, loaded from its shared model file.
-
-    The spec has no actuators (apply joint torques with ``qfrc_applied`` or add motors);
-    robot geoms have ``contype=1, conaffinity=0``: no self-collision, contacts with every
-    scene geom of default ``conaffinity``. Every chain of a named configuration (``tool``,
-    ``flange``, ``l_ft``, ``l_contact``, ...) is a site of the same name. Keep the robot's
-    root body at the world origin: pinocchio places the robot base at its origin (and
-    ignores the pose of the MJCF root body), so a moved robot must be attached to the scene
-    through a frame whose pose the SPG side knows.
-
-    Args:
-        name: One of :data:`ROBOTS`.
-    """
-    import mujoco
-
-    _check_name(name)
-    if name == 'icub_upper_body':
-        return icub_mjcf_spec()
-    return mujoco.MjSpec.from_file(model_file(name))
-
-
-def mujoco_indices(robot: RobotModel, mj_model: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Return the MuJoCo ``qpos`` and ``dof`` addresses of ``robot``'s joints, in its order.
-
-    ``q_mujoco[qpos_adr] = q`` maps a pinocchio configuration into MuJoCo (the iCub's joint
-    order differs between the two; the KUKA and dual-arm files agree).
-
-    Args:
-        robot: A :class:`RobotModel`.
-        mj_model: A compiled ``mujoco.MjModel`` containing the robot's joints by name.
-
-    Raises:
-        UnknownJoint: a joint of ``robot`` is not in ``mj_model``.
-    """
-    names = [mj_model.joint(i).name for i in range(mj_model.njnt)]
-    qpos, dof = [], []
-    for j in robot.joint_names:
-        if j not in names:
-            raise UnknownJoint(f"joint '{j}' of robot '{robot.name}' is not in the MuJoCo "
-                               f'model{did_you_mean(j, names)}')
-        k = names.index(j)
-        qpos.append(int(mj_model.jnt_qposadr[k]))
-        dof.append(int(mj_model.jnt_dofadr[k]))
-    return np.array(qpos), np.array(dof)

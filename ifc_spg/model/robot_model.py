@@ -2,7 +2,7 @@
 
 A :class:`RobotModel` is immutable and shared: the pinocchio ``Model`` is never modified
 after construction, and every solver creates its own ``Data`` with :meth:`create_data`
-(STYLE #6).
+(docs/STYLE.md rule 6).
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ class RobotModel:
         admittance: Chain id -> :class:`CartesianAdmittance` (for ``cartesian_admittance``).
         model_file: Path of the file the model was loaded from (shared with the simulator).
         spec_builder: Callable returning a fresh ``mujoco.MjSpec`` of this robot for the
-            simulator (default: ``model_file`` loaded as is), see :meth:`mjcf_spec`.
+            simulator (default: ``model_file`` loaded as is), see
+            ``sim_bridge.models.robot_mjcf_spec``.
 
     Attributes:
         compliant_stiffness: K with zeros at stiff (position-controlled) joints [Nm/rad].
@@ -95,7 +96,7 @@ class RobotModel:
         self.q_home = _readonly(q_home, n, 'q_home')
         self._set_ifc(ifc, admittance)
         self.model_file = model_file
-        self._spec_builder = spec_builder
+        self.spec_builder = spec_builder
         self._stiff_joints = tuple(stiff_joints)
 
     def _set_limits_and_gains(self, model, v_max, a_max, tau_max, stiffness, damping):
@@ -214,21 +215,7 @@ class RobotModel:
             v_max=self.v_max, a_max=self.a_max, tau_max=self.tau_max,
             stiff_joints=self._stiff_joints, q_home=self.q_home, ifc=self.ifc,
             admittance=self.admittance, model_file=self.model_file,
-            spec_builder=self._spec_builder, **gains)
-
-    def mjcf_spec(self) -> Any:
-        """Return a fresh ``mujoco.MjSpec`` of this robot for the simulator.
-
-        Named configurations build it from the same file pinocchio loaded (the iCub: its
-        URDF with MuJoCo compiler options, reduced to the same joints); otherwise
-        ``model_file`` is loaded as is.
-        """
-        if self._spec_builder is not None:
-            return self._spec_builder()
-        if self.model_file is None:
-            raise ModelError(f"model '{self.name}' has no model_file to load into MuJoCo")
-        import mujoco
-        return mujoco.MjSpec.from_file(str(self.model_file))
+            spec_builder=self.spec_builder, **gains)
 
     # -- lookups -------------------------------------------------------------------------
     def create_data(self) -> pin.Data:

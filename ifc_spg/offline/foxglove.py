@@ -2,7 +2,7 @@
 
 :class:`FoxgloveTopics` adds to a :class:`~ifc_spg.offline.bag.BagWriter`:
 
-- ``/robot_description`` (std_msgs/String, latched): the URDF of :func:`~ifc_spg.model.urdf.
+- ``/robot_description`` (std_msgs/String, latched): the URDF of :func:`~sim_bridge.urdf.
   urdf_from_robot`, generated from the robot's MJCF;
 - ``/tf_static`` (tf2_msgs/TFMessage, latched): the fixed joints of the URDF, for the
   measured robot and for a second tree ``virtual/...`` (q_v), joined by ``world`` ->
@@ -23,10 +23,10 @@ import sys
 
 import pinocchio as pin
 
-from ifc_spg.model.urdf import urdf_from_robot
 from ifc_spg.node.markers import cartesian_targets, marker_array
 from ifc_spg.ros.qos import QoSProfile, latched
 from ifc_spg.ros.stamps import stamp_to_ns
+from sim_bridge.urdf import urdf_from_robot
 
 __all__ = ['VIRTUAL_PREFIX', 'FoxgloveTopics', 'RecordingObserver', 'cartesian_targets',
            'tf_transforms']
@@ -42,7 +42,7 @@ def tf_transforms(tree, q_by_name, prefix=''):
     """``[(parent, child, SE3)]`` of the moving joints of ``tree`` at joint positions.
 
     Args:
-        tree: :class:`~ifc_spg.model.urdf.UrdfTree`.
+        tree: :class:`~sim_bridge.urdf.UrdfTree`.
         q_by_name: Joint name -> position; joints not given are at 0.
         prefix: Prepended to every frame name.
     """

@@ -1,7 +1,7 @@
 """Task bounds as functions of task time.
 
 A bound gives, at task time t [s] (seconds since the stack became active), a value in the
-task's subspace coordinates and its rate (the default feed-forward, SPEC 4.25-4.28).
+task's subspace coordinates and its rate (the default feed-forward, 4.25-4.28, docs/SPEC.md §2).
 ``INIT`` marks a bound captured from the task value at activation. Trajectory generators
 (circle, sine, ramp, ...) subclass :class:`Bound`.
 """

@@ -1,4 +1,4 @@
-"""Static interaction quantities: replacement task variables of IFC robots (SPEC 1, 3.1.1).
+"""Static interaction quantities: replacement task variables of IFC robots (docs/SPEC.md §1).
 
 Joint impedance (tau = K (q_v - q) - D qdot + ...)::
 
@@ -8,7 +8,7 @@ Joint impedance (tau = K (q_v - q) - D qdot + ...)::
 with J = J(q) at the measured configuration (damped pseudo-inverse) and stiff joints
 (position controlled) contributing no static torque (their K and J columns are zero).
 
-Cartesian admittance (h = K_x dx + ...), our generalisation (SPEC 1)::
+Cartesian admittance (h = K_x dx + ...), our generalisation (docs/SPEC.md §1)::
 
     h_s = K_x [p_v - p; log3(R_v R^T)],   tau_s = J^T h_s.
 """

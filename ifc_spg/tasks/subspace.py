@@ -1,4 +1,4 @@
-"""Task subspaces S (SPEC 2, 3.22): orthonormal columns selecting task directions.
+"""Task subspaces S (docs/SPEC.md §2, 3.22): orthonormal columns selecting task directions.
 
 Cartesian subspaces are 6 x m (rows: x y z rx ry rz, or fx fy fz tx ty tz for wrenches),
 given in the base frame, the end-effector frame (S_base = diag(R, R) S_ee, Table 4.4) or

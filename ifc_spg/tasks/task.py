@@ -1,4 +1,4 @@
-"""Task base class: a task is a value, a Jacobian and a velocity compensation (SPEC 2).
+"""Task base class: a task is a value, a Jacobian and a velocity compensation (docs/SPEC.md §2).
 
 Every task maps the virtual configuration to a value alpha in its subspace (m
 coordinates), with A = d(alpha)/d(q_v) and gamma, the rate of alpha caused by the measured

@@ -154,7 +154,7 @@ def load_bag(path):
             raise ParameterError(f"bag '{path}' has neither /robot_description nor the SPG "
                                  'configuration (spg/status, spg/config) naming the robot')
         from ifc_spg.model import RobotModel
-        from ifc_spg.model.urdf import urdf_from_robot
+        from sim_bridge.urdf import urdf_from_robot
         urdf = urdf_from_robot(RobotModel.from_config(robot)).xml
     stamps = sorted(states)
     names = list(states[stamps[0]].name)
@@ -432,8 +432,8 @@ class LiveCockpit(_Scene):
     def __init__(self, robot, node=None, host='127.0.0.1', port=8080):
         from ifc_spg import ros
         from ifc_spg.model import RobotModel
-        from ifc_spg.model.urdf import urdf_from_robot
         from ifc_spg.ros import msg
+        from sim_bridge.urdf import urdf_from_robot
 
         self.robot = RobotModel.from_config(robot)
         super().__init__(urdf_from_robot(self.robot).xml, self.robot.joint_names, host, port)

@@ -1,13 +1,14 @@
 """A URDF of a robot, generated from the MJCF both pinocchio and MuJoCo load (Foxglove, RViz).
 
-:func:`urdf_from_robot` compiles the robot's MuJoCo model (:meth:`RobotModel.mjcf_spec`) and
-writes its body tree as URDF: a link per body (its inertial: mass, centre of mass and
-principal inertia), a ``revolute``/``prismatic`` joint per hinge/slide joint (limits from the
-:class:`RobotModel`), ``fixed`` joints for welded bodies, and a link with a fixed joint per
-site, so the chain frames (``tool``, ``flange``, ...) are URDF links of the same name. The
-root link is MuJoCo's world body (``world``). Visuals are MuJoCo's primitives: a capsule
-becomes a cylinder and two spheres, a mesh its bounding box (URDF needs mesh files a viewer
-can fetch; the primitives need none).
+:func:`urdf_from_robot` compiles the robot's MuJoCo model
+(:func:`~sim_bridge.models.robot_mjcf_spec`) and writes its body tree as URDF: a link per
+body (its inertial: mass, centre of mass and principal inertia), a ``revolute`` /
+``prismatic`` joint per hinge/slide joint (limits from the :class:`RobotModel`), ``fixed``
+joints for welded bodies, and a link with a fixed joint per site, so the chain frames
+(``tool``, ``flange``, ...) are URDF links of the same name. The root link is MuJoCo's world
+body (``world``). Visuals are MuJoCo's primitives: a capsule becomes a cylinder and two
+spheres, a mesh its bounding box (URDF needs mesh files a viewer can fetch; the primitives
+need none).
 
 :class:`UrdfTree` is the generated tree as data (joints with their origins), from which
 :mod:`ifc_spg.offline.foxglove` computes ``tf`` transforms; pinocchio's FK of the URDF text
@@ -19,10 +20,12 @@ from __future__ import annotations
 import dataclasses
 from xml.sax.saxutils import quoteattr
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import ModelError
+from sim_bridge.models import robot_mjcf_spec
 
 __all__ = ['UrdfJoint', 'UrdfTree', 'urdf_from_robot']
 
@@ -121,8 +124,6 @@ def _visuals(mj, body, shift):
 
     ``shift`` is the body frame in the link frame.
     """
-    import mujoco
-
     out = []
     for g in np.flatnonzero(mj.geom_bodyid == body):
         T = shift * _se3(mj.geom_pos[g], mj.geom_quat[g])
@@ -142,8 +143,6 @@ def _joints(mj, robot):
     A link frame sits at its joint (URDF turns a child about its frame's origin), so a body
     whose joint is not at its origin gets a link frame shifted by ``jnt_pos``.
     """
-    import mujoco
-
     obj = mujoco.mjtObj
     body_name = [mujoco.mj_id2name(mj, obj.mjOBJ_BODY, b) or f'body{b}' for b in range(mj.nbody)]
     link_offset = [np.zeros(3) for _ in range(mj.nbody)]
@@ -189,8 +188,6 @@ def _limit(robot, mj, joint):
     if i is not None:
         return (f'    <limit lower="{_num(robot.q_min[i])}" upper="{_num(robot.q_max[i])}" '
                 f'effort="{_num(robot.tau_max[i])}" velocity="{_num(robot.v_max[i])}"/>')
-    import mujoco
-
     lo, hi = mj.jnt_range[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, joint.name)]
     return f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="0" velocity="0"/>'
 
@@ -199,7 +196,8 @@ def urdf_from_robot(robot):
     """The robot's URDF, generated from its compiled MJCF (see the module docstring).
 
     Args:
-        robot: A :class:`~ifc_spg.model.RobotModel` with an MJCF (``mjcf_spec``).
+        robot: A :class:`~ifc_spg.model.RobotModel` MuJoCo can load
+            (:func:`~sim_bridge.models.robot_mjcf_spec`).
 
     Returns:
         :class:`UrdfTree`.
@@ -207,7 +205,7 @@ def urdf_from_robot(robot):
     Raises:
         ModelError: A joint MuJoCo has that URDF cannot express as one joint (ball, free).
     """
-    mj = robot.mjcf_spec().compile()
+    mj = robot_mjcf_spec(robot).compile()
     body_name, link_offset, joints = _joints(mj, robot)
     lines = [f'<?xml version="1.0"?>\n<robot name={quoteattr(robot.name)}>']
     for b in range(mj.nbody):
