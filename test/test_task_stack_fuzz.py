@@ -30,7 +30,7 @@ def _load(path):
 
 SEEDS = [_load(f) for f in sorted(glob.glob(os.path.join(ROOT, 'config', 'tasks', '*.yaml')))]
 N_DOCS = 5000
-MAX_SECONDS_PER_DOC = 1.0
+MAX_SECONDS_PER_DOC = 1.0  # CPU seconds; worst seen 0.061 s at load 8 (wall time was 1.7 s there)
 DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
 
 ODD = [None, True, False, 0, -1, 1e308, -1e-300, 3.5, '', 'init', 'tool', 'x', 'A1', 'fz',
@@ -142,7 +142,7 @@ def test_fuzz_only_task_stack_errors():
         if rng.random() < 0.3:
             text = mutate_text(text, rng)
         robot = robots['icub_upper_body' if 'icub' in json.dumps(base) else 'lbr4']
-        t0 = time.perf_counter()
+        t0 = time.process_time()  # CPU time: a pathological parse, not the machine's load
         try:
             stack = TaskStack.from_text(text)
             stack.validate(robot)
@@ -154,6 +154,7 @@ def test_fuzz_only_task_stack_errors():
             if counts['accepted'] % 4 == 1:  # a sample: the schema check is slow
                 validator.validate(stack.document.data)  # the data as loaded
                 validator.validate(stack.to_dict())
-        worst = max(worst, time.perf_counter() - t0)
+        worst = max(worst, time.process_time() - t0)
         assert worst < MAX_SECONDS_PER_DOC, (k, text[:300])
+    print(f'worst CPU time per document: {worst:.3f} s')
     assert counts['accepted'] > 500 and counts['rejected'] > 1500, counts
