@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.tasks.subspace import cartesian_subspace, subspace_in_base
+from ifc_spg.tasks.subspace import cartesian_subspace, selected_rows, subspace_in_base
 from ifc_spg.tasks.task import Task
 
 if TYPE_CHECKING:
@@ -81,6 +81,9 @@ class CartesianPoseTask(Task):
         # the full pose in base coordinates (the most common case): St @ x is x itself
         self._full_base = subspace_frame == 'base' and S.shape == (6, 6) and \
             bool(np.array_equal(S, np.eye(6)))
+        # base axes (the other common case): St @ x is x[rows]
+        self._rows = selected_rows(S, subspace_frame)
+        self._rot_rows = None if self._rows is None else self._rows - 3
         super().__init__(robot, dim=S.shape[1], **kwargs)
         self._zero = np.zeros(self.dim)
         self._zero.setflags(write=False)
@@ -127,6 +130,15 @@ class CartesianPoseTask(Task):
         if self._full_base:
             x, Jx = self._pose_error(p, R, J)
             return x, Jx, self._zero
+        rows = self._rows
+        if rows is not None:
+            if not self._rotational:
+                return (p - self._p_ref)[rows], J[rows], self._zero
+            if not self._translational:
+                e_rot, J_rot = self._rotation_error(R, J)
+                return e_rot[self._rot_rows], J_rot[self._rot_rows], self._zero
+            x, Jx = self._pose_error(p, R, J)
+            return x[rows], Jx[rows], self._zero
         St = self._S_base(R).T
         if not self._rotational:  # position rows only: the orientation error is not needed
             return St[:, :3] @ (p - self._p_ref), St[:, :3] @ J[:3], self._zero
