@@ -231,7 +231,8 @@ class DaqpCascade(CascadeSolver):
             model.update(H=H, f=f, A=lp.A_higher, blower=lp.bl_higher, sense=warm)
         else:  # the first level: the box only
             model.update(H=H, f=f, blower=lp.bl_higher, sense=warm)
-        x, _, flag, info = self.solve_model(model)
+        solve_model = self.solve_model
+        x, _, flag, info = model.solve() if solve_model is _solve_model else solve_model(model)
         if flag != 1:
             # a warm start can end in a false 'infeasible' on degenerate levels (a higher
             # level locked at a vertex of the box); retry cold, with the locked bands

@@ -198,7 +198,9 @@ class Task(abc.ABC):
         if self._active_lower is None:
             self.activate(kin)
         alpha, A, gamma = self.compute(kin)
-        lower, upper = self._active_bounds()
+        lower, upper = self._active_lower, self._active_upper
+        if lower is None or upper is None:
+            lower, upper = self._active_bounds()  # raises: not active
         lo, lo_rate = lower.evaluate(t)
         ff = self._ff
         if self.equality:
