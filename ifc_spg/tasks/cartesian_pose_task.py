@@ -150,7 +150,10 @@ class CartesianPoseTask(Task):
 
     def _rotation_error(self, R: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(log3(R_e), Jlog3(R_e) R_e^T J_ang)`` with R_e = R R_ref^T."""
-        R_e = R @ self.reference_orientation(R).T
+        R_ref = self._R_ref
+        if R_ref is None or self.free_axis is not None:
+            R_ref = self.reference_orientation(R)
+        R_e = R @ R_ref.T
         return pin.log3(R_e), pin.Jlog3(R_e) @ R_e.T @ J[3:]
 
     def _pose_error(self, p: np.ndarray, R: np.ndarray,
