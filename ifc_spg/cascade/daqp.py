@@ -227,10 +227,10 @@ class DaqpCascade(CascadeSolver):
         self._kernels.normal_form(lp.A, lp.lo, self.rho, H, f)
         # Each level index has its own DAQP model and working set: the solve starts from
         # this level's active bounds and rows of the last tick (the sense flags ``warm``).
-        # The model points at the workspace's rows and bounds (written in place), and a new
-        # H makes DAQP recompute everything from them (update_ldp: a new Rinv implies M, v
-        # and d), so only H, f and the working set are handed over.
-        model.update(H=H, f=f, sense=warm)
+        # The model points at H, f and the workspace's rows and bounds (all written in
+        # place), and a new H makes DAQP recompute everything from them (update_ldp: a new
+        # Rinv implies M, v and d), so only H and the working set are handed over.
+        model.update(H=H, sense=warm)
         solve_model = self.solve_model
         x, _, flag, info = model.solve() if solve_model is _solve_model else solve_model(model)
         if flag != 1:
