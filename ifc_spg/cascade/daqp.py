@@ -242,7 +242,8 @@ class DaqpCascade(CascadeSolver):
             warm[:] = 0
             model.update(blower=lp.bl_higher, sense=warm)
             x, _, flag, info = self.solve_model(model)
-        _keep_working_set(warm, flag, info)
+        if flag != 1 or type(info) is not dict or info.get('iterations') != 1:
+            _keep_working_set(warm, flag, info)  # (one iteration: the set is kept as it is)
         # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
         if flag == 1 and math.isfinite(x @ f):
             # lock (4.60)-(4.62) at A_i qdot_v +- band; the last level needs no lock
