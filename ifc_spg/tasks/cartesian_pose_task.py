@@ -84,6 +84,8 @@ class CartesianPoseTask(Task):
         # base axes (the other common case): St @ x is x[rows]
         self._rows = selected_rows(S, subspace_frame)
         self._rot_rows = None if self._rows is None else self._rows - 3
+        # rx ry rz in order: the rotation error and its Jacobian are the task's as they are
+        self._rot_all = self._rows is not None and bool(np.array_equal(self._rows, [3, 4, 5]))
         super().__init__(robot, dim=S.shape[1], **kwargs)
         self._zero = np.zeros(self.dim)
         self._zero.setflags(write=False)
@@ -136,6 +138,8 @@ class CartesianPoseTask(Task):
                 return (p - self._p_ref)[rows], J[rows], self._zero
             if not self._translational:
                 e_rot, J_rot = self._rotation_error(R, J)
+                if self._rot_all:
+                    return e_rot, J_rot, self._zero
                 return e_rot[self._rot_rows], J_rot[self._rot_rows], self._zero
             x, Jx = self._pose_error(p, R, J)
             return x[rows], Jx[rows], self._zero
