@@ -3,7 +3,12 @@
 to a second at tick ``SWITCH`` and runs to ``TICKS``, on :class:`JointImpedancePlant`.
 
 Each run is recorded with the C kernels and with their numpy reference (``<run>-native``,
-``<run>-numpy``): the two differ by round-off (up to 1e-11 on the iCub stack).
+``<run>-numpy``): the two differ by round-off (up to 1e-11 on the iCub stack). Round-off
+differences grow through the QPs' active sets like that, so the recording holds to 1e-12
+only where the libraries and the CPU are those it was made with (:func:`platform`, stored
+in ``platform``); elsewhere ``test_tick_recorded`` skips. To record on another machine,
+run this file with the tick of 75c5db1 checked out (``git checkout 75c5db1 -- ifc_spg``,
+rebuild the C kernels, run, ``git checkout HEAD -- ifc_spg``, rebuild).
 ``python test/tick_recording.py`` rewrites the recording with the code checked out (only
 when the tick is meant to change its results; the recording was made before the tick was
 made faster, commit 75c5db1).
@@ -26,6 +31,30 @@ RUNS = {
     'icub_table_3_7': ('icub_upper_body', 'table_3_7_icub_wiping_cup_holding.yaml',
                        'bench:icub_stack'),
 }
+
+
+def platform():
+    """What the bits of a closed loop depend on: numpy, pinocchio, DAQP, the CPU."""
+    from importlib.metadata import version
+
+    import pinocchio
+    cpu = ''
+    try:
+        with open('/proc/cpuinfo', encoding='utf-8') as f:
+            for line in f:
+                if line.startswith(('model name', 'flags')):
+                    key, _, value = line.partition(':')
+                    value = value.strip()
+                    if key.startswith('flags'):  # the SIMD sets the BLAS kernels pick
+                        value = ' '.join(sorted(x for x in value.split()
+                                                if x.startswith(('avx', 'fma', 'sse4'))))
+                    cpu += value + '; '
+                    if key.startswith('flags'):
+                        break
+    except OSError:
+        pass
+    return (f'numpy {np.__version__}, pinocchio {pinocchio.__version__}, daqp '
+            f'{version("daqp")}, {sys.platform}, {cpu}')
 
 
 def _stack(robot, name):
@@ -65,6 +94,7 @@ if __name__ == '__main__':
     sys.path.append(str(here.parent))
     from ifc_spg import kernels
     impls = {'native': kernels.native, 'numpy': kernels.reference}
-    np.savez_compressed(DATA, **{f'{name}-{impl}': run(name, kern) for name in RUNS
-                                 for impl, kern in impls.items()})
+    np.savez_compressed(DATA, platform=np.array(platform()),
+                        **{f'{name}-{impl}': run(name, kern) for name in RUNS
+                           for impl, kern in impls.items()})
     print(f'wrote {DATA}')
