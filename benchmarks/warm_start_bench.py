@@ -40,7 +40,8 @@ class InternalWarmStart(DaqpCascade):
     workspace and models.
     """
 
-    def _equality_level(self, ws, i, start, end, qdot):
+    def _equality_level(self, lp, qdot):
+        ws, i, start, end = lp.ws, lp.i, lp.start, lp.end
         n, sl = self.n, slice(start, end)
         A_i, beta, bl = ws.A[sl], ws.orig_lo[sl], ws.bl
         H, f, model = ws.level(i, start)

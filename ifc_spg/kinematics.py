@@ -63,19 +63,21 @@ class Kinematics:
         self._valid_m = False
 
     def _ensure(self, virtual: bool) -> None:
+        # one pass for all joints' placements and Jacobians; a frame's placement is updated
+        # when it is asked for (frame()): a robot has hundreds of frames (iCub: 432), a
+        # stack uses a few
         if virtual and not self._valid_v:
             pin.computeJointJacobians(self._model, self._data_v, self.q_v)
-            pin.updateFramePlacements(self._model, self._data_v)
             self._valid_v = True
         elif not virtual and not self._valid_m:
             pin.computeJointJacobians(self._model, self._data_m, self.q)
-            pin.updateFramePlacements(self._model, self._data_m)
             self._valid_m = True
 
     def data(self, virtual: bool) -> pin.Data:
         """The pinocchio ``Data`` of q_v (True) or q with joint placements and Jacobians.
 
-        Read only: it is shared by the tasks of this tick.
+        Read only: it is shared by the tasks of this tick. Its ``oMf`` holds this tick's
+        placement only of the frames asked for with :meth:`frame`.
         """
         self._ensure(virtual)
         return self._data_v if virtual else self._data_m
@@ -92,7 +94,7 @@ class Kinematics:
         if hit is None:
             self._ensure(virtual)
             data = self._data_v if virtual else self._data_m
-            oMf = data.oMf[frame_id]
+            oMf = pin.updateFramePlacement(self._model, data, frame_id)
             J = pin.getFrameJacobian(self._model, data, frame_id, _LWA)
             hit = (oMf.translation.copy(), oMf.rotation.copy(), J)
             cache[frame_id] = hit

@@ -610,7 +610,8 @@ class SetPointGenerator:
             max_power=None if tanks is None else tanks.config.max_power,
             refilled=None if tanks is None else tanks.refilled.copy(),
             joint_names=self.robot.joint_names,
-            distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None))
+            distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None)
+            if self._reporting else ())
         return q_next
 
     def _collision_message(self, tick: '_Tick') -> str:
@@ -664,11 +665,13 @@ class SetPointGenerator:
         if self._torque_limit is not None:  # the top level, solved in closed form (4.3)
             level, slack, box = self._torque_limit.apply(q, qdot, q_v, box)
             top, slacks = [level], [slack]
-        levels = top
+        levels, task_levels = top, []
         try:
-            levels = top + [task.level(self.kin, task_time) for task in self.tasks]
-            if len(levels) > len(top):
-                res = self._solver.solve(levels[len(top):], box, q_v)
+            kin = self.kin
+            task_levels = [task.level(kin, task_time) for task in self.tasks]
+            levels = top + task_levels
+            if task_levels:
+                res = self._solver.solve(task_levels, box, q_v)
                 qdot_v, status = res.qdot_v, res.status
                 slacks = slacks + res.slacks
                 failed = res.failed_level + len(top) if res.failed_level >= 0 else -1
@@ -689,7 +692,7 @@ class SetPointGenerator:
             qdot_v, status, message = np.zeros(self.n), 'hold', 'non-finite solution; holding q_v'
         if status == 'hold':
             qdot_v = np.clip(qdot_v, box.lower, box.upper)  # brake within a_max, stay safe
-        return _Tick(qdot_v, status, failed, message, slacks, levels, levels[len(top):], box)
+        return _Tick(qdot_v, status, failed, message, slacks, levels, task_levels, box)
 
     def _watch_stall(self, q: np.ndarray, qdot: np.ndarray, q_v: np.ndarray,
                      qd_prev: np.ndarray, limits_box: VelocityBox, task_levels: list,

@@ -374,3 +374,58 @@ def test_pspm_bounds_reads_q_prev_only():
         for a, b in zip(args, before):
             np.testing.assert_array_equal(a, b)
 
+
+
+def _task_bounds_as_before(gain, alpha, lo, lo_ff, hi, hi_ff, gamma, kd, zero_gain):
+    """Task.level's bound arithmetic before it became a kernel (75c5db1)."""
+    equality = hi is None
+    ff_lo, ff_hi = lo_ff, (lo_ff if equality else hi_ff)
+    if equality:
+        hi = lo
+    if gamma is not None:
+        ff_lo = ff_lo + gamma
+        ff_hi = ff_lo if equality else ff_hi + gamma
+    if kd is not None:
+        ff_lo = ff_lo + kd
+        ff_hi = ff_lo if equality else ff_hi + kd
+    if zero_gain:
+        with np.errstate(invalid='ignore'):
+            beta_lo = gain * (lo - alpha) + ff_lo
+            beta_hi = gain * (hi - alpha) + ff_hi
+        beta_lo[np.isneginf(lo)] = -np.inf
+        beta_hi[np.isposinf(hi)] = np.inf
+        return beta_lo, beta_hi
+    beta_lo = gain * (lo - alpha) + ff_lo
+    return beta_lo, (beta_lo if equality else gain * (hi - alpha) + ff_hi)
+
+
+def test_task_bounds_equal_the_numpy_code_bit_for_bit():
+    """The task bound kernel gives the bits of the numpy code it replaced (C and reference),
+    unbounded sides, zero gains, gamma and k_d included; an equality's upper is its lower."""
+    rng = np.random.default_rng(32)
+    for k in range(3000):
+        m = int(rng.integers(1, 8))
+        gain = rng.uniform(0, 20, m)
+        zero_gain = k % 3 == 0
+        if zero_gain:
+            gain[rng.random(m) < 0.5] = 0.0
+        alpha, lo_ff, hi_ff = rng.normal(size=(3, m))
+        lo = rng.normal(size=m) - 1.0
+        hi = rng.normal(size=m) + 1.0
+        lo[rng.random(m) < 0.3] = -np.inf
+        hi[rng.random(m) < 0.3] = np.inf
+        gamma = rng.normal(size=m) if k % 2 else None
+        kd = rng.normal(size=m) if k % 5 == 0 else None
+        equality = k % 4 == 1
+        if equality:
+            lo, hi, hi_ff = rng.normal(size=m), None, None
+            if zero_gain:  # Task.level passes an equality's upper side here
+                hi, hi_ff = lo, lo_ff
+        want = _task_bounds_as_before(gain, alpha, lo, lo_ff, None if equality else hi,
+                                      hi_ff, gamma, kd, zero_gain)
+        for kern in (nat, ref):
+            got = kern.task_bounds(gain, alpha, lo, lo_ff, hi, hi_ff, gamma, kd, zero_gain)
+            np.testing.assert_array_equal(got[0], want[0])
+            np.testing.assert_array_equal(got[1], want[1])
+            if equality and not zero_gain:
+                assert got[1] is got[0]

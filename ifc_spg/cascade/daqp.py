@@ -12,6 +12,7 @@ as the live run did.
 from collections.abc import Sequence
 import math
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -70,6 +71,7 @@ class DaqpCascade(CascadeSolver):
         self.solve_qp = daqp.solve
         self._settings = {'primal_tol': float(primal_tol)}
         self._ws: dict = {}
+        self._plans: dict = {}  # level layout -> [_LevelPlan] (see _plan)
         self._normal_form = self.rho >= 1e-6
         #: Level solves retried cold (a warm start ended in a false 'infeasible').
         self.cold_retries = 0
@@ -161,8 +163,10 @@ class DaqpCascade(CascadeSolver):
         """
         if not levels:
             return super().solve(levels, box)
-        n = self.n
-        ws = self._workspace(sum(lev.A.shape[0] for lev in levels))
+        plan = self._plans.get(tuple([(lev.A.shape[0], lev.equality) for lev in levels]))
+        if plan is None:
+            plan = self._plan(levels)
+        ws = plan[0].ws
         # The models see the rows scaled to unit norm (the same constraints; DAQP's
         # tolerances are absolute, and a wrench row of norm ~400 next to pose rows of
         # norm ~1 otherwise made levels falsely infeasible).
@@ -171,52 +175,64 @@ class DaqpCascade(CascadeSolver):
         # qdot_v completely); exact equalities would then be inconsistent by round-off.
         self._kernels.stack_rows(levels, ws.A, ws.orig_lo, ws.orig_hi, ws.norm, ws.A_unit,
                                  ws.band, self.lock_tolerance)
-        ws.bl[:n] = box.lower  # (DAQP takes +-inf as unbounded)
-        ws.bu[:n] = box.upper
+        ws.bl_box[:] = box.lower  # (DAQP takes +-inf as unbounded)
+        ws.bu_box[:] = box.upper
         qdot = None  # no level solved yet: the point of the box nearest zero (made on demand)
         slacks: list = []
-        start = 0
-        for i, lev in enumerate(levels):
-            end = start + lev.A.shape[0]
-            if lev.equality and self._normal_form:
-                done = self._equality_level(ws, i, start, end, qdot)
+        for lp in plan:
+            if lp.normal:
+                done = self._equality_level(lp, qdot)
             else:
                 if qdot is None:
-                    qdot = np.minimum(np.maximum(0.0, ws.bl[:n]), ws.bu[:n])
-                done = self._inequality_level(ws, i, start, end, qdot) if not lev.equality \
-                    else self._accept_slack(ws, *self._solve_with_slacks(ws, start, end),
-                                            start, end)
+                    qdot = np.minimum(np.maximum(0.0, ws.bl_box), ws.bu_box)
+                done = self._inequality_level(lp, qdot) if not lp.equality \
+                    else self._accept_slack(ws, *self._solve_with_slacks(ws, lp.start, lp.end),
+                                            lp.start, lp.end)
             if done is None:
+                i = lp.i
                 slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
                 if qdot is None:
-                    qdot = np.minimum(np.maximum(0.0, ws.bl[:n]), ws.bu[:n])
+                    qdot = np.minimum(np.maximum(0.0, ws.bl_box), ws.bu_box)
                 return CascadeResult(qdot, slacks, 'hold' if i == 0 else 'fallback', i)
             qdot, s = done
             slacks.append(s)
-            start = end
         if qdot is None:  # solve() returns early on empty levels
             raise IfcSpgError('internal: cascade solved no level')
         return CascadeResult(qdot, slacks, 'ok', -1)
 
-    def _equality_level(self, ws: '_Workspace', i: int, start: int, end: int,
-                        qdot: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
+    def _plan(self, levels: Sequence[Level]) -> list['_LevelPlan']:
+        """The per-level views and models of a stack with these level sizes and kinds.
+
+        Built once per layout (level sizes and kinds), so that a tick slices no arrays and
+        looks up no models.
+        """
+        layout = tuple([(lev.A.shape[0], lev.equality) for lev in levels])
+        ws = self._workspace(sum(m for m, _ in layout))
+        plan, start = [], 0
+        for i, (m, equality) in enumerate(layout):
+            plan.append(_LevelPlan(self, ws, i, start, start + m, equality))
+            start += m
+        self._plans[layout] = plan
+        return plan
+
+    def _equality_level(self, lp: '_LevelPlan', qdot: np.ndarray | None
+                        ) -> tuple[np.ndarray, np.ndarray] | None:
         """Solve an equality level in its normal form.
 
         An equality level without slacks (its normal form, n variables), with this level
         index's warm-started model; ``(qdot_v, s*)``, or None if it failed every retry.
         """
-        n, sl = self.n, slice(start, end)
-        A_i, beta, bl = ws.A[sl], ws.orig_lo[sl], ws.bl
-        H, f, model = ws.level(i, start)
-        warm = ws.warm[(i, start)]
-        self._kernels.normal_form(A_i, beta, self.rho, H, f)
+        ws, start, end = lp.ws, lp.start, lp.end
+        H, f, model, warm = lp.H, lp.f, lp.model, lp.warm
+        self._kernels.normal_form(lp.A, lp.lo, self.rho, H, f)
         # Each level index has its own DAQP model and working set: the solve starts from
         # this level's active bounds and rows of the last tick (the sense flags ``warm``).
-        if start:
-            model.update(H=H, f=f, A=ws.A_unit[:start], blower=bl[:n + start], sense=warm)
-        else:  # the first level: the box only
-            model.update(H=H, f=f, blower=bl[:n], sense=warm)
-        x, _, flag, info = self.solve_model(model)
+        # The model points at H, f and the workspace's rows and bounds (all written in
+        # place), and a new H makes DAQP recompute everything from them (update_ldp: a new
+        # Rinv implies M, v and d), so only H and the working set are handed over.
+        model.update(H=H, sense=warm)
+        solve_model = self.solve_model
+        x, _, flag, info = model.solve() if solve_model is _solve_model else solve_model(model)
         if flag != 1:
             # a warm start can end in a false 'infeasible' on degenerate levels (a higher
             # level locked at a vertex of the box); retry cold, with the locked bands
@@ -224,37 +240,35 @@ class DaqpCascade(CascadeSolver):
             self.cold_retries += 1
             _widen(ws, qdot, start)
             warm[:] = 0
-            model.update(blower=bl[:n + start], sense=warm)
+            model.update(blower=lp.bl_higher, sense=warm)
             x, _, flag, info = self.solve_model(model)
-        _keep_working_set(warm, flag, info)
+        if flag != 1 or type(info) is not dict or info.get('iterations') != 1:
+            _keep_working_set(warm, flag, info)  # (one iteration: the set is kept as it is)
         # x @ f is finite for any finite x and NaN otherwise (cheaper than isfinite)
         if flag == 1 and math.isfinite(x @ f):
             # lock (4.60)-(4.62) at A_i qdot_v +- band; the last level needs no lock
-            lock = end < ws.R
-            return self._kernels.accept(x, bl, ws.bu, ws.A_unit[sl], ws.norm[sl], beta,
-                                        ws.band[sl], ws.lo_rows[sl] if lock else None,
-                                        ws.hi_rows[sl] if lock else None)
+            return self._kernels.accept(x, ws.bl, ws.bu, lp.A_unit, lp.norm, lp.lo, lp.band,
+                                        lp.lock_lo, lp.lock_hi)
         # retry in the slack form (better conditioned)
         return self._accept_slack(ws, *self._solve_with_slacks(ws, start, end), start, end)
 
-    def _inequality_level(self, ws: '_Workspace', i: int, start: int, end: int,
-                          qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def _inequality_level(self, lp: '_LevelPlan', qdot: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray] | None:
         """Solve an inequality level (or lock it without a QP).
 
         An inequality level: locked without a QP if ``qdot`` satisfies it, else solved with
         its slacks (warm started, then cold); ``(qdot_v, s*)`` or None.
         """
-        sl = slice(start, end)
+        ws, start, end = lp.ws, lp.start, lp.end
         # If the current solution satisfies this level with zero slack, it minimizes
         # rho |qdot|^2 over everything the higher levels allow, so it is this level's
         # optimum too: no QP needed (typical for inactive inequalities: obstacles, boxes,
         # torque bands). Its lock [lower + s*, upper + s*] is its own bounds (s* = 0; they
         # contain the solution), in unit-row coordinates.
-        if self._kernels.lock_if_satisfied(ws.A[sl], qdot, ws.orig_lo[sl], ws.orig_hi[sl],
-                                           ws.norm[sl], ws.band[sl], ws.lo_rows[sl],
-                                           ws.hi_rows[sl]):
+        if self._kernels.lock_if_satisfied(lp.A, qdot, lp.lo, lp.hi, lp.norm, lp.band,
+                                           lp.lo_rows, lp.hi_rows):
             return qdot, np.zeros(end - start)
-        w, flag = self._solve_slack_level(ws, i, start, end)  # warm started
+        w, flag = self._solve_slack_level(ws, lp.i, start, end)  # warm started
         if flag != 1:
             self.cold_retries += 1
             _widen(ws, qdot, start)
@@ -341,6 +355,8 @@ class _Workspace:
         self.bl = np.full(n + R, -np.inf)
         self.lo_rows = self.bl[n:]
         self.hi_rows = self.bu[n:]
+        self.bl_box = self.bl[:n]
+        self.bu_box = self.bu[:n]
         self.cold_sense = np.zeros(n + R, dtype=np.int32)
         self.zeros_w = np.zeros(n + R)
         self.settings = settings
@@ -378,6 +394,41 @@ class _Workspace:
             hit = self.models[key] = (H, f, model)
             self.warm[key] = np.zeros(n + start, dtype=np.int32)
         return hit
+
+
+class _LevelPlan:
+    """One level of a stack's layout: its rows' views of the workspace and its model.
+
+    Attributes are views of the :class:`_Workspace` arrays (rows ``start:end``), so that the
+    tick slices nothing; ``normal``: an equality level solved in its normal form, whose
+    ``H``, ``f``, ``model`` and ``warm`` are built here (inequality levels get their slack
+    models from the workspace as they are solved).
+    """
+
+    __slots__ = ('ws', 'i', 'start', 'end', 'equality', 'normal', 'A', 'lo', 'hi', 'A_unit',
+                 'norm', 'band', 'lo_rows', 'hi_rows', 'lock_lo', 'lock_hi', 'A_higher',
+                 'bl_higher', 'H', 'f', 'model', 'warm')
+
+    def __init__(self, cascade: 'DaqpCascade', ws: _Workspace, i: int, start: int, end: int,
+                 equality: bool):
+        sl = slice(start, end)
+        self.ws, self.i, self.start, self.end, self.equality = ws, i, start, end, equality
+        self.normal = equality and cascade._normal_form
+        self.A, self.lo, self.hi = ws.A[sl], ws.orig_lo[sl], ws.orig_hi[sl]
+        self.A_unit, self.norm, self.band = ws.A_unit[sl], ws.norm[sl], ws.band[sl]
+        self.lo_rows, self.hi_rows = ws.lo_rows[sl], ws.hi_rows[sl]
+        lock = end < ws.R  # the last level needs no lock
+        self.lock_lo = self.lo_rows if lock else None
+        self.lock_hi = self.hi_rows if lock else None
+        self.A_higher = ws.A_unit[:start]
+        self.bl_higher = ws.bl[:ws.n + start]
+        self.H: Any = None
+        self.f: Any = None
+        self.model: Any = None
+        self.warm: Any = None
+        if self.normal:
+            self.H, self.f, self.model = ws.level(i, start)
+            self.warm = ws.warm[(i, start)]
 
 
 def _solve_model(model):

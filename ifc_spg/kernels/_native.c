@@ -656,6 +656,79 @@ static PyObject *pspm_update(PyObject *self, PyObject *args) {
     return Py_BuildValue("(NNd)", v[0], v[1], emin);
 }
 
+/* ---- the tasks (ifc_spg.tasks.task.Task.level) ------------------------------------- */
+
+PyDoc_STRVAR(task_bounds_doc,
+"task_bounds(gain, alpha, lower, lower_ff, upper, upper_ff, gamma, kd, zero_gain)"
+" -> (beta_lo, beta_hi)\n\n"
+"A task's velocity bounds (4.25-4.28): beta_lo = gain (lower - alpha) + ff_lo with\n"
+"ff_lo = lower_ff + gamma + kd (gamma, kd: None for none, added in that order), the same\n"
+"for beta_hi with upper and upper_ff; upper None: beta_hi is beta_lo (an equality task).\n"
+"zero_gain: where lower is -inf, beta_lo is -inf (where upper is +inf, beta_hi is +inf),\n"
+"whatever 0 * inf gave. All vectors have m entries; beta_lo and beta_hi are new.");
+
+/* beta = gain (bound - alpha) + ((ff + gamma) + kd), with unbounded sides kept if zero_gain */
+static void bound_side(npy_intp m, const double *gain, const double *alpha, const double *b,
+                       const double *ff, const double *g, const double *kd, int zero_gain,
+                       double inf, double *out) {
+    for (npy_intp i = 0; i < m; i++) {
+        double f = ff[i];
+        if (g) f = f + g[i];
+        if (kd) f = f + kd[i];
+        out[i] = gain[i] * (b[i] - alpha[i]) + f;
+        if (zero_gain && b[i] == inf) out[i] = inf;
+    }
+}
+
+/* A float64 C-contiguous view of obj (converted if needed) with exactly m entries, or
+   NULL with an error; None gives NULL without one if allow_none. New reference. */
+static PyArrayObject *in_vector(PyObject *obj, npy_intp m, const char *name) {
+    PyArrayObject *a = in_array(obj, 1, name);
+    if (a != NULL && PyArray_SIZE(a) != m) {
+        PyErr_Format(PyExc_ValueError, "%s must have %zd entries", name, (Py_ssize_t)m);
+        Py_DECREF(a);
+        return NULL;
+    }
+    return a;
+}
+
+static PyObject *task_bounds(PyObject *self, PyObject *args) {
+    PyObject *o[8];
+    int zero_gain;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOp", &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6],
+                          &o[7], &zero_gain))
+        return NULL;
+    static const char *names[8] = {"gain", "alpha", "lower", "lower_ff", "upper", "upper_ff",
+                                   "gamma", "kd"};
+    PyArrayObject *a[8] = {NULL};
+    PyObject *result = NULL;
+    npy_intp m = array_size(o[1], "alpha");
+    if (m < 0) return NULL;
+    int equality = o[4] == Py_None;
+    for (int k = 0; k < 8; k++) {
+        if (o[k] == Py_None && (k == 6 || k == 7 || (equality && (k == 4 || k == 5)))) continue;
+        a[k] = in_vector(o[k], m, names[k]);
+        if (a[k] == NULL) goto done;
+    }
+    const double *v[8];
+    for (int k = 0; k < 8; k++) v[k] = a[k] ? data_of(a[k]) : NULL;
+    PyArrayObject *out[2];
+    const npy_intp sizes[2] = {m, m};
+    if (!new_vectors(out, sizes, equality ? 1 : 2)) goto done;
+    bound_side(m, v[0], v[1], v[2], v[3], v[6], v[7], zero_gain, -INFINITY, data_of(out[0]));
+    if (equality) {
+        result = Py_BuildValue("(OO)", out[0], out[0]);
+        Py_DECREF(out[0]);
+    } else {
+        bound_side(m, v[0], v[1], v[4], v[5], v[6], v[7], zero_gain, INFINITY,
+                   data_of(out[1]));
+        result = Py_BuildValue("(NN)", out[0], out[1]);
+    }
+done:
+    for (int k = 0; k < 8; k++) Py_XDECREF(a[k]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
@@ -669,6 +742,7 @@ static PyMethodDef methods[] = {
     {"integrate", integrate, METH_VARARGS, integrate_doc},
     {"pspm_bounds", pspm_bounds, METH_VARARGS, pspm_bounds_doc},
     {"pspm_update", pspm_update, METH_VARARGS, pspm_update_doc},
+    {"task_bounds", task_bounds, METH_VARARGS, task_bounds_doc},
     {NULL, NULL, 0, NULL},
 };
 

@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = ['accept', 'accept_slack', 'integrate', 'limits_box', 'lock_if_satisfied',
            'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup', 'stack_rows',
-           'torque_limit', 'velocity_box']
+           'task_bounds', 'torque_limit', 'velocity_box']
 
 _TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
 
@@ -300,3 +300,33 @@ def pspm_update(q: Array, q_v: Array, qdot_v: Array, avail: Array, half_K: Array
     if fixed.size:
         e[fixed] = energy[fixed]
     return e, dEk, float(e.min())
+
+
+# ---- the tasks (ifc_spg.tasks.task.Task.level) -----------------------------------------
+
+def task_bounds(gain: Array, alpha: Array, lower: Array, lower_ff: Array, upper: Array | None,
+                upper_ff: Array | None, gamma: Array | None, kd: Array | None,
+                zero_gain: bool) -> tuple[Array, Array]:
+    """A task's velocity bounds (4.25-4.28); return ``(beta_lo, beta_hi)``.
+
+    beta_lo = gain (lower - alpha) + ff_lo with ff_lo = lower_ff + gamma + kd (gamma, kd:
+    None for none, added in that order), the same for beta_hi with upper and upper_ff;
+    upper None: beta_hi is beta_lo (an equality task). zero_gain: where lower is -inf,
+    beta_lo is -inf (where upper is +inf, beta_hi is +inf), whatever 0 * inf gave.
+    """
+    def side(bound, ff, inf):
+        if gamma is not None:
+            ff = ff + gamma
+        if kd is not None:
+            ff = ff + kd
+        if not zero_gain:
+            return gain * (bound - alpha) + ff
+        with np.errstate(invalid='ignore'):
+            beta = gain * (bound - alpha) + ff
+        beta[bound == inf] = inf
+        return beta
+
+    beta_lo = side(lower, lower_ff, -np.inf)
+    if upper is None or upper_ff is None:
+        return beta_lo, beta_lo
+    return beta_lo, side(upper, upper_ff, np.inf)

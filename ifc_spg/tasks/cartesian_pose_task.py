@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import IfcSpgError
-from ifc_spg.tasks.subspace import cartesian_subspace, subspace_in_base
+from ifc_spg.tasks.subspace import cartesian_subspace, selected_rows, subspace_in_base
 from ifc_spg.tasks.task import Task
 
 if TYPE_CHECKING:
@@ -81,6 +81,11 @@ class CartesianPoseTask(Task):
         # the full pose in base coordinates (the most common case): St @ x is x itself
         self._full_base = subspace_frame == 'base' and S.shape == (6, 6) and \
             bool(np.array_equal(S, np.eye(6)))
+        # base axes (the other common case): St @ x is x[rows]
+        self._rows = selected_rows(S, subspace_frame)
+        self._rot_rows = None if self._rows is None else self._rows - 3
+        # rx ry rz in order: the rotation error and its Jacobian are the task's as they are
+        self._rot_all = self._rows is not None and bool(np.array_equal(self._rows, [3, 4, 5]))
         super().__init__(robot, dim=S.shape[1], **kwargs)
         self._zero = np.zeros(self.dim)
         self._zero.setflags(write=False)
@@ -127,6 +132,17 @@ class CartesianPoseTask(Task):
         if self._full_base:
             x, Jx = self._pose_error(p, R, J)
             return x, Jx, self._zero
+        rows = self._rows
+        if rows is not None:
+            if not self._rotational:
+                return (p - self._p_ref)[rows], J[rows], self._zero
+            if not self._translational:
+                e_rot, J_rot = self._rotation_error(R, J)
+                if self._rot_all:
+                    return e_rot, J_rot, self._zero
+                return e_rot[self._rot_rows], J_rot[self._rot_rows], self._zero
+            x, Jx = self._pose_error(p, R, J)
+            return x[rows], Jx[rows], self._zero
         St = self._S_base(R).T
         if not self._rotational:  # position rows only: the orientation error is not needed
             return St[:, :3] @ (p - self._p_ref), St[:, :3] @ J[:3], self._zero
@@ -138,7 +154,10 @@ class CartesianPoseTask(Task):
 
     def _rotation_error(self, R: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(log3(R_e), Jlog3(R_e) R_e^T J_ang)`` with R_e = R R_ref^T."""
-        R_e = R @ self.reference_orientation(R).T
+        R_ref = self._R_ref
+        if R_ref is None or self.free_axis is not None:
+            R_ref = self.reference_orientation(R)
+        R_e = R @ R_ref.T
         return pin.log3(R_e), pin.Jlog3(R_e) @ R_e.T @ J[3:]
 
     def _pose_error(self, p: np.ndarray, R: np.ndarray,

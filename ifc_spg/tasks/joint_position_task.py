@@ -46,6 +46,12 @@ class JointPositionTask(Task):
         self._A = np.zeros((self.dim, robot.n))
         self._A[np.arange(self.dim), self.indices] = 1.0
         self._A.setflags(write=False)
+        self._zero = np.zeros(self.dim)
+        self._zero.setflags(write=False)
+
+    def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``(q_v[i], A, 0)`` in one computation (gamma is zero: a position task)."""
+        return kin.q_v[self.indices], self._A, self._zero
 
     def compute_value(self, kin: Kinematics) -> np.ndarray:
         """The virtual positions of the selected joints, q_v[i]."""

@@ -52,10 +52,17 @@ class JointTorqueTask(Task):
             A[np.arange(self.dim), self.indices] = K
             A.setflags(write=False)
             self._A = A
+        # all joints in model order (the usual case): no index arrays
+        self._all = bool(np.array_equal(self.indices, np.arange(robot.n)))
 
     def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(tau_s, A, gamma)`` of the selected joints in one computation."""
         i = self.indices
+        if self._fast and self._all:
+            tau = self._K * (kin.q_v - kin.q)
+            if self.include_damping:
+                tau -= self._D * kin.qdot
+            return tau, self._A, self._K * kin.qdot
         if self._fast:
             tau = self._K * (kin.q_v[i] - kin.q[i])
             if self.include_damping:

@@ -15,7 +15,7 @@ import numpy as np
 from ifc_spg.errors import IfcSpgError, did_you_mean
 
 __all__ = ['AXES', 'WRENCH_AXES', 'SUBSPACE_FRAMES', 'axes_matrix', 'cartesian_subspace',
-           'check_orthonormal', 'subspace_in_base']
+           'check_orthonormal', 'selected_rows', 'subspace_in_base']
 
 AXES = ('x', 'y', 'z', 'rx', 'ry', 'rz')
 WRENCH_AXES = ('fx', 'fy', 'fz', 'tx', 'ty', 'tz')
@@ -90,3 +90,17 @@ def cartesian_subspace(axes: Sequence[str] | None, subspace: Any, frame: str,
         raise IfcSpgError(f"subspace frame '{frame}' unknown; use one of "
                           f"{', '.join(SUBSPACE_FRAMES)}")
     return S
+
+
+def selected_rows(S: np.ndarray, frame: str) -> np.ndarray | None:
+    """The rows S^T picks, if S is a selection of base axes; else None.
+
+    For a base-frame S whose every column is a unit axis (what ``axes`` gives), S^T x is
+    ``x[rows]`` (the same numbers, without a matrix product); None for other subspaces.
+    """
+    if frame != 'base':
+        return None
+    rows = np.argmax(S, axis=0)
+    sel = np.zeros_like(S)
+    sel[rows, np.arange(S.shape[1])] = 1.0
+    return rows.astype(np.intp) if np.array_equal(S, sel) else None

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from ifc_spg import kernels as _kernels
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.tasks.bounds import INIT, Bound, as_bound
 
@@ -119,6 +120,8 @@ class Task(abc.ABC):
         self.compensate_velocity = bool(compensate_velocity)
         self._active_lower: Bound | None = None
         self._active_upper: Bound | None = None
+        #: The kernels of :meth:`level` (task_bounds: C and numpy give the same bits)
+        self._kernels = _kernels.active
 
     # -- to implement: compute_value and compute_jacobian ---------------------------------
     @abc.abstractmethod
@@ -192,35 +195,28 @@ class Task(abc.ABC):
 
     def level(self, kin: Kinematics, t: float) -> Level:
         """Build this task's :class:`Level` at task time ``t`` in [s]."""
-        if not self.active:
+        if self._active_lower is None:
             self.activate(kin)
         alpha, A, gamma = self.compute(kin)
-        lower, upper = self._active_bounds()
+        lower, upper = self._active_lower, self._active_upper
+        if lower is None or upper is None:
+            lower, upper = self._active_bounds()  # raises: not active
         lo, lo_rate = lower.evaluate(t)
+        ff = self._ff
         if self.equality:
-            hi, hi_rate = lo, lo_rate
+            hi = hi_ff = None
+            if self._zero_gain:  # its upper side separately, as an inequality's
+                hi, hi_ff = lo, lo_rate if ff is None else ff
         else:
             hi, hi_rate = upper.evaluate(t)
-        if self._ff is None:
-            ff_lo, ff_hi = lo_rate, hi_rate
-        else:
-            ff_lo = ff_hi = self._ff
-        if self.compensate_velocity and self.has_gamma:
-            ff_lo = ff_lo + gamma
-            ff_hi = ff_lo if self.equality else ff_hi + gamma
+            hi_ff = hi_rate if ff is None else ff
+        kd = None
         if self.velocity_gain:
             kd = self.velocity_gain * self.compute_measured_rate(kin)
-            ff_lo = ff_lo + kd
-            ff_hi = ff_lo if self.equality else ff_hi + kd
-        if self._zero_gain:  # 0 * inf: keep unbounded sides unbounded
-            with np.errstate(invalid='ignore'):
-                beta_lo = self.gain * (lo - alpha) + ff_lo
-                beta_hi = self.gain * (hi - alpha) + ff_hi
-            beta_lo[np.isneginf(lo)] = -np.inf
-            beta_hi[np.isposinf(hi)] = np.inf
-        else:
-            beta_lo = self.gain * (lo - alpha) + ff_lo
-            beta_hi = beta_lo if self.equality else self.gain * (hi - alpha) + ff_hi
+        beta_lo, beta_hi = self._kernels.task_bounds(
+            self.gain, alpha, lo, lo_rate if ff is None else ff, hi, hi_ff,
+            gamma if self.compensate_velocity and self.has_gamma else None, kd,
+            self._zero_gain)
         return Level(self.name, A, beta_lo, beta_hi, self.equality)
 
     def bounds_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ifc_spg.model import JOINT_IMPEDANCE
 from ifc_spg.tasks.static_interaction import check_admittance_chain, static_wrench
-from ifc_spg.tasks.subspace import cartesian_subspace, subspace_in_base
+from ifc_spg.tasks.subspace import cartesian_subspace, selected_rows, subspace_in_base
 from ifc_spg.tasks.task import Task
 
 if TYPE_CHECKING:
@@ -48,10 +48,14 @@ class WrenchTask(Task):
         self.S = S
         self.subspace_frame = subspace_frame
         super().__init__(robot, dim=S.shape[1], **kwargs)
+        self._rows = selected_rows(S, subspace_frame)  # base axes: St @ x is x[rows]
 
     def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(S^T h_s, S^T A, S^T gamma)`` in one computation."""
         h, A, g, R = static_wrench(self.robot, kin, self.frame, self.include_damping)
+        rows = self._rows
+        if rows is not None:
+            return h[rows], A[rows], g[rows]
         St = subspace_in_base(self.S, self.subspace_frame, R).T
         return St @ h, St @ A, St @ g
 
