@@ -429,3 +429,24 @@ def test_task_bounds_equal_the_numpy_code_bit_for_bit():
             np.testing.assert_array_equal(got[1], want[1])
             if equality and not zero_gain:
                 assert got[1] is got[0]
+
+
+def test_a_stale_build_without_a_newer_kernel_is_not_used(monkeypatch):
+    """A _native.so built from an older _native.c lacks newer kernels: it must not be chosen
+    (every tick would fail at the first call and the SPG hold), and describe() says why."""
+    import importlib
+    import types
+
+    old = types.ModuleType('ifc_spg.kernels._native')
+    for name in ref.__all__[1:]:  # every kernel but the first
+        setattr(old, name, getattr(ref, name))
+    monkeypatch.setattr(importlib, 'import_module', lambda name: old)
+    monkeypatch.setattr(kernels, 'stale', [])
+    assert kernels._load() is None
+    assert kernels.stale == [ref.__all__[0]]
+    monkeypatch.setattr(kernels, 'active', ref)
+    monkeypatch.setattr(kernels, '_disabled', False)
+    assert 'stale build without ' + ref.__all__[0] in kernels.describe()
+    monkeypatch.setattr(kernels, 'stale', [])
+    setattr(old, ref.__all__[0], getattr(ref, ref.__all__[0]))
+    assert kernels._load() is old

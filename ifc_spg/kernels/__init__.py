@@ -17,17 +17,25 @@ from types import ModuleType
 
 from ifc_spg.kernels import reference
 
-__all__ = ['active', 'describe', 'native', 'reference', 'resolve']
+__all__ = ['active', 'describe', 'native', 'reference', 'resolve', 'stale']
+
+
+#: Kernels the reference has and a stale build of the C module lacks (empty: none).
+stale: list[str] = []
 
 
 def _load() -> ModuleType | None:
     try:
-        return importlib.import_module('ifc_spg.kernels._native')
+        module = importlib.import_module('ifc_spg.kernels._native')
     except ImportError:
         return None
+    # a build from an older _native.c lacks the newer kernels: every tick would fail on the
+    # first call to one (and the SPG hold), so such a module is not used at all
+    stale.extend(name for name in reference.__all__ if not hasattr(module, name))
+    return None if stale else module
 
 
-#: The C module, or None where it was not built (whatever IFC_SPG_NATIVE says).
+#: The C module, or None where it was not built or is stale (whatever IFC_SPG_NATIVE says).
 native: ModuleType | None = _load()
 _disabled = os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0'
 #: The kernels new objects use by default.
@@ -45,4 +53,7 @@ def describe() -> str:
         return 'native (C kernels)'
     if _disabled:
         return 'numpy (IFC_SPG_NATIVE=0)'
+    if stale:
+        return (f"numpy (ifc_spg.kernels._native is a stale build without {', '.join(stale)}: "
+                'rebuild it with ./run setup or pip install -e .)')
     return 'numpy (ifc_spg.kernels._native was not built: reinstall with a C compiler)'
