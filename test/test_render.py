@@ -95,6 +95,11 @@ def test_ghost_and_force_arrow_are_drawn(tmp_path):
     diff = np.abs(plain[5] - extra[5]).max(axis=2) > 30
     assert diff.mean() > 0.005, diff.mean()  # q_v 0.3 rad off: a visible ghost (and arrow)
 
+    def red(img):  # the arrow is emissive red: no robot part has that colour
+        return ((img[..., 0] > 180) & (img[..., 1] < 70) & (img[..., 2] < 70)).sum()
+
+    assert red(extra[5]) > 30 and red(plain[5]) == 0, (red(extra[5]), red(plain[5]))
+
 
 def test_short_lockstep_bag_renders_in_its_scene(tmp_path):
     sc = load_scenario(find_config_dir() / 'scenarios' / 'surface_short.yaml',
