@@ -254,6 +254,9 @@ def test_live_controls_enable_and_set_the_spg_node_parameters(tmp_path, monkeypa
         assert 'enable = True' in cockpit.reply.content
         assert wait_for(lambda: (publish(0.1), len(commands) > n + 5)[1], 30), \
             procs.log('spg_node')
+        result = cockpit.set_parameter('status.decimation', 'often')  # not a number
+        assert not result.successful and 'takes a number' in result.reason
+        assert "'often'" in cockpit.reply.content
         if ros.BACKEND != 'rclpy':  # no parameter services: refused with the fix
             result = cockpit.set_parameter('watchdog.timeout', 0.5)
             assert not result.successful and 'IFC_SPG_ROS_BACKEND=rclpy' in result.reason
@@ -261,6 +264,7 @@ def test_live_controls_enable_and_set_the_spg_node_parameters(tmp_path, monkeypa
             return
         # a live parameter: the node's value (GetParameters) and in spg/status
         assert wait_for(lambda: cockpit.get_parameters().get('watchdog.timeout') == 1.0, 30)
+        assert wait_for(lambda: cockpit.controls['watchdog.timeout'].value == 1.0, 10)  # shown
         assert cockpit.set_parameter('watchdog.timeout', 0.25).successful
         assert cockpit.controls['watchdog.timeout'].value == 0.25
         assert cockpit.get_parameters()['watchdog.timeout'] == 0.25
@@ -273,8 +277,6 @@ def test_live_controls_enable_and_set_the_spg_node_parameters(tmp_path, monkeypa
         assert 'refused' in cockpit.reply.content and result.reason in cockpit.reply.content
         assert cockpit.controls['watchdog.timeout'].value == 0.25
         assert cockpit.get_parameters()['watchdog.timeout'] == 0.25
-        result = cockpit.set_parameter('status.decimation', 'often')  # not a number
-        assert not result.successful and 'often' in cockpit.reply.content
         assert spg.poll() is None
     finally:
         cockpit.close()

@@ -532,15 +532,20 @@ class LiveCockpit(_Scene):
             if name not in self.controls:
                 raise IfcSpgError(f"'{name}' is not a live parameter of the cockpit's node; "
                                   f"live: {', '.join(self.controls)}")
-            if isinstance(old, bool):
-                value = bool(value)
-            elif isinstance(old, int) and float(value).is_integer():
-                value = int(value)
-            elif isinstance(old, float):
-                value = float(value)
+            try:
+                if isinstance(old, bool):
+                    value = bool(value)
+                elif isinstance(old, int) and float(value).is_integer():
+                    value = int(value)
+                elif isinstance(old, float):
+                    value = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"'{name}' takes a number like {old!r}, not "
+                                     f'{value!r}') from None
             result = self.remote.set(name, value, timeout)
         except Exception as exc:  # noqa: BLE001 - shown in the page, the cockpit goes on
-            result = SetParametersResult(False, f'{type(exc).__name__}: {exc}')
+            result = SetParametersResult(False, str(exc) if isinstance(exc, IfcSpgError)
+                                         else f'{type(exc).__name__}: {exc}')
         if result.successful:
             self._show_values({name: value})
             self.reply.content = f'{name} = {value!r}: {result.reason or "set"}'
