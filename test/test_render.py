@@ -3,7 +3,8 @@
 Rendered in a child process (``MUJOCO_GL`` is read when MuJoCo is imported). Checks: the
 frames are not blank, the image changes where the robot moves (a synthetic bag sweeping
 joint A1 by 1 rad) and stays put where nothing moves, the ghost q_v and the force arrow
-change pixels, and a short lockstep bag of ``ifc-spg run`` renders in its table scene.
+change pixels, the floor is a checker under the robot with a 10 cm scale bar, and a short
+lockstep bag of ``ifc-spg run`` renders in its table scene.
 """
 
 import json
@@ -94,6 +95,11 @@ def test_ghost_and_force_arrow_are_drawn(tmp_path):
     diff = np.abs(plain[5] - extra[5]).max(axis=2) > 30
     assert diff.mean() > 0.005, diff.mean()  # q_v 0.3 rad off: a visible ghost (and arrow)
 
+    def red(img):  # the arrow is emissive red: no robot part has that colour
+        return ((img[..., 0] > 180) & (img[..., 1] < 70) & (img[..., 2] < 70)).sum()
+
+    assert red(extra[5]) > 30 and red(plain[5]) == 0, (red(extra[5]), red(plain[5]))
+
 
 def test_short_lockstep_bag_renders_in_its_scene(tmp_path):
     sc = load_scenario(find_config_dir() / 'scenarios' / 'surface_short.yaml',
@@ -132,3 +138,29 @@ def test_view_turns_the_camera_and_a_bad_view_is_refused(tmp_path):
                                str(tmp_path / 'bag'), '-o', str(tmp_path / 'x.gif'),
                                f'--view={bad}'], capture_output=True, text=True, timeout=300)
         assert proc.returncode == 2 and '--view' in proc.stderr, proc.stderr
+
+
+def test_floor_is_a_checker_with_a_scale_bar(tmp_path):
+    """The lower part of the frame (in front of the robot's base, seen from above at 20 deg)
+    is floor: grey, not black, alternating light and dark squares along each row; the yellow
+    10 cm bar is on it. ``--no-floor`` leaves the same region black."""
+    _sweep_bag(tmp_path / 'bag')
+    for name, extra in (('floor', ()), ('bare', ('--no-floor',))):  # WebP: no palette
+        _render(tmp_path / 'bag', tmp_path / f'{name}.webp', '-q', '--duration', '0.1',
+                '--no-ghost', '--size', '640x480', *extra)
+    floor, bare = _frames(tmp_path / 'floor.webp')[0], _frames(tmp_path / 'bare.webp')[0]
+    h, w, _ = floor.shape
+    lower = floor[int(0.8 * h):, int(0.1 * w):int(0.9 * w)]  # below the base, no robot
+    assert bare[int(0.8 * h):].max() < 20                   # black without the floor
+    grey = lower.mean(axis=2)
+    assert (grey > 60).mean() > 0.95, (grey > 60).mean()   # floor everywhere there
+    assert np.ptp(lower, axis=2).max() < 40                  # grey: r, g, b alike
+    for row in grey[::8]:                                    # light and dark squares
+        light = row > 0.5 * (row.min() + row.max())
+        assert row.max() - row.min() > 40 and np.count_nonzero(np.diff(light)) >= 4, row
+    def yellow(img):
+        r, g, b = img[..., 0], img[..., 1], img[..., 2]
+        return (r > 160) & (g > 140) & (b < 110)
+
+    bar = (yellow(floor) & ~yellow(bare))[h // 2:]           # the scale bar, on the floor
+    assert bar.sum() > 30, bar.sum()

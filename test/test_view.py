@@ -186,3 +186,100 @@ def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, mo
         procs.close()
     assert np.linalg.norm(end - goal) < 0.005, (start, goal, end)
     assert bridge.returncode == 0
+
+
+@pytest.mark.dds
+@pytest.mark.ros
+def test_live_controls_enable_and_set_the_spg_node_parameters(tmp_path, monkeypatch):
+    """The cockpit's ``spg_node`` controls (through its Python API, as the page's): ``enable``
+    off stops the commands on the topic and on resumes them; with rclpy a live parameter set
+    from the cockpit is the node's (GetParameters, spg/status) and a bad value is refused with
+    the node's reason, shown in the page, the cockpit going on."""
+    import json
+    import time
+
+    from helpers import CONFIG, reach_stack, use_loopback, wait_for
+    from ros_testing import ProcessGroup, loopback_env
+
+    from ifc_spg import ros
+    from ifc_spg.ros import msg
+    from ifc_spg.tools.view import LiveCockpit
+
+    env = use_loopback(monkeypatch, loopback_env(domain_id=156))
+    robot = RobotModel.from_config('lbr_iiwa14')
+    stack = tmp_path / 'reach.yaml'
+    stack.write_text(reach_stack('lbr_iiwa14'))
+    procs = ProcessGroup(tmp_path, env)
+    ros.init(args=['test'])
+    node = ros.Node('cockpit_test')
+    commands, status = [], []
+    node.create_subscription(msg.JointState, 'command/joint_position', commands.append, 100)
+    node.create_subscription(msg.String, 'spg/status',
+                             lambda m: status.append(json.loads(m.data)), 100)
+    states = node.create_publisher(msg.JointState, 'joint_states', 10)
+    cockpit = LiveCockpit('lbr_iiwa14', node=node, port=_free_port())  # spins node
+    tick = [0]
+
+    def publish(seconds):  # joint states at home, 2 ms apart in stamps, ~100 Hz
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            js = msg.JointState(name=list(robot.joint_names),
+                                position=[float(x) for x in robot.q_home],
+                                velocity=[0.0] * robot.n)
+            tick[0] += 1
+            js.header.stamp.sec, js.header.stamp.nanosec = divmod(tick[0] * 2_000_000, 10**9)
+            states.publish(js)
+            time.sleep(0.01)
+
+    try:
+        spg = procs.start('spg_node', '--ros-args', '--params-file',
+                          str(CONFIG / 'lbr_iiwa14.yaml'), '-p', f'task_stack_file:={stack}',
+                          '-p', 'watchdog.timeout:=1.0')
+        assert wait_for(lambda: states.get_subscription_count() >= 1 or
+                        spg.poll() is not None, 60) and spg.poll() is None, \
+            procs.log('spg_node')
+        assert wait_for(lambda: (publish(0.1), commands)[1], 30), procs.log('spg_node')
+        assert set(cockpit.controls) == {'status.decimation', 'diagnostics.period',
+                                         'watchdog.timeout', 'enable',
+                                         'command.hold_when_disabled'}
+        # enable off: no more commands (after the ones in flight)
+        assert cockpit.set_parameter('enable', False).successful
+        assert cockpit.controls['enable'].value is False
+        publish(0.5)
+        n = len(commands)
+        publish(0.5)
+        assert len(commands) == n, procs.log('spg_node')
+        # on again: commands resume
+        cockpit.controls['enable'].value = True  # as the page's checkbox does
+        assert 'enable = True' in cockpit.reply.content
+        assert wait_for(lambda: (publish(0.1), len(commands) > n + 5)[1], 30), \
+            procs.log('spg_node')
+        result = cockpit.set_parameter('status.decimation', 'often')  # not a number
+        assert not result.successful and 'takes a number' in result.reason
+        assert "'often'" in cockpit.reply.content
+        if ros.BACKEND != 'rclpy':  # no parameter services: refused with the fix
+            result = cockpit.set_parameter('watchdog.timeout', 0.5)
+            assert not result.successful and 'IFC_SPG_ROS_BACKEND=rclpy' in result.reason
+            assert 'refused' in cockpit.reply.content
+            return
+        # a live parameter: the node's value (GetParameters) and in spg/status
+        assert wait_for(lambda: cockpit.get_parameters().get('watchdog.timeout') == 1.0, 30)
+        assert wait_for(lambda: cockpit.controls['watchdog.timeout'].value == 1.0, 10)  # shown
+        assert cockpit.set_parameter('watchdog.timeout', 0.25).successful
+        assert cockpit.controls['watchdog.timeout'].value == 0.25
+        assert cockpit.get_parameters()['watchdog.timeout'] == 0.25
+        status.clear()
+        assert wait_for(lambda: (publish(0.1), any(
+            (s.get('watchdog') or {}).get('timeout') == 0.25 for s in status))[1], 30), status
+        # a bad value: refused with the node's reason, shown, the control back at 0.25
+        result = cockpit.set_parameter('watchdog.timeout', 100.0)
+        assert not result.successful and 'range' in result.reason, result
+        assert 'refused' in cockpit.reply.content and result.reason in cockpit.reply.content
+        assert cockpit.controls['watchdog.timeout'].value == 0.25
+        assert cockpit.get_parameters()['watchdog.timeout'] == 0.25
+        assert spg.poll() is None
+    finally:
+        cockpit.close()
+        procs.close()
+        node.destroy_node()
+        ros.shutdown()

@@ -26,6 +26,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--no-ghost', action='store_true', help='do not draw q_v')
     parser.add_argument('--shadows', action='store_true',
                         help='shadows and reflections (slower on software GL)')
+    parser.add_argument('--no-floor', action='store_true',
+                        help='no checker floor (10 cm squares) and 10 cm scale bar')
     parser.add_argument('--view', default='140,-20',
                         help='camera AZIMUTH,ELEVATION in degrees (140,-20; -90 elevation: '
                              'from above)')
@@ -45,7 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         res = render(opts.bag, opts.output, opts.fps, (w, h), opts.start, opts.duration,
                      opts.scene, not opts.no_ghost, opts.quiet, shadows=opts.shadows,
-                     view=view)
+                     view=view, floor=not opts.no_floor)
     except IfcSpgError as exc:
         print(f'ifc-spg render: {exc}', file=sys.stderr)
         return 2

@@ -20,7 +20,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('bag', nargs='?', help='bag directory (ifc-spg run / bag record)')
     parser.add_argument('--live', metavar='ROBOT', default=None,
                         help='instead of a bag: the running SPG of robot ROBOT, from its '
-                             'topics (drag a gizmo to stream a target)')
+                             'topics (drag a gizmo to stream a target; enable and the live '
+                             'parameters of its spg_node in the page)')
+    parser.add_argument('--spg-node', default='spg_node',
+                        help='with --live: the SPG node whose enable and live parameters the '
+                             'page sets (default spg_node)')
     parser.add_argument('--host', default='127.0.0.1',
                         help='interface to serve on (default loopback; 0.0.0.0 exposes it)')
     parser.add_argument('--port', type=int, default=8080, help='TCP port (default 8080)')
@@ -28,7 +32,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if (opts.bag is None) == (opts.live is None):
         parser.error('give a bag directory or --live ROBOT')
     try:
-        cockpit = LiveCockpit(opts.live, None, opts.host, opts.port) if opts.live else \
+        cockpit = LiveCockpit(opts.live, None, opts.host, opts.port,
+                              opts.spg_node) if opts.live else \
             Cockpit(load_bag(opts.bag), opts.host, opts.port)
     except IfcSpgError as exc:
         print(f'ifc-spg view: {exc}', file=sys.stderr)

@@ -2,12 +2,15 @@
 
     ifc-spg render BAG -o run.mp4|run.gif|run.webp [--fps 25] [--size 640x480]
                    [--start S] [--duration S] [--scene NAME] [--no-ghost] [--shadows]
+                   [--no-floor]
 
 Each frame shows the recorded ``joint_states`` (positions) at its time, the environment's
 joints (doors, drawers: ``sim/env_joint_states``), the contact force on the tool
-(``sim/contact_wrench``) as a red arrow (2 cm per N, at the tool, shifted 5 cm towards the
-camera so the tool does not hide it) and the virtual robot q_v
-(``command/joint_position``) as a translucent green ghost. The robot comes from the bag's
+(``sim/contact_wrench``) as a bright red arrow labelled with its magnitude (2 cm per N, at
+the tool, shifted 5 cm towards the camera so the tool does not hide it) and the virtual robot
+q_v (``command/joint_position``) as a translucent green ghost. A floor of 10 cm checker
+squares (3 m x 3 m around the robot's base, at z = 0 of the world) and a yellow 10 cm scale
+bar on it, labelled, let a viewer judge distances. The robot comes from the bag's
 SPG configuration (``custom_data`` or ``spg/config``), the scene, its options and q0 (the
 scene is anchored at the tool pose of q0) from the run's scenario record (``ifc-spg run``);
 a live bag does not know the bridge's scene: pass ``--scene`` (default ``free``).
@@ -39,8 +42,13 @@ from ifc_spg.offline.runner import SCENARIO_KEY
 __all__ = ['RenderResult', 'ffmpeg_exe', 'render']
 
 FORCE_SCALE = 0.02  # [m/N] arrow length per newton
+FLOOR_TILE = 0.1  # [m] side of a floor checker square
+FLOOR_HALF = 1.5  # [m] half side of the floor, around the robot's base
 _GHOST_RGBA = (0.2, 0.9, 0.3, 0.22)
-_ARROW_RGBA = (0.9, 0.1, 0.1, 1.0)
+_ARROW_RGBA = (1.0, 0.1, 0.1, 1.0)
+_LIGHT_RGBA = (0.62, 0.64, 0.68, 1.0)
+_DARK_RGBA = (0.36, 0.38, 0.42, 1.0)
+_BAR_RGBA = (1.0, 0.85, 0.1, 1.0)
 
 
 class RenderResult(dict):
@@ -209,11 +217,12 @@ class _Scene:
         sim: The :class:`sim_bridge.simulation.Simulation` of the scene.
         size: (width, height) in pixels.
         view: Camera (azimuth, elevation) in degrees.
+        floor: Draw the checker floor and the scale bar (:func:`_floor`).
     """
 
-    def __init__(self, mujoco, sim, size, view=(140.0, -20.0)):
+    def __init__(self, mujoco, sim, size, view=(140.0, -20.0), floor=True):
         self.mj, self.sim = mujoco, sim
-        m = self.model = sim.model
+        m = self.model = _render_model(mujoco, sim) if floor else sim.model
         self.names = list(sim.joint_names)
         self.qadr = np.array([m.jnt_qposadr[m.joint(j).id] for j in self.names])
         self.env_adr = {j: m.jnt_qposadr[m.joint(j).id] for j in sim.env_joint_names}
@@ -237,6 +246,22 @@ class _Scene:
         self.cam.azimuth, self.cam.elevation = (float(v) for v in view)
         self.opt = mujoco.MjvOption()
         self.pert = mujoco.MjvPerturb()
+        self.floor = _floor(mujoco, m, base, p_tool) if floor else []
+
+    def _add_floor(self, scn):
+        """The checker floor and the scale bar (:func:`_floor`), as far as the scene holds."""
+        mj = self.mj
+        for kind, size, pos, rgba, label, matid in self.floor:
+            if scn.ngeom >= scn.maxgeom:
+                return
+            geom = scn.geoms[scn.ngeom]
+            mj.mjv_initGeom(geom, kind, size, pos, _EYE, rgba)
+            geom.label, geom.emission = label, 0.3  # readable away from the headlight
+            if matid >= 0:  # mjv_initGeom leaves the texture off: take the material's
+                geom.matid = matid
+                geom.texid = self.model.mat_texid[matid, self.mj.mjtTextureRole.mjTEXROLE_RGB]
+                geom.texrepeat[:], geom.texuniform = self.model.mat_texrepeat[matid], 1
+            scn.ngeom += 1
 
     def frame(self, q, env_q, q_v, force, shadows):
         """One image: joints ``q`` and ``env_q`` (name -> value), the ghost, the force arrow.
@@ -259,6 +284,7 @@ class _Scene:
         if not shadows:  # software GL: shadows and reflections are half the frame time
             scn.flags[mj.mjtRndFlag.mjRND_SHADOW] = 0
             scn.flags[mj.mjtRndFlag.mjRND_REFLECTION] = 0
+        self._add_floor(scn)
         if q_v is not None:
             self._add_ghost(scn, q, q_v)
         if force is not None and scn.ngeom < scn.maxgeom and np.linalg.norm(force) > 0.2:
@@ -292,13 +318,68 @@ class _Scene:
         mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3),
                         np.eye(3).reshape(-1), _ARROW_RGBA)
         # the arrow points along the force the environment exerts on the tool
-        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_ARROW, 0.008, p, p + FORCE_SCALE * force)
+        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_ARROW, 0.014, p, p + FORCE_SCALE * force)
+        geom.emission = 0.6  # lit from inside: red on any background, shadowed or not
+        geom.label = f'{np.linalg.norm(force):.1f} N'
         scn.ngeom += 1
 
     def close(self):
         """Free the renderer and the simulation."""
         self.renderer.close()
         self.sim.close()
+
+
+_EYE = np.eye(3).reshape(-1)
+_FLOOR = 'ifc_render_floor'  # the checker texture and material added for the floor
+
+
+def _render_model(mujoco, sim):
+    """The scene's model with a checker texture and material for the floor (nothing else).
+
+    Compiled from a copy of the simulation's MjSpec: the bodies, joints and geoms (and their
+    indices) are the simulation's; the physics model is left alone.
+
+    Raises:
+        IfcSpgError: The copy compiles to another structure (then it would not show the bag).
+    """
+    spec = sim.robot_spec.spec.copy()
+    light, dark = (c[:3] for c in (_LIGHT_RGBA, _DARK_RGBA))
+    spec.add_texture(name=_FLOOR, type=mujoco.mjtTexture.mjTEXTURE_2D,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=64, height=64,
+                     rgb1=light, rgb2=dark)
+    material = spec.add_material(name=_FLOOR, texuniform=True,
+                                 texrepeat=[1 / FLOOR_TILE, 1 / FLOOR_TILE])
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = _FLOOR
+    model, sim_model = spec.compile(), sim.model
+    for size in ('nq', 'nbody', 'njnt', 'ngeom', 'nsite'):
+        if getattr(model, size) != getattr(sim_model, size):
+            raise IfcSpgError(f'render: the scene with its floor material has {size} '
+                              f'{getattr(model, size)}, the simulation '
+                              f'{getattr(sim_model, size)}; render with --no-floor')
+    return model
+
+
+def _floor(mujoco, model, base, p_tool):
+    """``[(mjtGeom, size, pos, rgba, label, material)]``: a checker floor at z = 0 and a bar.
+
+    The floor is a plane :data:`FLOOR_HALF` around the robot's base, its squares
+    :data:`FLOOR_TILE` wide (the material of :func:`_render_model`, -1 where the model has
+    none). The bar, :data:`FLOOR_TILE` long and labelled, lies along y on a grid line two
+    squares in front of the base, towards the tool.
+    """
+    cx, cy = (round(float(v) / FLOOR_TILE) * FLOOR_TILE for v in base[:2])
+    matid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_MATERIAL, _FLOOR)
+    out = [(mujoco.mjtGeom.mjGEOM_PLANE, np.array([FLOOR_HALF, FLOOR_HALF, FLOOR_TILE]),
+            np.array([cx, cy, 0.0]), np.array([1.0, 1.0, 1.0, 1.0]), '', matid)]
+    ahead = np.asarray(p_tool[:2], float) - np.asarray(base[:2], float)
+    norm = float(np.linalg.norm(ahead))
+    ahead = ahead / norm if norm > 1e-6 else np.array([1.0, 0.0])
+    x0 = cx + FLOOR_TILE * round(2 * ahead[0])
+    y0 = cy + FLOOR_TILE * round(2 * ahead[1])
+    out.append((mujoco.mjtGeom.mjGEOM_BOX, np.array([0.012, FLOOR_TILE / 2, 0.004]),
+                np.array([x0, y0 + FLOOR_TILE / 2, 0.004]), np.array(_BAR_RGBA),
+                f'{FLOOR_TILE * 100:g} cm', -1))
+    return out
 
 
 def _frame_span(states, start, duration, fps):
@@ -311,7 +392,8 @@ def _frame_span(states, start, duration, fps):
 
 
 def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, scene=None,
-           ghost=True, quiet=False, stream=None, shadows=False, view=(140.0, -20.0)):
+           ghost=True, quiet=False, stream=None, shadows=False, view=(140.0, -20.0),
+           floor=True):
     """Render a bag's recorded motion to ``output`` (.mp4, .gif, .webp).
 
     Args:
@@ -327,6 +409,7 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
         stream: Where progress goes (default stderr).
         shadows: Render shadows and reflections (slower on software GL).
         view: Camera (azimuth, elevation) in degrees (-90 elevation looks straight down).
+        floor: Draw the checker floor (10 cm squares) and the 10 cm scale bar.
 
     Returns:
         :class:`RenderResult`.
@@ -354,7 +437,7 @@ def render(bag, output, fps=25.0, size=(640, 480), start=0.0, duration=None, sce
             not -90.0 <= float(view[1]) <= 90.0:
         raise ParameterError(f'--view must be AZIMUTH,ELEVATION in degrees with the elevation '
                              f'in [-90, 90], got {view}')
-    view = _Scene(mujoco, sim, (w, h), view)
+    view = _Scene(mujoco, sim, (w, h), view, floor)
     t0, n_frames = _frame_span(states, start, duration, fps)
     write, close = _writer(output, fps, (w, h))
     wall = time.monotonic()

@@ -1,15 +1,17 @@
 """``ifc-spg view BAG``: a browser cockpit of a recorded run (viser).
 
     ifc-spg view out/run/bag [--port 8080] [--host 127.0.0.1]
-    ifc-spg view --live lbr_iiwa14 [--port 8080]      (a running SPG, from its topics)
+    ifc-spg view --live lbr_iiwa14 [--port 8080] [--spg-node spg_node]
+                                                      (a running SPG, from its topics)
 
 Serves a 3D view on ``http://HOST:PORT`` (loopback by default; ``--host 0.0.0.0`` to expose)
 and prints the URL: the robot at the measured q (solid) and at q_v (a translucent blue
 ghost), the Cartesian task targets of ``/spg/markers`` (axes), a floor grid, the
 ``spg/status`` of the time shown (stack, SPG state, tank energies, PSPM stall), and a
-timeline slider with play/pause over the bag's joint states. The robot is the bag's
-``/robot_description`` (URDF; else generated from the robot its SPG configuration names),
-drawn with its primitive shapes, placed by pinocchio's FK of that URDF.
+timeline slider with play/pause over the bag's joint states (live: a gizmo per streamed pose
+target, and controls for spg_node's ``enable`` and live parameters, :class:`LiveCockpit`).
+The robot is the bag's ``/robot_description`` (URDF; else generated from the robot its SPG
+configuration names), drawn with its primitive shapes, placed by pinocchio's FK of that URDF.
 
 viser (pinned in requirements.txt) ships its built web client inside the wheel, so the page
 works without internet. Chosen over rerun: viser is a Python scene graph with GUI controls
@@ -423,13 +425,21 @@ class LiveCockpit(_Scene):
     geometry_msgs/PoseStamped in ``world`` on the task's stream topic. Redraws at most 30
     times a second.
 
+    The ``spg_node`` folder holds a checkbox for ``enable`` and a control per other live
+    parameter of the node (:data:`ifc_spg.node.spg_node.LIVE_PARAMETERS`); a change (in the
+    page, or with :meth:`set_parameter`) goes to the node's parameter services (rclpy; on the
+    built-in backend ``enable`` goes on the latched ``spg/enable`` and the rest is refused,
+    :mod:`ifc_spg.tools.remote_parameters`). A refused value is shown under the controls
+    and the control returns to the node's value.
+
     Args:
         robot: Robot configuration name (the URDF is generated from its MJCF).
         node: An ``ifc_spg.ros.Node`` to use (None: ``ros.init`` and a node ``spg_view``).
         host, port: Where to serve.
+        spg_node: Name of the SPG node whose parameters the controls set.
     """
 
-    def __init__(self, robot, node=None, host='127.0.0.1', port=8080):
+    def __init__(self, robot, node=None, host='127.0.0.1', port=8080, spg_node='spg_node'):
         from ifc_spg import ros
         from ifc_spg.model import RobotModel
         from ifc_spg.ros import msg
@@ -456,8 +466,106 @@ class LiveCockpit(_Scene):
             node.create_subscription(msg.MarkerArray, 'spg/markers', self._on_markers, 10)
         self.label = self.server.gui.add_markdown('waiting for joint_states ...')
         self.status = self.server.gui.add_markdown('')
+        self._add_controls(spg_node)
         self._spinner = threading.Thread(target=self._spin, daemon=True)
         self._spinner.start()
+
+    def _add_controls(self, spg_node):
+        """The ``spg_node`` folder: a control per live parameter and the last reply."""
+        import dataclasses
+
+        from ifc_spg.node.config import PARAMETERS, SpgConfig
+        from ifc_spg.node.spg_node import LIVE_PARAMETERS
+        from ifc_spg.tools.remote_parameters import remote_parameters
+
+        self.remote = remote_parameters(self.node, spg_node)
+        defaults: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(SpgConfig)}
+        gui = self.server.gui
+        self.controls: dict[str, Any] = {}
+        self.values: dict[str, Any] = {}  # the node's value of each control (last known)
+        self._syncing = False  # True while the cockpit itself sets a control
+        with gui.add_folder(spg_node):
+            for p in PARAMETERS:
+                if p.name not in LIVE_PARAMETERS:
+                    continue
+                value = self.values[p.name] = defaults[p.field]
+                hint = p.description + (f' [{p.range[0]:g}, {p.range[1]:g}]' if p.range else '')
+                control: Any
+                if isinstance(value, bool):
+                    control = gui.add_checkbox(p.name, initial_value=value, hint=hint)
+                else:  # no min/max here: the node checks the range and says why it refuses
+                    control = gui.add_number(p.name, initial_value=value, hint=hint,
+                                             step=1 if isinstance(value, int) else 0.001)
+                def on_update(_: object, name: str = p.name) -> None:
+                    self._on_control(name)
+
+                control.on_update(on_update)
+                self.controls[p.name] = control
+            self.reply = gui.add_markdown('')
+        self._synced = False  # the controls show the node's values (GetParameters)
+
+    def _on_control(self, name):
+        if not self._syncing:
+            self.set_parameter(name, self.controls[name].value)
+
+    def _show_values(self, values):
+        self._syncing = True
+        try:
+            for name, value in values.items():
+                if name in self.controls and value is not None:
+                    self.values[name] = value
+                    self.controls[name].value = value
+        finally:
+            self._syncing = False
+
+    def set_parameter(self, name, value, timeout=5.0):
+        """Set live parameter ``name`` of the SPG node (as its control in the page does).
+
+        Returns:
+            The SetParametersResult (``successful``, ``reason``); also shown in the page.
+            A refused value never raises: the control returns to the node's value.
+        """
+        from ifc_spg.ros.parameters import SetParametersResult
+
+        old = self.values.get(name)
+        try:
+            if name not in self.controls:
+                raise IfcSpgError(f"'{name}' is not a live parameter of the cockpit's node; "
+                                  f"live: {', '.join(self.controls)}")
+            try:
+                if isinstance(old, bool):
+                    value = bool(value)
+                elif isinstance(old, int) and float(value).is_integer():
+                    value = int(value)
+                elif isinstance(old, float):
+                    value = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"'{name}' takes a number like {old!r}, not "
+                                     f'{value!r}') from None
+            result = self.remote.set(name, value, timeout)
+        except Exception as exc:  # noqa: BLE001 - shown in the page, the cockpit goes on
+            result = SetParametersResult(False, str(exc) if isinstance(exc, IfcSpgError)
+                                         else f'{type(exc).__name__}: {exc}')
+        if result.successful:
+            self._show_values({name: value})
+            self.reply.content = f'{name} = {value!r}: {result.reason or "set"}'
+        else:
+            self.reply.content = f'**{name} = {value!r} refused**: {result.reason}'
+            if name in self.controls:
+                self._show_values({name: old})
+        return result
+
+    def get_parameters(self, timeout=5.0):
+        """``{name: value}`` of the live parameters as the SPG node has them now (rclpy)."""
+        got: dict[str, Any] = {}
+        answered = threading.Event()
+        def done(values: dict[str, Any]) -> None:
+            got.update(values)
+            answered.set()
+
+        self.remote.get(list(self.controls), done)
+        answered.wait(timeout)
+        return got
 
     def _ordered(self, m):
         index = {n: i for i, n in enumerate(m.name)}
@@ -523,6 +631,9 @@ class LiveCockpit(_Scene):
         last = 0.0
         while not self._stop.is_set() and self._ros.ok():
             self._ros.spin_once(self.node, timeout_sec=0.01)
+            if not self._synced and self.remote.ready():
+                self._synced = True
+                self.remote.get(list(self.controls), self._show_values)
             now = time.monotonic()
             if now - last >= 1 / 30 and self.q is not None:  # at most 30 frames a second
                 last = now
