@@ -299,12 +299,23 @@ def _qdot_v(run, t0):
     return t[1:][m], qd[m]
 
 
+#: Explanatory runs of Table 3.4 (ours, no claim reads them): A7 started this far [deg] from
+#: its 170 deg limit, Table 3.2's pose and circle otherwise; do clamping and its jump appear
+#: once the motion reaches a limit, without the velocity box?
+A7_START_FROM_LIMIT_DEG = (5.0, 15.0)
+
+
+def _a7_start(d):
+    return {'q0_deg': [0.0, 30.0, 0.0, -60.0, 0.0, 90.0, 170.0 - d]}
+
+
 def _circle_numbers(r, robot):
     t, qn = _qdot_norm(r, _T_CIRCLE)
     m = r.after(_T_CIRCLE, r.s.t_cmd)
     qv = r.s.q_v[m]
     near = (qv <= robot.q_min + _AT_LIMIT) | (qv >= robot.q_max - _AT_LIMIT)
     at_limit = int(np.sum(np.any(near, axis=1)))
+    margin = np.min(np.minimum(qv - robot.q_min, robot.q_max - qv), axis=0)  # per joint
     # skip the first 0.1 s after the stack switch (the switch itself is not the clamp)
     tv, qdv = _qdot_v(r, _T_CIRCLE + 0.1)
     jumps = np.linalg.norm(np.diff(qdv, axis=0), axis=1) if len(qdv) > 1 else np.zeros(1)
@@ -317,7 +328,9 @@ def _circle_numbers(r, robot):
             'max_qdot_v_jump_rad_s': float(jumps[k]),
             'max_qdot_v_jump_at_s': float(tv[k + 1]) if len(tv) > k + 1 else None,
             'contact_lost_share': float(np.mean(_smooth(f, 25) > -1.0)),
-            'position_error_rms_m': _rms(ep[r.task('circle')['t'] >= _T_CIRCLE + 0.5])}
+            'position_error_rms_m': _rms(ep[r.task('circle')['t'] >= _T_CIRCLE + 0.5]),
+            'closest_limit_deg': float(np.rad2deg(margin.min())),
+            'closest_limit_joint': int(np.argmin(margin)) + 1}
 
 
 def _check_3_4(runs, quick):
@@ -325,17 +338,24 @@ def _check_3_4(runs, quick):
 
     robot = RobotModel.from_config('lbr4')
     out, txt = {}, []
-    for v in ('full', 'relaxed', 'full_daqp', 'relaxed_daqp'):
+    sweep = [f'{v}_a7_{d:g}' for d in A7_START_FROM_LIMIT_DEG for v in ('full', 'relaxed')]
+    for v in ('full', 'relaxed', 'full_daqp', 'relaxed_daqp', *sweep):
         if v not in runs:
             continue
         o = out[v] = _circle_numbers(runs[v], robot)
         txt.append(f'{v}: peak |qdot| {o["peak_qdot_norm_rad_s"]:.3f} rad/s, '
-                   f'{o["ticks_at_joint_limit"]} ticks at a limit, largest per-tick jump of '
-                   f'qdot_v {o["max_qdot_v_jump_rad_s"]:.3f} rad/s (t = '
+                   f'{o["ticks_at_joint_limit"]} ticks at a limit (closest '
+                   f'{o["closest_limit_deg"]:.1f} deg, A{o["closest_limit_joint"]}), largest '
+                   f'per-tick jump of qdot_v {o["max_qdot_v_jump_rad_s"]:.3f} rad/s (t = '
                    f'{_fmt(o["max_qdot_v_jump_at_s"], digits=3)} s), contact lost '
                    f'{100 * o["contact_lost_share"]:.0f} %')
-    return Check(out, 'nullspace (Alg. C.1/C.2, no PSPM) ' + '; '.join(txt[:2]) +
-                 ('; beside it, DAQP + PSPM (ours): ' + '; '.join(txt[2:]) if txt[2:] else ''))
+    daqp = [t for t in txt if t.startswith(('full_daqp', 'relaxed_daqp'))]
+    swept = [t for t in txt if '_a7_' in t.split(':')[0]]
+    return Check(out, 'nullspace (Alg. C.1/C.2, no PSPM, no velocity box) ' + '; '.join(txt[:2])
+                 + ('; beside it, DAQP + PSPM with the box (ours): ' + '; '.join(daqp)
+                    if daqp else '')
+                 + ('; A7 started closer to its limit (ours, no claim): ' + '; '.join(swept)
+                    if swept else ''))
 
 
 def _fig_3_4(runs, quick, path):
@@ -563,7 +583,10 @@ CH3_EXPERIMENTS = (
                 RunSpec('full_daqp', 'thesis_3_4_circle_drawing_full.yaml', _DAQP_PSPM,
                         quick=5.0),
                 RunSpec('relaxed_daqp', 'thesis_3_4_circle_drawing_relaxed.yaml', _DAQP_PSPM,
-                        quick=5.0)),
+                        quick=5.0),
+                *(RunSpec(f'{v}_a7_{d:g}', f'thesis_3_4_circle_drawing_{v}.yaml',
+                          _a7_start(d), full_only=True)
+                  for d in A7_START_FROM_LIMIT_DEG for v in ('full', 'relaxed'))),
                _check_3_4, _fig_3_4),
     Experiment('table_3_5', 'Table 3.5', 'Cup holding (LBR): orientation held while the arm '
                'is pushed around', _cup_runs('cup', 'thesis_3_5_cup_holding.yaml', 3.0),

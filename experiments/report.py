@@ -20,9 +20,10 @@ offline lockstep runner (SPG + MuJoCo bridge in one process, 500 Hz SPG, 1 kHz p
 Table 5.1 uses `ifc_spg.offline.constrained_evaluate`, report Ch. 6 the dynamics solver.
 The Ch. 3 scenarios run the thesis' Ch. 3 machinery: the hierarchical nullspace mapping
 (Alg. C.1/C.2) without the energy tank and without the torque-limit task; Table 3.4 shows
-the DAQP cascade with PSPM (ours) beside it. The mapping takes the SPG's velocity box by
-saturation in the null space (SNS, Flacco et al. 2012), which keeps the task priorities;
-this replaced a per-joint clip after the first v3 results (named in the claims' rows).
+the DAQP cascade with PSPM (ours) beside it. Since v5 (issue 29) the mapping runs without
+Ch. 4's joint velocity and acceleration box (SPG option `velocity_box: false`): Alg. C.1/C.2
+clamp at the position limits only. v3/v4 saturated the box inside the hierarchy (SNS,
+Flacco et al. 2012), v2 clipped per joint (both named in the claims' rows).
 
 **Pass rules.** Each claim's rule (metric, thesis value, threshold, source) is in
 `experiments/claims.py` (version {version}), written from the thesis before the runs; the
@@ -54,22 +55,27 @@ NOTES = {
     'k_sweep': "D is scaled with sqrt(K) (constant damping ratio). The caption's second "
                'statement (force error slightly higher at higher K) is a claim of its own now.',
     'speed_sweep': "Run at the caption's K = 400 Nm/rad (v1: K = 200).",
-    'table_3_4': 'The claim `table_3_4.contact` was added after the first nullspace run: at '
-                 'the v1 setup (R = 0.15 m at 0.16 Hz, chosen so that A7 reaches its limit) the '
-                 'pen leaves the table in both variants (contact lost in {lost_full} of the '
-                 'samples with constant orientation, {lost_relaxed} relaxed) - with the DAQP '
-                 'cascade + PSPM of v1 too ({lost_full_daqp} / {lost_relaxed_daqp}; v1 did not '
-                 'check contact, so its "reproduced" hid it). The nullspace baseline takes the '
-                 'velocity and acceleration box by saturation in the null space (SNS, after the '
-                 'v3 results: v3 first clipped the mapping per joint, which breaks the '
-                 'priorities); with SNS the relaxed peak |qdot| is {peak_ratio} of the full '
-                 "one. Every per-tick change of q_dot_v, the clamp's included, stays within "
-                 'a_max dT, so the clamp is no jump: the Fig. 3.13 discontinuity ratio is '
-                 '{jump_ratio}.',
-    'table_3_5': 'With the velocity box saturated inside the hierarchy (SNS) the virtual '
-                 'orientation (the first level) is held to {virtual} deg; when the baseline '
-                 'clipped its result per joint (the first v3 run) it drifted under the pushes '
-                 'and the claim failed.',
+    'table_3_4': "v5 (issue 29) runs the thesis' Ch. 3 baseline without Ch. 4's velocity "
+                 "box, from Table 3.2's start pose with its circle (R = 0.05 m at 0.16 Hz); "
+                 'v1-v4 started A7 6 deg from its limit with R = 0.15 m, the limit hit by '
+                 'construction and the pen off the table for most of the circle. Now the pen '
+                 'stays on the table (contact lost in {lost_full} of the samples with constant '
+                 'orientation, {lost_relaxed} relaxed), but no joint comes within dl_crit of a '
+                 'limit: the closest is {closest_full} (full) and {closest_relaxed} (relaxed). '
+                 'Without a clamp there is no discontinuity (ratio {jump_ratio}) and the two '
+                 'variants move alike (peak |qdot| ratio {peak_ratio}: the peak_qdot claim '
+                 'holds by a margin the clamp does not explain). The runs with A7 started '
+                 'closer to its limit (ours, no claim): {sweep}. With constant orientation '
+                 'the 5 cm circle barely turns A7 towards its limit (closest approach against '
+                 'the start); relaxed, the lowest-priority posture task q = 0 turns A7 away '
+                 'from it, unbounded without the box. Which limit the thesis hit depends on '
+                 'its pen mount '
+                 '(along y_ee, not the tool axis) and its start pose, neither of which the text '
+                 'gives.',
+    'table_3_5': 'Without the velocity box (v5) the virtual orientation (the first level) '
+                 'is held to {virtual} deg (v3/v4 saturated the box inside the hierarchy, '
+                 'SNS); when the baseline clipped its result per joint (the first v3 run) it '
+                 'drifted under the pushes and the claim failed.',
     'table_3_6': 'The settling window is back at the {settle} s first written (v1 widened it '
                  'to 1 s after a failing run); from {settle} s after a push the orientation '
                  'error reaches {settled} deg.',
@@ -78,9 +84,10 @@ NOTES = {
                  "against the thesis' setup: the real iCub's torso carries its weight on the "
                  'structure in the q_bar posture (Fig. B.3) and its joint-torque estimate '
                  'comes from a shoulder F/T sensor; ours has exact joint torques and a table '
-                 'placed by assumption (not tabulated). With SNS the cup hand moves up to '
-                 '{disp} mm (pitch + roll reading; {disp_ry} mm roll + yaw; bound 20 mm) while '
-                 'its orientation error reaches {ang} deg ({ang_ry} deg; bound 3 deg).',
+                 'placed by assumption (not tabulated). Without the velocity box (v5) the cup '
+                 'hand moves up to {disp} mm (pitch + roll reading; {disp_ry} mm roll + yaw; '
+                 'bound 20 mm) while its orientation error reaches {ang} deg ({ang_ry} deg; '
+                 'bound 3 deg).',
     'table_4_1': 'The stalling claim of the middle column (XI) is checked (v1 did not): ours '
                  'keeps sliding along the obstacle with 1b ({travel} mm of virtual travel '
                  'along y in the last second of 1b_3a); the obstacle and the friction of the '
@@ -194,6 +201,26 @@ def _lift_span(n, keys):
     return f'{min(times):.1f}-{max(times):.1f}' if times else 'n/a'
 
 
+def _closest(o):
+    return f"{o['closest_limit_deg']:.1f} deg from the limit of A{o['closest_limit_joint']}"
+
+
+def _a7_sweep(n):
+    """Table 3.4's explanatory runs: A7 started d deg from its limit (``full_a7_<d>``)."""
+    parts = []
+    for key in sorted((k for k in n if k.startswith('full_a7_')),
+                      key=lambda k: float(k.rsplit('_', 1)[1])):
+        d, rel = key.rsplit('_', 1)[1], n.get('relaxed_a7_' + key.rsplit('_', 1)[1])
+        o = n[key]
+        parts.append(f"from {d} deg: full {o['ticks_at_joint_limit']} ticks at a limit "
+                     f"(closest {o['closest_limit_deg']:.1f} deg), relaxed "
+                     + ('n/a' if rel is None else
+                        f"{rel['ticks_at_joint_limit']} (peak |qdot| "
+                        f"{rel['peak_qdot_norm_rad_s']:.2f} against "
+                        f"{o['peak_qdot_norm_rad_s']:.2f} rad/s full)"))
+    return '; '.join(parts) if parts else 'n/a (full runs only)'
+
+
 _F511_KEYS = ('joint_compliance_10', 'admittance_10', 'joint_compliance_45', 'admittance_45')
 _HJ, _HA = 'drawer_horizontal/joint_compliance', 'drawer_horizontal/admittance'
 
@@ -206,6 +233,9 @@ NOTE_FIELDS = {
         'lost_relaxed': lambda n: _pct(n['relaxed']['contact_lost_share']),
         'lost_full_daqp': lambda n: _pct(n['full_daqp']['contact_lost_share']),
         'lost_relaxed_daqp': lambda n: _pct(n['relaxed_daqp']['contact_lost_share']),
+        'closest_full': lambda n: _closest(n['full']),
+        'closest_relaxed': lambda n: _closest(n['relaxed']),
+        'sweep': _a7_sweep,
         'peak_ratio': lambda n: _fmt(n['relaxed']['peak_qdot_norm_rad_s'] /
                                      n['full']['peak_qdot_norm_rad_s']),
         'jump_ratio': lambda n: _fmt(n['full']['max_qdot_v_jump_rad_s'] /

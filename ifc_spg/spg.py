@@ -247,6 +247,11 @@ class SetPointGenerator:
         rho: Regularization of qdot_v in each level (4.45).
         torque_limits: Add the implicit top-level task |K (q_v - q)| <= tau_max (4.3) on a
             joint-impedance robot (the nullspace baseline cannot take it: pass False).
+        velocity_box: Bound qdot_v by the robot's joint velocity and acceleration limits
+            (4.31-4.33, Ch. 4). False: by the position limits only, one step ahead
+            ((q_m - q_v)/dT <= qdot_v <= (q_M - q_v)/dT, so q_v never leaves them), as the
+            Ch. 3 mapping (Alg. C.1/C.2), which knows no velocity or acceleration limit; the
+            passivity bounds of PSPM still apply when it is on.
         kernels: The kernels module of the tick (default :data:`ifc_spg.kernels.active`;
             :mod:`ifc_spg.kernels.reference` for the numpy reference).
         warm_up: Run this configuration's tick code once in the process before the first
@@ -259,10 +264,15 @@ class SetPointGenerator:
 
     def __init__(self, robot: RobotModel, stack: StackInput | None = None, *, dt: float = 0.002,
                  pspm: bool | PspmConfig = True, solver: str | Cascade = 'daqp',
-                 rho: float = 0.01, torque_limits: bool = True,
+                 rho: float = 0.01, torque_limits: bool = True, velocity_box: bool = True,
                  kernels: ModuleType | None = None, warm_up: bool = True):
         if not (np.isfinite(dt) and 0 < dt <= 1.0):
             raise ParameterError(f'dt must be a period in (0, 1] s, got {dt!r}')
+        if not isinstance(velocity_box, (bool, np.bool_)):
+            raise ParameterError(f'velocity_box must be True (the joint velocity and '
+                                 f'acceleration limits bound qdot_v) or False (the position '
+                                 f'limits only, Alg. C.1/C.2), got {velocity_box!r}')
+        self.velocity_box = bool(velocity_box)
         self.robot = robot
         self.dt = float(dt)
         n = robot.n
@@ -287,7 +297,9 @@ class SetPointGenerator:
         self.kin = Kinematics(robot)
         self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max,
                                            dt, kernels=kernels)
-        self._accel = np.ascontiguousarray(robot.a_max * self.dt, dtype=float)
+        # Without the velocity box no acceleration limit either (the soft box is unbounded).
+        self._accel = np.ascontiguousarray(robot.a_max * self.dt if self.velocity_box
+                                           else np.full(n, np.inf), dtype=float)
         self._q_min = np.ascontiguousarray(robot.q_min, dtype=float)
         self._q_max = np.ascontiguousarray(robot.q_max, dtype=float)
         self._zeros = np.zeros(n)
@@ -565,7 +577,7 @@ class SetPointGenerator:
             raise IfcSpgError('internal: q_v is unset after reset')
         self.kin.update(q, qdot, q_v)
 
-        limits_box = self._limits.box(q_v)
+        limits_box = self._limits.box(q_v) if self.velocity_box else self._position_box(q_v)
         box = self._velocity_box(q, q_v, limits_box)
         qd_prev = self.qdot_v
         t_solve = time.perf_counter()
@@ -643,6 +655,11 @@ class SetPointGenerator:
                 act = Activation(q.copy(), qdot.copy(), self.q_v.copy(), float(t))
                 self.activations = self.activations[:1] + [act]
         return float(t) - self._t0
+
+    def _position_box(self, q_v: np.ndarray) -> VelocityBox:
+        """The position limits one step ahead (``velocity_box`` off): q_v stays inside them."""
+        return VelocityBox(np.minimum((self._q_min - q_v) / self.dt, 0.0),
+                           np.maximum((self._q_max - q_v) / self.dt, 0.0))
 
     def _velocity_box(self, q: np.ndarray, q_v: np.ndarray,
                       limits_box: VelocityBox) -> VelocityBox:

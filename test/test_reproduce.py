@@ -160,23 +160,30 @@ def test_table_3_3_wiping(quick):
 
 
 def test_table_3_4_relaxed_rotation_avoids_the_joint_limit(quick):
-    """Nullspace baseline (Ch. 3): full orientation clamps A7 at dl_crit of its limit, and
-    the clamp is a jump of qdot_v; relaxed avoids the limit and the jump. DAQP beside it.
-    (With the SNS baseline the relaxed variant's peak |qdot| is not smaller and the clamp
-    is no jump: both claims fail in the report; the verdicts are those of the numbers.)"""
+    """Nullspace baseline (Ch. 3) without Ch. 4's velocity box, from Table 3.2's start pose
+    and circle (issue 29): the pen stays on the table and the relaxed variant reaches no
+    limit; the DAQP + PSPM variant beside it keeps the box, so its every per-tick change of
+    qdot_v stays within a_max dT. The claims are evaluated as written: from this pose no
+    joint comes near a limit (the check prints the closest approach), so limit_full and the
+    discontinuity claim follow the numbers, whichever way they go."""
     n = quick('table_3_4').numbers
-    assert n['full']['ticks_at_joint_limit'] > 100
+    for v in ('full', 'relaxed'):
+        # on the table most of the time (v1-v4 at R = 0.15 m: off for 61-77 %); the quick
+        # run's 2.5 s window is mostly the circle's start (full run: the contact claim)
+        assert n[v]['contact_lost_share'] < 0.2, (v, n[v])
+        assert 1 <= n[v]['closest_limit_joint'] <= 7 and n[v]['closest_limit_deg'] >= 0.0
     assert n['relaxed']['ticks_at_joint_limit'] == 0
-    # every per-tick change of qdot_v stays within the acceleration box (a_max dT per
-    # joint), the clamp's included
     from ifc_spg.model import RobotModel
     bound = float(np.linalg.norm(RobotModel.from_config('lbr4').a_max * 0.002))
-    for v in ('full', 'relaxed'):
+    for v in ('full_daqp', 'relaxed_daqp'):
         assert n[v]['max_qdot_v_jump_rad_s'] <= bound + 1e-9, (v, n[v], bound)
     got = {c['id']: c['passed'] for c in quick('table_3_4').claims}
     assert got['table_3_4.peak_qdot'] == (n['relaxed']['peak_qdot_norm_rad_s'] <
                                           n['full']['peak_qdot_norm_rad_s'])
-    assert n['full_daqp']['ticks_at_joint_limit'] > 0  # the Ch. 4 cascade shown beside
+    assert got['table_3_4.limit_full'] == (n['full']['ticks_at_joint_limit'] > 0)
+    for name in ('full', 'relaxed'):  # the Ch. 3 baseline runs without the box
+        assert not load_scenario(find_config_dir() / 'scenarios' /
+                                 f'thesis_3_4_circle_drawing_{name}.yaml').spg.velocity_box
 
 
 def test_table_3_5_cup_holding_keeps_the_orientation_while_pushed(quick):

@@ -268,6 +268,36 @@ def test_nullspace_baseline_clamps_joints_near_limits():
     assert q_v[-1, 0] <= q0[0] + 1e-9  # joint 1 was clamped, not driven into its limit
 
 
+def test_without_the_velocity_box_only_the_position_limits_bound_qdot_v():
+    """Alg. C.1/C.2 (the Ch. 3 baseline) know no velocity or acceleration limit:
+    ``velocity_box=False`` leaves qdot_v above v_max and its step above a_max dT, and
+    q_v inside its position limits (the one-step bound and C.2's clamp)."""
+    target = tool_position(IIWA, IIWA.q_home) + [0.3, -0.3, 0.0]
+    tasks = [CartesianPoseTask(IIWA, frame='tool', axes=['x', 'y', 'z'], equal=target,
+                               gain=50.0)]
+    runs = {}
+    for box in (True, False):
+        spg = SetPointGenerator(IIWA, tasks, solver='nullspace', pspm=False,
+                                torque_limits=False, velocity_box=box)
+        _, log = closed_loop(spg, IIWA, 50)
+        runs[box] = np.array([x[1] for x in log]), np.array([x[0] for x in log])
+    qd, _ = runs[True]
+    assert np.all(np.abs(qd) <= IIWA.v_max + 1e-9)
+    assert np.all(np.abs(np.diff(qd, axis=0)) <= IIWA.a_max * DT + 1e-9)
+    qd, q_v = runs[False]
+    assert np.any(np.abs(qd) > IIWA.v_max)
+    assert np.abs(qd[0]).max() > IIWA.a_max.max() * DT  # from rest in one tick
+    assert np.all((q_v >= IIWA.q_min) & (q_v <= IIWA.q_max))
+
+
+def test_velocity_box_must_be_a_bool():
+    with pytest.raises(ParameterError, match='velocity_box must be True'):
+        SetPointGenerator(IIWA, None, velocity_box='off')
+    from ifc_spg.node.config import SpgConfig
+    with pytest.raises(ParameterError, match="'velocity_box': 'off' is a str, expected a bool"):
+        SpgConfig(velocity_box='off')
+
+
 def test_info_reports_levels_and_tanks():
     tasks = [JointPositionTask(IIWA, equal='init', name='posture')]
     spg = SetPointGenerator(IIWA, tasks)

@@ -26,7 +26,8 @@ all rounding when the levels above already span the level: the saturated result 
 the box by construction (the saturated joints sit on their bounds, the free ones are
 scaled), not by a rank decision on round-off. The result is still clipped into the box as
 a last guard. The implicit torque-limit level, whose lock the cascades take as hard bounds,
-is not available.
+is not available. With the SPG's ``velocity_box`` off (the thesis' Ch. 3 setups) the box is
+the position limits one step ahead only, as Alg. C.1/C.2 have it.
 """
 
 from collections.abc import Sequence

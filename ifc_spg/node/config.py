@@ -42,6 +42,8 @@ class SpgConfig:
         solver: Cascade solver: 'daqp', 'proxsuite' or 'nullspace' (baseline).
         rho: Regularization of qdot_v per level (4.45), dimensionless.
         torque_limits: Add the implicit top-level task |tau_s| <= tau_max (4.3).
+        velocity_box: Bound qdot_v by the joint velocity and acceleration limits (4.31-4.33);
+            False: by the position limits only (the Ch. 3 nullspace mapping, Alg. C.1/C.2).
         pspm: Passive set-point modulation (energy tanks) on/off.
         pspm_initial_energy: E_r,init per joint in [J].
         pspm_max_energy: E_r,max per joint in [J].
@@ -89,6 +91,7 @@ class SpgConfig:
     solver: str = 'daqp'
     rho: float = 0.01
     torque_limits: bool = True
+    velocity_box: bool = True
     pspm: bool = True
     pspm_initial_energy: float = 0.5
     pspm_max_energy: float = 2.0
@@ -186,6 +189,9 @@ PARAMETERS = (
     Param('rho', 'rho', 'Regularization rho of qdot_v in each level (4.45)', (1e-8, 10.0)),
     Param('torque_limits', 'torque_limits',
           'Implicit top-level joint torque limit task |K (q_v - q)| <= tau_max (4.3)'),
+    Param('velocity_box', 'velocity_box',
+          "Bound qdot_v by the robot's joint velocity and acceleration limits (4.31-4.33); "
+          'false: by the position limits only, as the Ch. 3 nullspace mapping (Alg. C.1/C.2)'),
     Param('pspm.enabled', 'pspm', 'Passive set-point modulation (energy tanks, Sec. 4.2)'),
     Param('pspm.initial_energy', 'pspm_initial_energy', 'Initial tank energy E_r,init in [J]',
           (0.0, 1e4)),

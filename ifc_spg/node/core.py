@@ -253,7 +253,8 @@ class SpgRunner:
         self.robot = robot or robot_gains(RobotModel.from_config(config.robot), config)
         self.spg = SetPointGenerator(self.robot, None, dt=config.dt, pspm=config.pspm_config(),
                                      solver=config.solver, rho=config.rho,
-                                     torque_limits=config.torque_limits)
+                                     torque_limits=config.torque_limits,
+                                     velocity_box=config.velocity_box)
         self.clock = clock
         self._parse = parse_stack or parse_task_stack
         self.joint_names = tuple(self.robot.joint_names)

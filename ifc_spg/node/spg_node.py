@@ -22,7 +22,7 @@ with stamps that jumped (or restarted) it restarts from the measured q (see
 :mod:`ifc_spg.node.core`).
 
 Parameters (``ros2 param describe`` shows ranges and units): robot, dt, solver, rho,
-torque_limits, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget,
+torque_limits, velocity_box, pspm.{enabled, initial_energy, max_energy, shuffle, shuffle_budget,
 max_power}, impedance.{stiffness, damping}, watchdog.timeout, status.decimation,
 diagnostics.period, task_stack_file, topics.{joint_states, command, task_stack, status,
 diagnostics}, enable, command.{interface, joints, hold_when_disabled}, tick, hot_path. An unknown,
