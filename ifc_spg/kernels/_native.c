@@ -656,6 +656,82 @@ static PyObject *pspm_update(PyObject *self, PyObject *args) {
     return Py_BuildValue("(NNd)", v[0], v[1], emin);
 }
 
+/* ---- collision avoidance (ifc_spg.geometry.PairQuery) ---------------------------------- */
+
+PyDoc_STRVAR(collision_rows_doc,
+"collision_rows(J, within, point_a, point_b, distance, normal, mask_a, mask_b, eps, rows)\n\n"
+"Distance Jacobian rows of the pairs `within` (integer indices of the m pairs): per pair i,\n"
+"normal[i] = (point_b[i] - point_a[i]) / distance[i] where distance[i] > eps (else normal[i]\n"
+"is kept: coal's), then rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w)\n"
+"mask_b[i] - ((p_a x n)^T J_w) mask_a[i] with J (6, n) the joint Jacobian in the world\n"
+"frame (J_v = J[:3], J_w = J[3:]). point_a, point_b, normal (m, 3); masks and rows (m, n).\n"
+"Writes normal and rows (of the pairs within only).");
+
+static PyObject *collision_rows(PyObject *self, PyObject *args) {
+    PyObject *J_o, *w_o, *pa_o, *pb_o, *d_o, *nrm_o, *ma_o, *mb_o, *rows_o;
+    double eps;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOdO", &J_o, &w_o, &pa_o, &pb_o, &d_o, &nrm_o, &ma_o,
+                          &mb_o, &eps, &rows_o))
+        return NULL;
+    PyArrayObject *J = in_array(J_o, 2, "J");
+    if (!J) return NULL;
+    PyArrayObject *w = (PyArrayObject *)PyArray_FROMANY(w_o, NPY_INTP, 1, 1,
+                                                        NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED);
+    if (!w) {
+        Py_DECREF(J);
+        PyErr_SetString(PyExc_TypeError, "within must be a 1-D integer array");
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    npy_intp m = array_size(d_o, "distance"), n = PyArray_DIM(J, 1), k = PyArray_SIZE(w);
+    if (m < 0) goto done;
+    if (PyArray_DIM(J, 0) != 6) {
+        PyErr_SetString(PyExc_ValueError, "J must have 6 rows");
+        goto done;
+    }
+    const double *Jd = (const double *)PyArray_DATA(J), *d = in_data(d_o, m, "distance");
+    const double *pa = in_data(pa_o, 3 * m, "point_a"), *pb = in_data(pb_o, 3 * m, "point_b");
+    const double *ma = in_data(ma_o, m * n, "mask_a"), *mb = in_data(mb_o, m * n, "mask_b");
+    double *nrm = out_data(nrm_o, 3 * m, "normal"), *rows = out_data(rows_o, m * n, "rows");
+    if (!d || !pa || !pb || !ma || !mb || !nrm || !rows) goto done;
+    const npy_intp *idx = (const npy_intp *)PyArray_DATA(w);
+    for (npy_intp t = 0; t < k; t++) {
+        if (idx[t] < 0 || idx[t] >= m) {
+            PyErr_SetString(PyExc_IndexError, "within holds an index outside the pairs");
+            goto done;
+        }
+    }
+    for (npy_intp t = 0; t < k; t++) {
+        npy_intp i = idx[t];
+        const double *a = pa + 3 * i, *b = pb + 3 * i;
+        double *nv = nrm + 3 * i;
+        if (d[i] > eps) {
+            for (int c = 0; c < 3; c++) nv[c] = (b[c] - a[c]) / d[i];
+        }
+        double ca[3] = {a[1] * nv[2] - a[2] * nv[1], a[2] * nv[0] - a[0] * nv[2],
+                        a[0] * nv[1] - a[1] * nv[0]};
+        double cb[3] = {b[1] * nv[2] - b[2] * nv[1], b[2] * nv[0] - b[0] * nv[2],
+                        b[0] * nv[1] - b[1] * nv[0]};
+        const double *mai = ma + n * i, *mbi = mb + n * i;
+        double *r = rows + n * i;
+        for (npy_intp j = 0; j < n; j++) {
+            double lin = 0.0, wa = 0.0, wb = 0.0;
+            for (int c = 0; c < 3; c++) {
+                lin += nv[c] * Jd[c * n + j];
+                wa += ca[c] * Jd[(3 + c) * n + j];
+                wb += cb[c] * Jd[(3 + c) * n + j];
+            }
+            r[j] = lin * (mbi[j] - mai[j]) + wb * mbi[j] - wa * mai[j];
+        }
+    }
+    ret = Py_None;
+    Py_INCREF(ret);
+done:
+    Py_DECREF(J);
+    Py_DECREF(w);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
@@ -669,6 +745,7 @@ static PyMethodDef methods[] = {
     {"integrate", integrate, METH_VARARGS, integrate_doc},
     {"pspm_bounds", pspm_bounds, METH_VARARGS, pspm_bounds_doc},
     {"pspm_update", pspm_update, METH_VARARGS, pspm_update_doc},
+    {"collision_rows", collision_rows, METH_VARARGS, collision_rows_doc},
     {NULL, NULL, 0, NULL},
 };
 

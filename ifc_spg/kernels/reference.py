@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-__all__ = ['accept', 'accept_slack', 'integrate', 'limits_box', 'lock_if_satisfied',
-           'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup', 'stack_rows',
-           'torque_limit', 'velocity_box']
+__all__ = ['accept', 'accept_slack', 'collision_rows', 'integrate', 'limits_box',
+           'lock_if_satisfied', 'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup',
+           'stack_rows', 'torque_limit', 'velocity_box']
 
 _TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
 
@@ -300,3 +300,35 @@ def pspm_update(q: Array, q_v: Array, qdot_v: Array, avail: Array, half_K: Array
     if fixed.size:
         e[fixed] = energy[fixed]
     return e, dEk, float(e.min())
+
+
+# ---- collision avoidance (ifc_spg.geometry.PairQuery) ----------------------------------
+
+def collision_rows(J: Array, within: Array, point_a: Array, point_b: Array, distance: Array,
+                   normal: Array, mask_a: Array, mask_b: Array, eps: float,
+                   rows: Array) -> None:
+    """Distance Jacobian rows of the pairs ``within`` (writes ``normal`` and ``rows``).
+
+    Per pair i: ``normal[i] = (point_b[i] - point_a[i]) / distance[i]`` where
+    ``distance[i] > eps`` (else ``normal[i]`` is kept: coal's), then
+    ``rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i]
+    - ((p_a x n)^T J_w) mask_a[i]`` with J (6, n) the joint Jacobian in the world frame.
+    """
+    within = np.asarray(within, dtype=np.intp)
+    a, b, d = point_a[within], point_b[within], distance[within]
+    n = normal[within]
+    far = d > eps
+    n[far] = (b[far] - a[far]) / d[far, None]
+    normal[within] = n
+    Jw = J[3:]
+    ma, mb = mask_a[within], mask_b[within]
+    rows[within] = (n @ J[:3]) * (mb - ma) + (_cross(b, n) @ Jw) * mb - (_cross(a, n) @ Jw) * ma
+
+
+def _cross(a: Array, b: Array) -> Array:
+    """Row-wise cross product of (k, 3) arrays."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
