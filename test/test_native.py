@@ -368,6 +368,26 @@ def test_collision_rows_match_numpy():
                                1e-6, np.zeros((m, n)))
 
 
+def test_collision_cull_matches_numpy():
+    """The cull across calls (last bounds minus the lever times the joints' motion), C against
+    the reference: the same bounds and the same pairs left for coal."""
+    rng = np.random.default_rng(9)
+    for m, n in ((1, 7), (47, 7), (218, 14)):
+        lever = (rng.random((m, n)) < 0.5) * 2.5
+        last = rng.normal(size=n)
+        q = last + rng.normal(scale=0.02, size=n)
+        last_bound = rng.uniform(-0.1, 1.0, m)
+        out = []
+        for kern in (ref, nat):
+            dist = np.full(m, np.nan)
+            near = kern.collision_cull(last_bound, lever, q, last, 0.1, dist)
+            out.append((dist, near))
+        np.testing.assert_allclose(out[1][0], out[0][0], rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(out[1][1], out[0][1])
+        assert out[1][1].dtype == np.intp
+        assert m == 1 or 0 < out[1][1].size < m
+
+
 def test_bad_arguments_raise_instead_of_crashing():
     v = np.zeros(7)
     with pytest.raises(ValueError, match='q_prev'):

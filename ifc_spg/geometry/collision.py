@@ -422,13 +422,17 @@ class PairQuery:
         """
         m, n = self.m, self._n
         self._place(data)
+        near = None
         if not math.isfinite(influence):
             dist = np.full(m, -np.inf)
         elif q is not None and self._last_q is not None:
-            dist = self._last_bound - self._lever @ np.abs(q - self._last_q)
+            dist = np.empty(m)
+            near = self._kernels.collision_cull(self._last_bound, self._lever, q,
+                                                self._last_q, influence, dist)
         else:
             dist = self._gaps()
-        near = (dist <= influence).nonzero()[0]
+        if near is None:
+            near = (dist <= influence).nonzero()[0]
         exact = np.zeros(m, dtype=bool)
         rows = np.zeros((m, n))
         pa = np.empty((m, 3))
@@ -467,7 +471,7 @@ class PairQuery:
                 if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
                     normal[p] = res.normal
         if within and jacobians:
-            self._kernels.collision_rows(data.J, np.array(within), pa, pb, dist, normal,
+            self._kernels.collision_rows(data.J, within, pa, pb, dist, normal,
                                          self._mask_a, self._mask_b, _NORMAL_FROM_POINTS,
                                          rows)
         return within

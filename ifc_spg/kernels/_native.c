@@ -732,6 +732,44 @@ done:
     return ret;
 }
 
+PyDoc_STRVAR(collision_cull_doc,
+"collision_cull(last_bound, lever, q, last_q, influence, distance) -> near\n\n"
+"The cull across calls: distance = last_bound - lever @ |q - last_q| (lever (m, n)), and\n"
+"near, the indices (int array, ascending) where distance <= influence. Writes distance.");
+
+static PyObject *collision_cull(PyObject *self, PyObject *args) {
+    PyObject *lb_o, *lev_o, *q_o, *lq_o, *d_o;
+    double influence;
+    if (!PyArg_ParseTuple(args, "OOOOdO", &lb_o, &lev_o, &q_o, &lq_o, &influence, &d_o))
+        return NULL;
+    PyArrayObject *q = in_array(q_o, 1, "q");
+    if (!q) return NULL;
+    PyObject *ret = NULL;
+    npy_intp m = array_size(lb_o, "last_bound"), n = PyArray_SIZE(q);
+    if (m < 0) goto done;
+    const double *lb = in_data(lb_o, m, "last_bound"), *lev = in_data(lev_o, m * n, "lever");
+    const double *lq = in_data(lq_o, n, "last_q"), *qd = (const double *)PyArray_DATA(q);
+    double *d = out_data(d_o, m, "distance");
+    if (!lb || !lev || !lq || !d) goto done;
+    npy_intp count = 0;
+    for (npy_intp i = 0; i < m; i++) {
+        double s = 0.0;
+        const double *l = lev + n * i;
+        for (npy_intp j = 0; j < n; j++) s += l[j] * fabs(qd[j] - lq[j]);
+        d[i] = lb[i] - s;
+        if (d[i] <= influence) count++;
+    }
+    PyArrayObject *near = (PyArrayObject *)PyArray_SimpleNew(1, &count, NPY_INTP);
+    if (!near) goto done;
+    npy_intp *out = (npy_intp *)PyArray_DATA(near);
+    for (npy_intp i = 0, t = 0; i < m; i++)
+        if (d[i] <= influence) out[t++] = i;
+    ret = (PyObject *)near;
+done:
+    Py_DECREF(q);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
@@ -746,6 +784,7 @@ static PyMethodDef methods[] = {
     {"pspm_bounds", pspm_bounds, METH_VARARGS, pspm_bounds_doc},
     {"pspm_update", pspm_update, METH_VARARGS, pspm_update_doc},
     {"collision_rows", collision_rows, METH_VARARGS, collision_rows_doc},
+    {"collision_cull", collision_cull, METH_VARARGS, collision_cull_doc},
     {NULL, NULL, 0, NULL},
 };
 

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-__all__ = ['accept', 'accept_slack', 'collision_rows', 'integrate', 'limits_box',
+__all__ = ['accept', 'accept_slack', 'collision_cull', 'collision_rows', 'integrate', 'limits_box',
            'lock_if_satisfied', 'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup',
            'stack_rows', 'torque_limit', 'velocity_box']
 
@@ -303,6 +303,17 @@ def pspm_update(q: Array, q_v: Array, qdot_v: Array, avail: Array, half_K: Array
 
 
 # ---- collision avoidance (ifc_spg.geometry.PairQuery) ----------------------------------
+
+def collision_cull(last_bound: Array, lever: Array, q: Array, last_q: Array,
+                   influence: float, distance: Array) -> Array:
+    """The cull across calls: the bounds and the pairs left for coal.
+
+    Writes ``distance = last_bound - lever @ |q - last_q|``; returns the indices
+    (ascending) where ``distance <= influence``.
+    """
+    distance[:] = last_bound - lever @ np.abs(np.asarray(q, dtype=float) - last_q)
+    return np.flatnonzero(distance <= influence)
+
 
 def collision_rows(J: Array, within: Array, point_a: Array, point_b: Array, distance: Array,
                    normal: Array, mask_a: Array, mask_b: Array, eps: float,
