@@ -388,6 +388,23 @@ def test_collision_cull_matches_numpy():
         assert m == 1 or 0 < out[1][1].size < m
 
 
+def test_collision_level_matches_numpy():
+    """The damper level from the rows (the pairs within first, then open rows), C against the
+    reference, with fewer and with more pairs within than rows."""
+    rng = np.random.default_rng(10)
+    for m, n, R in ((1, 7, 1), (47, 7, 24), (218, 14, 8)):
+        rows, dist = rng.normal(size=(m, n)), rng.uniform(-0.01, 0.2, m)
+        pairs = np.sort(rng.choice(m, size=max(1, m // 2), replace=False))
+        out = []
+        for kern in (ref, nat):
+            A, lower = np.full((R, n), np.nan), np.full(R, np.nan)
+            within = kern.collision_level(rows, dist, pairs.tolist(), 0.1, 6.25, 0.02, A, lower)
+            out.append((A, lower, within))
+        for a, b in zip(out[1], out[0]):
+            np.testing.assert_array_equal(a, b)
+        assert out[1][2].dtype == np.intp
+
+
 def test_bad_arguments_raise_instead_of_crashing():
     v = np.zeros(7)
     with pytest.raises(ValueError, match='q_prev'):

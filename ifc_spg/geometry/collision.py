@@ -325,7 +325,10 @@ class PairQuery:
     def __init__(self, geometry: CollisionGeometry, pairs: Sequence[tuple[int, int]],
                  kernels: ModuleType | None = None) -> None:
         self.geometry = geometry
-        self._kernels = resolve(kernels)
+        #: the :mod:`ifc_spg.kernels` module of the cull and the rows
+        self.kernels = resolve(kernels)
+        #: the pairs of the last :meth:`compute` within the influence distance (ascending)
+        self.within: list[int] = []
         self.pairs = [(int(a), int(b)) for a, b in pairs]
         self.m = len(self.pairs)
         gm = geometry.model.copy()
@@ -427,7 +430,7 @@ class PairQuery:
             dist = np.full(m, -np.inf)
         elif q is not None and self._last_q is not None:
             dist = np.empty(m)
-            near = self._kernels.collision_cull(self._last_bound, self._lever, q,
+            near = self.kernels.collision_cull(self._last_bound, self._lever, q,
                                                 self._last_q, influence, dist)
         else:
             dist = self._gaps()
@@ -439,8 +442,11 @@ class PairQuery:
         pa.fill(np.nan)
         pb = pa.copy()
         if near.size:
-            self._narrowphase(near, influence, dist, pa, pb, rows, data, jacobians)
+            self.within = self._narrowphase(near, influence, dist, pa, pb, rows, data,
+                                            jacobians)
             exact[near] = True
+        else:
+            self.within = []
         if q is not None:
             self._last_q = np.array(q, dtype=float)
             self._last_bound = dist.copy()
@@ -471,7 +477,7 @@ class PairQuery:
                 if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
                     normal[p] = res.normal
         if within and jacobians:
-            self._kernels.collision_rows(data.J, within, pa, pb, dist, normal,
+            self.kernels.collision_rows(data.J, within, pa, pb, dist, normal,
                                          self._mask_a, self._mask_b, _NORMAL_FROM_POINTS,
                                          rows)
         return within

@@ -14,6 +14,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include <math.h>
+#include <string.h>
 
 static inline double np_max(double a, double b) {
     if (isnan(a)) return a;
@@ -770,6 +771,65 @@ done:
     return ret;
 }
 
+PyDoc_STRVAR(collision_level_doc,
+"collision_level(rows, distance, pairs, influence, gain, margin, A, lower) -> within\n\n"
+"The velocity damper level of a collision-avoidance task: within, the pairs (int array, in\n"
+"the order given) with distance < influence; the first R of them (R = lower's size) fill\n"
+"A[t] = rows[p] and lower[t] = -gain (distance[p] - margin), the other rows of A (R, n)\n"
+"are zero and their lower bounds -inf. rows (m, n). Writes A and lower.");
+
+static PyObject *collision_level(PyObject *self, PyObject *args) {
+    PyObject *rows_o, *d_o, *p_o, *A_o, *lo_o;
+    double influence, gain, margin;
+    if (!PyArg_ParseTuple(args, "OOOdddOO", &rows_o, &d_o, &p_o, &influence, &gain, &margin,
+                          &A_o, &lo_o))
+        return NULL;
+    PyArrayObject *pairs = (PyArrayObject *)PyArray_FROMANY(
+        p_o, NPY_INTP, 1, 1, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED);
+    if (!pairs) {
+        PyErr_SetString(PyExc_TypeError, "pairs must be a 1-D integer sequence");
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    npy_intp m = array_size(d_o, "distance"), R = array_size(lo_o, "lower");
+    npy_intp size = array_size(rows_o, "rows"), k = PyArray_SIZE(pairs);
+    if (m < 0 || R < 0 || size < 0) goto done;
+    npy_intp n = m > 0 ? size / m : 0;
+    const double *rows = in_data(rows_o, m * n, "rows"), *d = in_data(d_o, m, "distance");
+    double *A = out_data(A_o, R * n, "A"), *lo = out_data(lo_o, R, "lower");
+    if (!rows || !d || !A || !lo) goto done;
+    const npy_intp *p = (const npy_intp *)PyArray_DATA(pairs);
+    npy_intp count = 0;
+    for (npy_intp t = 0; t < k; t++) {
+        if (p[t] < 0 || p[t] >= m) {
+            PyErr_SetString(PyExc_IndexError, "pairs holds an index outside the pairs");
+            goto done;
+        }
+        if (d[p[t]] < influence) count++;
+    }
+    PyArrayObject *within = (PyArrayObject *)PyArray_SimpleNew(1, &count, NPY_INTP);
+    if (!within) goto done;
+    npy_intp *w = (npy_intp *)PyArray_DATA(within), r = 0;
+    for (npy_intp t = 0; t < k; t++) {
+        npy_intp i = p[t];
+        if (!(d[i] < influence)) continue;
+        w[r] = i;
+        if (r < R) {
+            memcpy(A + r * n, rows + i * n, (size_t)n * sizeof(double));
+            lo[r] = -gain * (d[i] - margin);
+        }
+        r++;
+    }
+    for (npy_intp t = count < R ? count : R; t < R; t++) {
+        memset(A + t * n, 0, (size_t)n * sizeof(double));
+        lo[t] = -INFINITY;
+    }
+    ret = (PyObject *)within;
+done:
+    Py_DECREF(pairs);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
@@ -785,6 +845,7 @@ static PyMethodDef methods[] = {
     {"pspm_update", pspm_update, METH_VARARGS, pspm_update_doc},
     {"collision_rows", collision_rows, METH_VARARGS, collision_rows_doc},
     {"collision_cull", collision_cull, METH_VARARGS, collision_cull_doc},
+    {"collision_level", collision_level, METH_VARARGS, collision_level_doc},
     {NULL, NULL, 0, NULL},
 };
 

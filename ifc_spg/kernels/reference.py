@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-__all__ = ['accept', 'accept_slack', 'collision_cull', 'collision_rows', 'integrate', 'limits_box',
-           'lock_if_satisfied', 'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup',
-           'stack_rows', 'torque_limit', 'velocity_box']
+__all__ = ['accept', 'accept_slack', 'collision_cull', 'collision_level', 'collision_rows',
+           'integrate', 'limits_box', 'lock_if_satisfied', 'normal_form', 'pspm_bounds',
+           'pspm_update', 'slack_setup', 'stack_rows', 'torque_limit', 'velocity_box']
 
 _TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
 
@@ -313,6 +313,26 @@ def collision_cull(last_bound: Array, lever: Array, q: Array, last_q: Array,
     """
     distance[:] = last_bound - lever @ np.abs(np.asarray(q, dtype=float) - last_q)
     return np.flatnonzero(distance <= influence)
+
+
+def collision_level(rows: Array, distance: Array, pairs: Array, influence: float, gain: float,
+                    margin: float, A: Array, lower: Array) -> Array:
+    """The velocity damper level of a collision-avoidance task (writes ``A`` and ``lower``).
+
+    Returns the pairs (in the order given) with ``distance < influence``; the first R of
+    them (R = ``lower.size``) fill ``A[t] = rows[p]`` and
+    ``lower[t] = -gain (distance[p] - margin)``; the other rows of A are zero and their
+    lower bounds -inf.
+    """
+    pairs = np.asarray(pairs, dtype=np.intp).reshape(-1)
+    within = pairs[distance[pairs] < influence]
+    idx = within[:lower.size]
+    k = idx.size
+    A[:k] = rows[idx]
+    A[k:] = 0.0
+    lower[:k] = -gain * (distance[idx] - margin)
+    lower[k:] = -np.inf
+    return within
 
 
 def collision_rows(J: Array, within: Array, point_a: Array, point_b: Array, distance: Array,

@@ -158,7 +158,7 @@ class CollisionAvoidanceTask(Task):
         self._k = gain / (influence - margin)
         self._open = np.full(self.dim, np.inf)
         self._open.setflags(write=False)
-        self._unbounded = -self._open  # the lower bounds of the open rows (copied per level)
+        self._n = robot.n
         self.last: Distances | None = None
         self.row_pairs = np.zeros(0, dtype=int)  # the pair of each row of the last level
         self.rows_dropped = 0  # pairs within d_i without a row in the last level
@@ -216,17 +216,16 @@ class CollisionAvoidanceTask(Task):
         res = self.query.compute(kin.data(virtual=True), self.influence, q=kin.q_v)
         self.last = res
         self._last_q = kin.q
-        d = res.distance
-        idx = (res.exact & (d < self.influence)).nonzero()[0]
+        d, query = res.distance, self.query
+        A, lower = np.empty((self.dim, self._n)), np.empty(self.dim)
+        idx = query.kernels.collision_level(res.rows, d, query.within, self.influence,
+                                            self._k, self.margin, A, lower)
         self.rows_dropped = max(0, idx.size - self.dim)
         if self.rows_dropped:
             idx = idx[self._closest(d[idx])]
+            query.kernels.collision_level(res.rows, d, idx, self.influence, self._k,
+                                          self.margin, A, lower)
         self.row_pairs = idx
-        k = idx.size
-        A = np.zeros((self.dim, self.robot.n))
-        lower = self._unbounded.copy()
-        A[:k] = res.rows[idx]
-        lower[:k] = -self._k * (d[idx] - self.margin)
         return Level(self.name, A, lower, self._open, False)
 
     def report(self) -> DistanceReport | None:
