@@ -465,19 +465,23 @@ class PairQuery:
         """
         gm, gd, distance = self._gm, self._gd, pin.computeDistance
         within: list[int] = []
+        found: list[np.ndarray] = []  # p_a, p_b of each pair within
+        keep, point = within.append, found.append
         normal = self._normal
         for p in near.tolist():
             res = distance(gm, gd, p)
             d = res.min_distance
             dist[p] = d
             if d <= influence:
-                within.append(p)
-                pa[p] = res.getNearestPoint1()
-                pb[p] = res.getNearestPoint2()
+                keep(p)
+                point(res.getNearestPoint1())
+                point(res.getNearestPoint2())
                 if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
                     normal[p] = res.normal
         if within and jacobians:
-            self.kernels.collision_rows(data.J, within, pa, pb, dist, normal,
-                                         self._mask_a, self._mask_b, _NORMAL_FROM_POINTS,
-                                         rows)
+            self.kernels.collision_rows(data.J, within, found, pa, pb, dist, normal,
+                                        self._mask_a, self._mask_b, _NORMAL_FROM_POINTS, rows)
+        elif within:
+            pa[within] = found[0::2]
+            pb[within] = found[1::2]
         return within

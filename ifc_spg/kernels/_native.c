@@ -660,19 +660,22 @@ static PyObject *pspm_update(PyObject *self, PyObject *args) {
 /* ---- collision avoidance (ifc_spg.geometry.PairQuery) ---------------------------------- */
 
 PyDoc_STRVAR(collision_rows_doc,
-"collision_rows(J, within, point_a, point_b, distance, normal, mask_a, mask_b, eps, rows)\n\n"
-"Distance Jacobian rows of the pairs `within` (integer indices of the m pairs): per pair i,\n"
-"normal[i] = (point_b[i] - point_a[i]) / distance[i] where distance[i] > eps (else normal[i]\n"
-"is kept: coal's), then rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w)\n"
-"mask_b[i] - ((p_a x n)^T J_w) mask_a[i] with J (6, n) the joint Jacobian in the world\n"
-"frame (J_v = J[:3], J_w = J[3:]). point_a, point_b, normal (m, 3); masks and rows (m, n).\n"
-"Writes normal and rows (of the pairs within only).");
+"collision_rows(J, within, found, point_a, point_b, distance, normal, mask_a, mask_b, eps, rows)"
+"\n\n"
+"Witness points and distance Jacobian rows of the pairs `within` (integer indices of the m\n"
+"pairs). found: their witness points [p_a, p_b, p_a, p_b, ...] (2 k 3-vectors, coal's), written\n"
+"to point_a[i], point_b[i] (m, 3) first. Then per pair i: normal[i] = (point_b[i] -\n"
+"point_a[i]) / distance[i] where distance[i] > eps (else normal[i] is kept: coal's), and\n"
+"rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i] - ((p_a x n)^T J_w)\n"
+"mask_a[i] with J (6, n) the joint Jacobian in the world frame (J_v = J[:3], J_w = J[3:]).\n"
+"normal (m, 3); masks and rows (m, n). Writes point_a, point_b, normal and rows (of the pairs\n"
+"within only).");
 
 static PyObject *collision_rows(PyObject *self, PyObject *args) {
-    PyObject *J_o, *w_o, *pa_o, *pb_o, *d_o, *nrm_o, *ma_o, *mb_o, *rows_o;
+    PyObject *J_o, *w_o, *f_o, *pa_o, *pb_o, *d_o, *nrm_o, *ma_o, *mb_o, *rows_o;
     double eps;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOdO", &J_o, &w_o, &pa_o, &pb_o, &d_o, &nrm_o, &ma_o,
-                          &mb_o, &eps, &rows_o))
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOdO", &J_o, &w_o, &f_o, &pa_o, &pb_o, &d_o, &nrm_o,
+                          &ma_o, &mb_o, &eps, &rows_o))
         return NULL;
     PyArrayObject *J = in_array(J_o, 2, "J");
     if (!J) return NULL;
@@ -691,7 +694,7 @@ static PyObject *collision_rows(PyObject *self, PyObject *args) {
         goto done;
     }
     const double *Jd = (const double *)PyArray_DATA(J), *d = in_data(d_o, m, "distance");
-    const double *pa = in_data(pa_o, 3 * m, "point_a"), *pb = in_data(pb_o, 3 * m, "point_b");
+    double *pa = out_data(pa_o, 3 * m, "point_a"), *pb = out_data(pb_o, 3 * m, "point_b");
     const double *ma = in_data(ma_o, m * n, "mask_a"), *mb = in_data(mb_o, m * n, "mask_b");
     double *nrm = out_data(nrm_o, 3 * m, "normal"), *rows = out_data(rows_o, m * n, "rows");
     if (!d || !pa || !pb || !ma || !mb || !nrm || !rows) goto done;
@@ -701,6 +704,22 @@ static PyObject *collision_rows(PyObject *self, PyObject *args) {
             PyErr_SetString(PyExc_IndexError, "within holds an index outside the pairs");
             goto done;
         }
+    }
+    if (!PyList_Check(f_o) || PyList_GET_SIZE(f_o) != 2 * k) {
+        PyErr_SetString(PyExc_ValueError, "found must be a list of 2 points per pair within");
+        goto done;
+    }
+    for (npy_intp t = 0; t < 2 * k; t++) {
+        PyArrayObject *v = (PyArrayObject *)PyArray_FROMANY(
+            PyList_GET_ITEM(f_o, t), NPY_DOUBLE, 1, 1, NPY_ARRAY_ALIGNED);
+        if (!v || PyArray_SIZE(v) != 3) {
+            Py_XDECREF(v);
+            PyErr_SetString(PyExc_ValueError, "found must hold 3-vectors");
+            goto done;
+        }
+        double *dst = (t % 2 ? pb : pa) + 3 * idx[t / 2];
+        for (int c = 0; c < 3; c++) dst[c] = *(const double *)PyArray_GETPTR1(v, c);
+        Py_DECREF(v);
     }
     for (npy_intp t = 0; t < k; t++) {
         npy_intp i = idx[t];

@@ -335,17 +335,25 @@ def collision_level(rows: Array, distance: Array, pairs: Array, influence: float
     return within
 
 
-def collision_rows(J: Array, within: Array, point_a: Array, point_b: Array, distance: Array,
-                   normal: Array, mask_a: Array, mask_b: Array, eps: float,
+def collision_rows(J: Array, within: Array, found: list, point_a: Array, point_b: Array,
+                   distance: Array, normal: Array, mask_a: Array, mask_b: Array, eps: float,
                    rows: Array) -> None:
-    """Distance Jacobian rows of the pairs ``within`` (writes ``normal`` and ``rows``).
+    """Witness points and distance Jacobian rows of the pairs ``within``.
 
-    Per pair i: ``normal[i] = (point_b[i] - point_a[i]) / distance[i]`` where
-    ``distance[i] > eps`` (else ``normal[i]`` is kept: coal's), then
+    ``found``: their witness points ``[p_a, p_b, p_a, p_b, ...]`` (coal's), written to
+    ``point_a`` and ``point_b`` first. Then per pair i:
+    ``normal[i] = (point_b[i] - point_a[i]) / distance[i]`` where ``distance[i] > eps``
+    (else ``normal[i]`` is kept: coal's), and
     ``rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i]
     - ((p_a x n)^T J_w) mask_a[i]`` with J (6, n) the joint Jacobian in the world frame.
+    Writes ``point_a``, ``point_b``, ``normal`` and ``rows`` (of the pairs within only).
     """
     within = np.asarray(within, dtype=np.intp)
+    if len(found) != 2 * within.size:
+        raise ValueError('found must be a list of 2 points per pair within')
+    if within.size:
+        point_a[within] = found[0::2]
+        point_b[within] = found[1::2]
     a, b, d = point_a[within], point_b[within], distance[within]
     n = normal[within]
     far = d > eps
