@@ -249,7 +249,8 @@ class CollisionAvoidanceTask(Task):
         s = np.asarray(slack, dtype=float).reshape(-1)[:k]
         if all(-1e-6 <= x <= 1e-6 for x in s.tolist()):  # (NaN is not)
             return ''
-        k = int(self.row_pairs[int(abs(s).argmax())])
+        s = abs(s)
+        k = int(self.row_pairs[int(s.argmax())])
         a, b = self.names[k]
         return (f"collision_avoidance '{self.name}': the velocity box cannot keep {a} and {b} "
                 f'apart as asked (distance {self.last.distance[k] * 1e3:.1f} mm, margin '
