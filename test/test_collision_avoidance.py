@@ -232,3 +232,11 @@ def test_an_infeasible_row_is_reported_with_its_pair(iiwa):
     assert 'link5_geom' in msg and 'margin 20.0 mm' in msg
     slack = spg.info.slacks[spg.info.level_names.index('avoid')]
     assert np.max(np.abs(slack)) > 1e-3
+    task = spg.tasks[0]
+    rows = task.row_pairs.size
+    assert task.slack_message(np.zeros(rows)) == '' and task.slack_message(None) == ''
+    assert task.slack_message(np.full(rows, 9e-7)) == ''
+    down = np.zeros(rows)
+    down[0] = -0.25  # the magnitude counts, whatever the sign
+    assert 'short by 0.25 m/s' in task.slack_message(down)
+    assert 'short by nan' in task.slack_message(np.full(rows, np.nan))

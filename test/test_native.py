@@ -341,6 +341,80 @@ def test_closed_loop_with_kernels_matches_numpy(config, make):
     assert worst < 1e-9
 
 
+def test_collision_rows_match_numpy():
+    """Witness points and distance Jacobian rows of a few pairs out of m (normals from the
+    witness points, or coal's where touching), C against the reference, on random inputs."""
+    rng = np.random.default_rng(8)
+    for m, n in ((1, 7), (47, 7), (218, 14)):
+        J = np.asfortranarray(rng.normal(size=(6, n)))  # pinocchio's data.J is column-major
+        within = np.sort(rng.choice(m, size=max(1, m // 3), replace=False))
+        found = list(rng.normal(size=(2 * within.size, 3)))
+        a, b = np.array(found[0::2]), np.array(found[1::2])
+        dist = np.full(m, 0.5)
+        dist[within] = np.linalg.norm(b - a, axis=1)
+        dist[rng.random(m) < 0.2] = rng.choice([0.0, -1e-3, 1e-7])  # touching: coal's normal
+        mask_a = (rng.random((m, n)) < 0.5).astype(float)
+        mask_b = (rng.random((m, n)) < 0.5).astype(float)
+        normal0 = rng.normal(size=(m, 3))
+        out = []
+        for kern in (ref, nat):
+            normal, rows = normal0.copy(), np.full((m, n), 7.0)
+            pa, pb = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
+            kern.collision_rows(J, within.tolist(), found, pa, pb, dist, normal, mask_a, mask_b,
+                                1e-6, rows)
+            out.append((normal, rows, pa, pb))
+        for k in (0, 2, 3):
+            np.testing.assert_array_equal(out[1][k], out[0][k])
+        np.testing.assert_array_equal(out[1][2][within], a)
+        np.testing.assert_allclose(out[1][1], out[0][1], rtol=0, atol=1e-12)
+        untouched = np.setdiff1d(np.arange(m), within)
+        assert (out[1][1][untouched] == 7.0).all() and np.isnan(out[1][3][untouched]).all()
+        for kern in (ref, nat):
+            with pytest.raises(ValueError):
+                kern.collision_rows(J, within, found[1:], pa, pb, dist, normal0.copy(), mask_a,
+                                    mask_b, 1e-6, np.zeros((m, n)))
+        with pytest.raises(IndexError):
+            nat.collision_rows(J, np.array([m]), found[:2], pa, pb, dist, normal0.copy(), mask_a,
+                               mask_b, 1e-6, np.zeros((m, n)))
+
+
+def test_collision_cull_matches_numpy():
+    """The cull across calls (last bounds minus the lever times the joints' motion), C against
+    the reference: the same bounds and the same pairs left for coal."""
+    rng = np.random.default_rng(9)
+    for m, n in ((1, 7), (47, 7), (218, 14)):
+        lever = (rng.random((m, n)) < 0.5) * 2.5
+        last = rng.normal(size=n)
+        q = last + rng.normal(scale=0.02, size=n)
+        last_bound = rng.uniform(-0.1, 1.0, m)
+        out = []
+        for kern in (ref, nat):
+            dist = np.full(m, np.nan)
+            near = kern.collision_cull(last_bound, lever, q, last, 0.1, dist)
+            out.append((dist, near))
+        np.testing.assert_allclose(out[1][0], out[0][0], rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(out[1][1], out[0][1])
+        assert out[1][1].dtype == np.intp
+        assert m == 1 or 0 < out[1][1].size < m
+
+
+def test_collision_level_matches_numpy():
+    """The damper level from the rows (the pairs within first, then open rows), C against the
+    reference, with fewer and with more pairs within than rows."""
+    rng = np.random.default_rng(10)
+    for m, n, R in ((1, 7, 1), (47, 7, 24), (218, 14, 8)):
+        rows, dist = rng.normal(size=(m, n)), rng.uniform(-0.01, 0.2, m)
+        pairs = np.sort(rng.choice(m, size=max(1, m // 2), replace=False))
+        out = []
+        for kern in (ref, nat):
+            A, lower = np.full((R, n), np.nan), np.full(R, np.nan)
+            within = kern.collision_level(rows, dist, pairs.tolist(), 0.1, 6.25, 0.02, A, lower)
+            out.append((A, lower, within))
+        for a, b in zip(out[1], out[0]):
+            np.testing.assert_array_equal(a, b)
+        assert out[1][2].dtype == np.intp
+
+
 def test_bad_arguments_raise_instead_of_crashing():
     v = np.zeros(7)
     with pytest.raises(ValueError, match='q_prev'):

@@ -25,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 import math
+from types import ModuleType
 from typing import TYPE_CHECKING, Any
 import warnings
 
@@ -33,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import ModelError, ParameterError, did_you_mean
+from ifc_spg.kernels import resolve
 
 if TYPE_CHECKING:
     from ifc_spg.model.robot_model import RobotModel
@@ -317,10 +319,16 @@ class PairQuery:
     Args:
         geometry: The :class:`CollisionGeometry`.
         pairs: ``[(a, b)]`` shape indices.
+        kernels: :mod:`ifc_spg.kernels` module of the rows (default: the active one).
     """
 
-    def __init__(self, geometry: CollisionGeometry, pairs: Sequence[tuple[int, int]]) -> None:
+    def __init__(self, geometry: CollisionGeometry, pairs: Sequence[tuple[int, int]],
+                 kernels: ModuleType | None = None) -> None:
         self.geometry = geometry
+        #: the :mod:`ifc_spg.kernels` module of the cull and the rows
+        self.kernels = resolve(kernels)
+        #: the pairs of the last :meth:`compute` within the influence distance (ascending)
+        self.within: list[int] = []
         self.pairs = [(int(a), int(b)) for a, b in pairs]
         self.m = len(self.pairs)
         gm = geometry.model.copy()
@@ -355,6 +363,7 @@ class PairQuery:
         self._lever = np.abs(self._mask_a - self._mask_b) * geometry.lever
         self._last_q: np.ndarray | None = None
         self._last_bound = np.zeros(self.m)
+        self._normal = np.zeros((self.m, 3))  # scratch: the unit normals of the pairs within
 
     def move_shape(self, shape: int, placement: pin.SE3) -> None:
         """Place shape ``shape`` (an obstacle fixed to the base) at ``placement`` from now on.
@@ -416,20 +425,28 @@ class PairQuery:
         """
         m, n = self.m, self._n
         self._place(data)
+        near = None
         if not math.isfinite(influence):
             dist = np.full(m, -np.inf)
         elif q is not None and self._last_q is not None:
-            dist = self._last_bound - self._lever @ np.abs(q - self._last_q)
+            dist = np.empty(m)
+            near = self.kernels.collision_cull(self._last_bound, self._lever, q,
+                                                self._last_q, influence, dist)
         else:
             dist = self._gaps()
-        near = np.flatnonzero(dist <= influence)
+        if near is None:
+            near = (dist <= influence).nonzero()[0]
         exact = np.zeros(m, dtype=bool)
         rows = np.zeros((m, n))
-        pa = np.full((m, 3), np.nan)
-        pb = np.full((m, 3), np.nan)
+        pa = np.empty((m, 3))
+        pa.fill(np.nan)
+        pb = pa.copy()
         if near.size:
-            self._narrowphase(near, influence, dist, pa, pb, rows, data, jacobians)
+            self.within = self._narrowphase(near, influence, dist, pa, pb, rows, data,
+                                            jacobians)
             exact[near] = True
+        else:
+            self.within = []
         if q is not None:
             self._last_q = np.array(q, dtype=float)
             self._last_bound = dist.copy()
@@ -441,52 +458,30 @@ class PairQuery:
         """Distances of the pairs ``near`` (coal); witness points and rows where d <= d_i.
 
         Writes ``dist``, ``pa``, ``pb`` and ``rows`` in place; returns the pairs within.
+        The rows are n^T (J_b(p_b) - J_a(p_a)) (the kernel ``collision_rows``): with the
+        joint Jacobians in the world frame (``data.J``, spatial velocity at the origin),
+        the velocity of a point p of joint j's body is the columns of j's support of
+        v + w x p, so n^T J(p) = (n^T J_v + (p x n)^T J_w) on those columns.
         """
         gm, gd, distance = self._gm, self._gd, pin.computeDistance
         within: list[int] = []
-        values, p1, p2, touching = [], [], [], {}
+        found: list[np.ndarray] = []  # p_a, p_b of each pair within
+        keep, point = within.append, found.append
+        normal = self._normal
         for p in near.tolist():
             res = distance(gm, gd, p)
             d = res.min_distance
-            values.append(d)
+            dist[p] = d
             if d <= influence:
+                keep(p)
+                point(res.getNearestPoint1())
+                point(res.getNearestPoint2())
                 if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
-                    touching[len(within)] = res.normal
-                within.append(p)
-                p1.append(res.getNearestPoint1())
-                p2.append(res.getNearestPoint2())
-        dist[near] = values
-        if within:
-            a, b = np.array(p1), np.array(p2)
-            pa[within], pb[within] = a, b
-            if jacobians:
-                normal = b - a
-                normal /= np.maximum(dist[within], _NORMAL_FROM_POINTS)[:, None]
-                for i, n in touching.items():
-                    normal[i] = n
-                rows[within] = self._rows(data, within, a, b, normal)
+                    normal[p] = res.normal
+        if within and jacobians:
+            self.kernels.collision_rows(data.J, within, found, pa, pb, dist, normal,
+                                        self._mask_a, self._mask_b, _NORMAL_FROM_POINTS, rows)
+        elif within:
+            pa[within] = found[0::2]
+            pb[within] = found[1::2]
         return within
-
-    def _rows(self, data: pin.Data, near: list, pa: np.ndarray, pb: np.ndarray,
-              normal: np.ndarray) -> np.ndarray:
-        """n^T (J_b(p_b) - J_a(p_a)) of the pairs ``near`` (vectorized).
-
-        With the joint Jacobians in the world frame (``data.J``, spatial velocity at the
-        origin), the velocity of a point p of joint j's body is the columns of j's support
-        of v + w x p, so n^T J(p) = (n^T J_v + (p x n)^T J_w) on those columns.
-        """
-        J = data.J
-        Jv, Jw = J[:3], J[3:]
-        nv = normal @ Jv
-        mask_a, mask_b = self._mask_a[near], self._mask_b[near]
-        return nv * (mask_b - mask_a) + (_cross(pb, normal) @ Jw) * mask_b \
-            - (_cross(pa, normal) @ Jw) * mask_a
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (k, 3) arrays (np.cross costs ~20 us on small arrays)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out

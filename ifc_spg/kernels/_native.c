@@ -14,6 +14,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include <math.h>
+#include <string.h>
 
 static inline double np_max(double a, double b) {
     if (isnan(a)) return a;
@@ -729,6 +730,198 @@ done:
     return result;
 }
 
+/* ---- collision avoidance (ifc_spg.geometry.PairQuery) ---------------------------------- */
+
+PyDoc_STRVAR(collision_rows_doc,
+"collision_rows(J, within, found, point_a, point_b, distance, normal, mask_a, mask_b, eps, rows)"
+"\n\n"
+"Witness points and distance Jacobian rows of the pairs `within` (integer indices of the m\n"
+"pairs). found: their witness points [p_a, p_b, p_a, p_b, ...] (2 k 3-vectors, coal's), written\n"
+"to point_a[i], point_b[i] (m, 3) first. Then per pair i: normal[i] = (point_b[i] -\n"
+"point_a[i]) / distance[i] where distance[i] > eps (else normal[i] is kept: coal's), and\n"
+"rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i] - ((p_a x n)^T J_w)\n"
+"mask_a[i] with J (6, n) the joint Jacobian in the world frame (J_v = J[:3], J_w = J[3:]).\n"
+"normal (m, 3); masks and rows (m, n). Writes point_a, point_b, normal and rows (of the pairs\n"
+"within only).");
+
+static PyObject *collision_rows(PyObject *self, PyObject *args) {
+    PyObject *J_o, *w_o, *f_o, *pa_o, *pb_o, *d_o, *nrm_o, *ma_o, *mb_o, *rows_o;
+    double eps;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOdO", &J_o, &w_o, &f_o, &pa_o, &pb_o, &d_o, &nrm_o,
+                          &ma_o, &mb_o, &eps, &rows_o))
+        return NULL;
+    PyArrayObject *J = in_array(J_o, 2, "J");
+    if (!J) return NULL;
+    PyArrayObject *w = (PyArrayObject *)PyArray_FROMANY(w_o, NPY_INTP, 1, 1,
+                                                        NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED);
+    if (!w) {
+        Py_DECREF(J);
+        PyErr_SetString(PyExc_TypeError, "within must be a 1-D integer array");
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    npy_intp m = array_size(d_o, "distance"), n = PyArray_DIM(J, 1), k = PyArray_SIZE(w);
+    if (m < 0) goto done;
+    if (PyArray_DIM(J, 0) != 6) {
+        PyErr_SetString(PyExc_ValueError, "J must have 6 rows");
+        goto done;
+    }
+    const double *Jd = (const double *)PyArray_DATA(J), *d = in_data(d_o, m, "distance");
+    double *pa = out_data(pa_o, 3 * m, "point_a"), *pb = out_data(pb_o, 3 * m, "point_b");
+    const double *ma = in_data(ma_o, m * n, "mask_a"), *mb = in_data(mb_o, m * n, "mask_b");
+    double *nrm = out_data(nrm_o, 3 * m, "normal"), *rows = out_data(rows_o, m * n, "rows");
+    if (!d || !pa || !pb || !ma || !mb || !nrm || !rows) goto done;
+    const npy_intp *idx = (const npy_intp *)PyArray_DATA(w);
+    for (npy_intp t = 0; t < k; t++) {
+        if (idx[t] < 0 || idx[t] >= m) {
+            PyErr_SetString(PyExc_IndexError, "within holds an index outside the pairs");
+            goto done;
+        }
+    }
+    if (!PyList_Check(f_o) || PyList_GET_SIZE(f_o) != 2 * k) {
+        PyErr_SetString(PyExc_ValueError, "found must be a list of 2 points per pair within");
+        goto done;
+    }
+    for (npy_intp t = 0; t < 2 * k; t++) {
+        PyArrayObject *v = (PyArrayObject *)PyArray_FROMANY(
+            PyList_GET_ITEM(f_o, t), NPY_DOUBLE, 1, 1, NPY_ARRAY_ALIGNED);
+        if (!v || PyArray_SIZE(v) != 3) {
+            Py_XDECREF(v);
+            PyErr_SetString(PyExc_ValueError, "found must hold 3-vectors");
+            goto done;
+        }
+        double *dst = (t % 2 ? pb : pa) + 3 * idx[t / 2];
+        for (int c = 0; c < 3; c++) dst[c] = *(const double *)PyArray_GETPTR1(v, c);
+        Py_DECREF(v);
+    }
+    for (npy_intp t = 0; t < k; t++) {
+        npy_intp i = idx[t];
+        const double *a = pa + 3 * i, *b = pb + 3 * i;
+        double *nv = nrm + 3 * i;
+        if (d[i] > eps) {
+            for (int c = 0; c < 3; c++) nv[c] = (b[c] - a[c]) / d[i];
+        }
+        double ca[3] = {a[1] * nv[2] - a[2] * nv[1], a[2] * nv[0] - a[0] * nv[2],
+                        a[0] * nv[1] - a[1] * nv[0]};
+        double cb[3] = {b[1] * nv[2] - b[2] * nv[1], b[2] * nv[0] - b[0] * nv[2],
+                        b[0] * nv[1] - b[1] * nv[0]};
+        const double *mai = ma + n * i, *mbi = mb + n * i;
+        double *r = rows + n * i;
+        for (npy_intp j = 0; j < n; j++) {
+            double lin = 0.0, wa = 0.0, wb = 0.0;
+            for (int c = 0; c < 3; c++) {
+                lin += nv[c] * Jd[c * n + j];
+                wa += ca[c] * Jd[(3 + c) * n + j];
+                wb += cb[c] * Jd[(3 + c) * n + j];
+            }
+            r[j] = lin * (mbi[j] - mai[j]) + wb * mbi[j] - wa * mai[j];
+        }
+    }
+    ret = Py_None;
+    Py_INCREF(ret);
+done:
+    Py_DECREF(J);
+    Py_DECREF(w);
+    return ret;
+}
+
+PyDoc_STRVAR(collision_cull_doc,
+"collision_cull(last_bound, lever, q, last_q, influence, distance) -> near\n\n"
+"The cull across calls: distance = last_bound - lever @ |q - last_q| (lever (m, n)), and\n"
+"near, the indices (int array, ascending) where distance <= influence. Writes distance.");
+
+static PyObject *collision_cull(PyObject *self, PyObject *args) {
+    PyObject *lb_o, *lev_o, *q_o, *lq_o, *d_o;
+    double influence;
+    if (!PyArg_ParseTuple(args, "OOOOdO", &lb_o, &lev_o, &q_o, &lq_o, &influence, &d_o))
+        return NULL;
+    PyArrayObject *q = in_array(q_o, 1, "q");
+    if (!q) return NULL;
+    PyObject *ret = NULL;
+    npy_intp m = array_size(lb_o, "last_bound"), n = PyArray_SIZE(q);
+    if (m < 0) goto done;
+    const double *lb = in_data(lb_o, m, "last_bound"), *lev = in_data(lev_o, m * n, "lever");
+    const double *lq = in_data(lq_o, n, "last_q"), *qd = (const double *)PyArray_DATA(q);
+    double *d = out_data(d_o, m, "distance");
+    if (!lb || !lev || !lq || !d) goto done;
+    npy_intp count = 0;
+    for (npy_intp i = 0; i < m; i++) {
+        double s = 0.0;
+        const double *l = lev + n * i;
+        for (npy_intp j = 0; j < n; j++) s += l[j] * fabs(qd[j] - lq[j]);
+        d[i] = lb[i] - s;
+        if (d[i] <= influence) count++;
+    }
+    PyArrayObject *near = (PyArrayObject *)PyArray_SimpleNew(1, &count, NPY_INTP);
+    if (!near) goto done;
+    npy_intp *out = (npy_intp *)PyArray_DATA(near);
+    for (npy_intp i = 0, t = 0; i < m; i++)
+        if (d[i] <= influence) out[t++] = i;
+    ret = (PyObject *)near;
+done:
+    Py_DECREF(q);
+    return ret;
+}
+
+PyDoc_STRVAR(collision_level_doc,
+"collision_level(rows, distance, pairs, influence, gain, margin, A, lower) -> within\n\n"
+"The velocity damper level of a collision-avoidance task: within, the pairs (int array, in\n"
+"the order given) with distance < influence; the first R of them (R = lower's size) fill\n"
+"A[t] = rows[p] and lower[t] = -gain (distance[p] - margin), the other rows of A (R, n)\n"
+"are zero and their lower bounds -inf. rows (m, n). Writes A and lower.");
+
+static PyObject *collision_level(PyObject *self, PyObject *args) {
+    PyObject *rows_o, *d_o, *p_o, *A_o, *lo_o;
+    double influence, gain, margin;
+    if (!PyArg_ParseTuple(args, "OOOdddOO", &rows_o, &d_o, &p_o, &influence, &gain, &margin,
+                          &A_o, &lo_o))
+        return NULL;
+    PyArrayObject *pairs = (PyArrayObject *)PyArray_FROMANY(
+        p_o, NPY_INTP, 1, 1, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED);
+    if (!pairs) {
+        PyErr_SetString(PyExc_TypeError, "pairs must be a 1-D integer sequence");
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    npy_intp m = array_size(d_o, "distance"), R = array_size(lo_o, "lower");
+    npy_intp size = array_size(rows_o, "rows"), k = PyArray_SIZE(pairs);
+    if (m < 0 || R < 0 || size < 0) goto done;
+    npy_intp n = m > 0 ? size / m : 0;
+    const double *rows = in_data(rows_o, m * n, "rows"), *d = in_data(d_o, m, "distance");
+    double *A = out_data(A_o, R * n, "A"), *lo = out_data(lo_o, R, "lower");
+    if (!rows || !d || !A || !lo) goto done;
+    const npy_intp *p = (const npy_intp *)PyArray_DATA(pairs);
+    npy_intp count = 0;
+    for (npy_intp t = 0; t < k; t++) {
+        if (p[t] < 0 || p[t] >= m) {
+            PyErr_SetString(PyExc_IndexError, "pairs holds an index outside the pairs");
+            goto done;
+        }
+        if (d[p[t]] < influence) count++;
+    }
+    PyArrayObject *within = (PyArrayObject *)PyArray_SimpleNew(1, &count, NPY_INTP);
+    if (!within) goto done;
+    npy_intp *w = (npy_intp *)PyArray_DATA(within), r = 0;
+    for (npy_intp t = 0; t < k; t++) {
+        npy_intp i = p[t];
+        if (!(d[i] < influence)) continue;
+        w[r] = i;
+        if (r < R) {
+            memcpy(A + r * n, rows + i * n, (size_t)n * sizeof(double));
+            lo[r] = -gain * (d[i] - margin);
+        }
+        r++;
+    }
+    for (npy_intp t = count < R ? count : R; t < R; t++) {
+        memset(A + t * n, 0, (size_t)n * sizeof(double));
+        lo[t] = -INFINITY;
+    }
+    ret = (PyObject *)within;
+done:
+    Py_DECREF(pairs);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
@@ -743,6 +936,9 @@ static PyMethodDef methods[] = {
     {"pspm_bounds", pspm_bounds, METH_VARARGS, pspm_bounds_doc},
     {"pspm_update", pspm_update, METH_VARARGS, pspm_update_doc},
     {"task_bounds", task_bounds, METH_VARARGS, task_bounds_doc},
+    {"collision_rows", collision_rows, METH_VARARGS, collision_rows_doc},
+    {"collision_cull", collision_cull, METH_VARARGS, collision_cull_doc},
+    {"collision_level", collision_level, METH_VARARGS, collision_level_doc},
     {NULL, NULL, 0, NULL},
 };
 

@@ -13,9 +13,10 @@ import math
 
 import numpy as np
 
-__all__ = ['accept', 'accept_slack', 'integrate', 'limits_box', 'lock_if_satisfied',
-           'normal_form', 'pspm_bounds', 'pspm_update', 'slack_setup', 'stack_rows',
-           'task_bounds', 'torque_limit', 'velocity_box']
+__all__ = ['accept', 'accept_slack', 'collision_cull', 'collision_level', 'collision_rows',
+           'integrate', 'limits_box', 'lock_if_satisfied', 'normal_form', 'pspm_bounds',
+           'pspm_update', 'slack_setup', 'stack_rows', 'task_bounds', 'torque_limit',
+           'velocity_box']
 
 _TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
 
@@ -330,3 +331,73 @@ def task_bounds(gain: Array, alpha: Array, lower: Array, lower_ff: Array, upper:
     if upper is None or upper_ff is None:
         return beta_lo, beta_lo
     return beta_lo, side(upper, upper_ff, np.inf)
+
+# ---- collision avoidance (ifc_spg.geometry.PairQuery) ----------------------------------
+
+def collision_cull(last_bound: Array, lever: Array, q: Array, last_q: Array,
+                   influence: float, distance: Array) -> Array:
+    """The cull across calls: the bounds and the pairs left for coal.
+
+    Writes ``distance = last_bound - lever @ |q - last_q|``; returns the indices
+    (ascending) where ``distance <= influence``.
+    """
+    distance[:] = last_bound - lever @ np.abs(np.asarray(q, dtype=float) - last_q)
+    return np.flatnonzero(distance <= influence)
+
+
+def collision_level(rows: Array, distance: Array, pairs: Array, influence: float, gain: float,
+                    margin: float, A: Array, lower: Array) -> Array:
+    """The velocity damper level of a collision-avoidance task (writes ``A`` and ``lower``).
+
+    Returns the pairs (in the order given) with ``distance < influence``; the first R of
+    them (R = ``lower.size``) fill ``A[t] = rows[p]`` and
+    ``lower[t] = -gain (distance[p] - margin)``; the other rows of A are zero and their
+    lower bounds -inf.
+    """
+    pairs = np.asarray(pairs, dtype=np.intp).reshape(-1)
+    within = pairs[distance[pairs] < influence]
+    idx = within[:lower.size]
+    k = idx.size
+    A[:k] = rows[idx]
+    A[k:] = 0.0
+    lower[:k] = -gain * (distance[idx] - margin)
+    lower[k:] = -np.inf
+    return within
+
+
+def collision_rows(J: Array, within: Array, found: list, point_a: Array, point_b: Array,
+                   distance: Array, normal: Array, mask_a: Array, mask_b: Array, eps: float,
+                   rows: Array) -> None:
+    """Witness points and distance Jacobian rows of the pairs ``within``.
+
+    ``found``: their witness points ``[p_a, p_b, p_a, p_b, ...]`` (coal's), written to
+    ``point_a`` and ``point_b`` first. Then per pair i:
+    ``normal[i] = (point_b[i] - point_a[i]) / distance[i]`` where ``distance[i] > eps``
+    (else ``normal[i]`` is kept: coal's), and
+    ``rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i]
+    - ((p_a x n)^T J_w) mask_a[i]`` with J (6, n) the joint Jacobian in the world frame.
+    Writes ``point_a``, ``point_b``, ``normal`` and ``rows`` (of the pairs within only).
+    """
+    within = np.asarray(within, dtype=np.intp)
+    if len(found) != 2 * within.size:
+        raise ValueError('found must be a list of 2 points per pair within')
+    if within.size:
+        point_a[within] = found[0::2]
+        point_b[within] = found[1::2]
+    a, b, d = point_a[within], point_b[within], distance[within]
+    n = normal[within]
+    far = d > eps
+    n[far] = (b[far] - a[far]) / d[far, None]
+    normal[within] = n
+    Jw = J[3:]
+    ma, mb = mask_a[within], mask_b[within]
+    rows[within] = (n @ J[:3]) * (mb - ma) + (_cross(b, n) @ Jw) * mb - (_cross(a, n) @ Jw) * ma
+
+
+def _cross(a: Array, b: Array) -> Array:
+    """Row-wise cross product of (k, 3) arrays."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out

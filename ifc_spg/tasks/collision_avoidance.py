@@ -158,6 +158,7 @@ class CollisionAvoidanceTask(Task):
         self._k = gain / (influence - margin)
         self._open = np.full(self.dim, np.inf)
         self._open.setflags(write=False)
+        self._n = robot.n
         self.last: Distances | None = None
         self.row_pairs = np.zeros(0, dtype=int)  # the pair of each row of the last level
         self.rows_dropped = 0  # pairs within d_i without a row in the last level
@@ -215,17 +216,16 @@ class CollisionAvoidanceTask(Task):
         res = self.query.compute(kin.data(virtual=True), self.influence, q=kin.q_v)
         self.last = res
         self._last_q = kin.q
-        d = res.distance
-        idx = np.flatnonzero(res.exact & (d < self.influence))
+        d, query = res.distance, self.query
+        A, lower = np.empty((self.dim, self._n)), np.empty(self.dim)
+        idx = query.kernels.collision_level(res.rows, d, query.within, self.influence,
+                                            self._k, self.margin, A, lower)
         self.rows_dropped = max(0, idx.size - self.dim)
         if self.rows_dropped:
             idx = idx[self._closest(d[idx])]
+            query.kernels.collision_level(res.rows, d, idx, self.influence, self._k,
+                                          self.margin, A, lower)
         self.row_pairs = idx
-        k = idx.size
-        A = np.zeros((self.dim, self.robot.n))
-        lower = np.full(self.dim, -np.inf)
-        A[:k] = res.rows[idx]
-        lower[:k] = -self._k * (d[idx] - self.margin)
         return Level(self.name, A, lower, self._open, False)
 
     def report(self) -> DistanceReport | None:
@@ -243,11 +243,14 @@ class CollisionAvoidanceTask(Task):
         velocity the damper asks: q_v moves as the box allows (braking within the
         acceleration limit) and may come closer than the margin.
         """
-        s = np.abs(np.asarray(slack if slack is not None else (), dtype=float)).reshape(-1)
-        s = s[:self.row_pairs.size]
-        if self.last is None or not s.size or s.max() <= 1e-6:
+        k = self.row_pairs.size
+        if self.last is None or not k or slack is None:
             return ''
-        k = int(self.row_pairs[int(np.argmax(s))])
+        s = np.asarray(slack, dtype=float).reshape(-1)[:k]
+        if all(-1e-6 <= x <= 1e-6 for x in s.tolist()):  # (NaN is not)
+            return ''
+        s = abs(s)
+        k = int(self.row_pairs[int(s.argmax())])
         a, b = self.names[k]
         return (f"collision_avoidance '{self.name}': the velocity box cannot keep {a} and {b} "
                 f'apart as asked (distance {self.last.distance[k] * 1e3:.1f} mm, margin '
