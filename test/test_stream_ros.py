@@ -213,3 +213,97 @@ def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch
 def _circle(p0, t):
     a = 2 * np.pi * FREQ * (t - T_START)
     return p0 + RADIUS * np.array([np.cos(a) - 1.0, np.sin(a), 0.0])
+
+
+WRENCH_STACK = """
+version: 1
+name: pressing_stream
+robot: lbr_iiwa14
+tasks:
+  - {name: push, type: wrench, frame: tool, subspace: {axes: [fz]},
+     equal: {stream: null, stale_after: 0.2}, gain: 20.0}
+  - {name: posture, type: joint_position, equal: init, gain: 1.0}
+"""
+#: (first tick, last tick, f_z [N] streamed in between: None sends NaN)
+WRENCH_PHASES = ((100, 400, -5.0), (400, 700, -10.0), (700, 720, None), (720, 1000, 5.0))
+
+
+def test_wrench_stream_over_dds_sets_the_commanded_force(tmp_path, monkeypatch):
+    """A geometry_msgs/WrenchStamped stream over DDS into ``spg_node`` (lockstep: this test
+    publishes each joint state and waits for its command). The measured robot is held still,
+    as in a rigid contact, so the SPG's set-point offset is the force it commands through the
+    joint impedance: the commanded tool height moves down for a downward force, twice as far
+    for twice the force, up for an upward one; NaN wrenches are counted and change nothing."""
+    env = use_loopback(monkeypatch)
+    stack = tmp_path / 'pressing_stream.yaml'
+    stack.write_text(WRENCH_STACK)
+    robot = RobotModel.from_config('lbr_iiwa14')
+    data, tool = robot.create_data(), robot.frame_id('tool')
+
+    def tool_z(q):
+        pin.framesForwardKinematics(robot.model, data, np.asarray(q, float))
+        return float(data.oMf[tool].translation[2])
+
+    ros.init(['test'])
+    node = ros.Node('wrench_streamer')
+    states, commands, status = record_spg_topics(node)
+    pub = node.create_publisher(ros_msg.WrenchStamped, 'spg/reference/push', 10)
+    state_pub = node.create_publisher(ros_msg.JointState, 'joint_states', 10)
+    sent_nan = 0
+    procs = ProcessGroup(tmp_path, env)
+    q = np.array(robot.q_home, float)  # held: the contact does not give way
+    z_v = {}
+    try:
+        spg = procs.start('spg_node', '--ros-args', '--params-file',
+                          str(CONFIG / 'lbr_iiwa14.yaml'), '-p', 'status.decimation:=50',
+                          '-p', f'task_stack_file:={stack}')
+        assert ros.spin_until(lambda: node.count_subscribers('spg/reference/push') >= 1 and
+                              node.count_subscribers('joint_states') >= 1 or
+                              spg.poll() is not None, 60.0, nodes=node), procs.log('spg_node')
+        for k in range(WRENCH_PHASES[-1][1]):
+            stamp = divmod(k * round(DT * 1e9), 10**9)
+            for first, last, fz in WRENCH_PHASES:
+                if first <= k < last and k % 5 == 0:  # 100 Hz of sim time
+                    out = ros_msg.WrenchStamped()
+                    out.header.stamp.sec, out.header.stamp.nanosec = stamp
+                    out.header.frame_id = 'world'  # the subspace's frame: the base
+                    out.wrench.force.z = math.nan if fz is None else fz
+                    sent_nan += fz is None
+                    pub.publish(out)
+            state = ros_msg.JointState(name=list(robot.joint_names), position=q.tolist(),
+                                       velocity=[0.0] * robot.n, effort=[0.0] * robot.n)
+            state.header.stamp.sec, state.header.stamp.nanosec = stamp
+            state_pub.publish(state)
+            want = k * round(DT * 1e9)
+            if ros.spin_until(lambda w=want: any(stamp_ns(c) == w for c in commands[-5:]), 2.0,
+                              nodes=node):
+                z_v[k] = tool_z(next(c for c in reversed(commands[-5:])
+                                     if stamp_ns(c) == want).position)
+            else:
+                assert spg.poll() is None, procs.log('spg_node')
+        ros.spin_until(lambda: False, 0.3, nodes=node)
+    finally:
+        procs.close()
+        ros.shutdown()
+    assert "following 'spg/reference/push'" in procs.log('spg_node')
+    assert len(z_v) >= 0.98 * WRENCH_PHASES[-1][1]
+    z0 = tool_z(q)
+
+    def settled(first, last):  # the commanded height offset over a phase's last 100 ticks
+        vals = [z_v[k] - z0 for k in range(last - 100, last) if k in z_v]
+        assert np.ptp(vals) < 1e-4, vals  # settled
+        return float(np.mean(vals))
+
+    before = [z_v[k] - z0 for k in range(50, 100) if k in z_v]
+    down5, down10, up5 = settled(100, 400), settled(400, 700), settled(720, 1000)
+    nan_phase = [z_v[k] - z0 for k in range(700, 720) if k in z_v]
+    print(f'DDS wrench stream: commanded tool height offset {down5 * 1e3:.3f} mm at -5 N, '
+          f'{down10 * 1e3:.3f} mm at -10 N, {up5 * 1e3:.3f} mm at +5 N')
+    assert max(abs(v) for v in before) < 1e-5  # held at init until the first message
+    assert down10 < down5 < -1e-5 and up5 > 1e-5
+    assert down10 / down5 == pytest.approx(2.0, rel=0.1)  # linear in the force
+    assert up5 == pytest.approx(-down5, rel=0.1)
+    # NaNs change nothing: the -10 N target is held through them
+    assert max(abs(v - down10) for v in nan_phase) < 1e-4
+    (stream,) = [d for d in status if d.get('streams')][-1]['streams']
+    assert 0 < stream['rejected']['nonfinite'] <= sent_nan
