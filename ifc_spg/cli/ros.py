@@ -233,7 +233,7 @@ def bench(argv: Sequence[str]) -> int:
     print(f'{"message":<24} {"ser us":>8} {"de us":>8} {"rosbags ser":>12} {"rosbags de":>11}')
     for label, msg in msgs.items():
         data = messages.serialize(msg)
-        typename = msg._TYPE
+        typename = messages.type_name(type(msg))
         rb = store.deserialize_cdr(data, typename)
         ser = timeit.timeit(functools.partial(messages.serialize, msg),
                             number=args.n) / args.n * 1e6

@@ -237,7 +237,7 @@ class BagWriter:
     def write_msg(self, topic, t_ns, msg):
         """Serialize a built-in message (:mod:`ifc_spg.ros.messages`) and write it."""
         if topic not in self._connections:
-            self.add_topic(topic, type(msg)._TYPE)  # the class constant ros.messages documents
+            self.add_topic(topic, messages.type_name(type(msg)))
         self.write(topic, t_ns, messages.serialize(msg))
 
     def set_custom_data(self, key, value):

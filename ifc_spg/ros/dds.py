@@ -107,9 +107,19 @@ def idl_type(cls):
     if cls not in _IDL_TYPES:
         from cyclonedds.idl import make_idl_struct
 
-        fields = {name: _idl_field(ftype) for name, ftype in cls._FIELDS}
-        _IDL_TYPES[cls] = make_idl_struct(cls._DDS_TYPE.split('::')[-1], cls._DDS_TYPE, fields)
+        fields = {name: _idl_field(ftype) for name, ftype in messages.fields(cls)}
+        _IDL_TYPES[cls] = make_idl_struct(messages.dds_type(cls).split('::')[-1],
+                                           messages.dds_type(cls), fields)
     return _IDL_TYPES[cls]
+
+
+def _handle(entity):
+    """The C handle of a cyclonedds-python entity, for ``ddspy_write``/``ddspy_take``.
+
+    cyclonedds-python keeps it in ``_ref`` and has no public accessor; this is the one place
+    the module reads it.
+    """
+    return entity._ref
 
 
 def _message_class(msg_type):
@@ -149,8 +159,8 @@ class Context:
         from cyclonedds.pub import DataWriter
 
         self._info_writer: DataWriter | None = DataWriter(self.participant, self._info_topic,
-                                       to_dds_qos(latched(1), info_type._HASH))
-        self._info_ser = messages._codec(info_type)[0]
+                                       to_dds_qos(latched(1), messages.type_hash(info_type)))
+        self._info_ser = messages.codec(info_type)[0]
 
     def topic(self, dds_name, cls):
         """The (cached) DDS Topic ``dds_name`` of message class ``cls``."""
@@ -161,7 +171,8 @@ class Context:
             for (name, other), _ in self._topics.items():
                 if name == dds_name and other is not cls:
                     raise ParameterError(f"topic '{dds_name}' is already used with type "
-                                         f'{other._TYPE}, not {cls._TYPE}')
+                                         f'{messages.type_name(other)}, not '
+                                         f'{messages.type_name(cls)}')
             if self.participant is None:
                 raise IfcSpgError('the DDS context is shut down')
             self._topics[key] = Topic(self.participant, dds_name, idl_type(cls))
@@ -217,7 +228,7 @@ def _write(writer, ser, msg):
     pad = -len(b) & 3  # rmw_cyclonedds pads serialized data to a multiple of 4
     if pad:
         b += b'\0' * pad
-    ret = ddspy_write(writer._ref, bytes(b))
+    ret = ddspy_write(_handle(writer), bytes(b))
     if ret < 0:
         raise IfcSpgError(f'DDS write failed with code {ret}')
 
@@ -240,8 +251,8 @@ class Publisher:
         self._node = node
         dds_topic = node.context.topic('rt' + self.topic_name, self.msg_type)
         self._writer = DataWriter(node.context.participant, dds_topic,
-                                  to_dds_qos(self.qos, self.msg_type._HASH))
-        self._ser = messages._codec(self.msg_type)[0]
+                                  to_dds_qos(self.qos, messages.type_hash(self.msg_type)))
+        self._ser = messages.codec(self.msg_type)[0]
         self.gid = _gid_msg(self._writer)
 
     @property
@@ -257,7 +268,7 @@ class Publisher:
         """
         if type(msg) is not self.msg_type:
             raise ParameterError(f"publisher on '{self.topic_name}' expects "
-                                 f'{self.msg_type._TYPE}, got {type(msg).__name__}')
+                                 f'{messages.type_name(self.msg_type)}, got {type(msg).__name__}')
         _write(self._writer, self._ser, msg)
 
     def publish_serialized(self, data):
@@ -274,7 +285,7 @@ class Publisher:
 
         b = bytes(data)
         pad = -len(b) & 3
-        ret = ddspy_write(self._writer._ref, b + b'\0' * pad if pad else b)
+        ret = ddspy_write(_handle(self._writer), b + b'\0' * pad if pad else b)
         if ret < 0:
             raise IfcSpgError(f"DDS write on '{self.topic_name}' failed with code {ret}")
 
@@ -305,11 +316,11 @@ class Subscription:
         self._node = node
         dds_topic = node.context.topic('rt' + self.topic_name, self.msg_type)
         self._reader = DataReader(node.context.participant, dds_topic,
-                                  to_dds_qos(self.qos, self.msg_type._HASH))
+                                  to_dds_qos(self.qos, messages.type_hash(self.msg_type)))
         self._condition = ReadCondition(
             self._reader, SampleState.Any | ViewState.Any | InstanceState.Any)
         self._mask = SampleState.Any | ViewState.Any | InstanceState.Any
-        self._de = messages._codec(self.msg_type)[1]
+        self._de = messages.codec(self.msg_type)[1]
         self._queue = []
         self.gid = _gid_msg(self._reader)
 
@@ -321,7 +332,7 @@ class Subscription:
     def _take(self):
         from cyclonedds._clayer import ddspy_take
 
-        ret = ddspy_take(self._reader._ref, self._mask, _TAKE_BATCH)
+        ret = ddspy_take(_handle(self._reader), self._mask, _TAKE_BATCH)
         if isinstance(ret, int):
             raise IfcSpgError(f"DDS take on '{self.topic_name}' failed with code {ret}")
         for data, info in ret:
@@ -335,7 +346,8 @@ class Subscription:
             msg, _ = self._de(memoryview(data)[4:], 0)
         except Exception as exc:  # malformed sample from a foreign writer
             self._node.get_logger().error(
-                f"dropping undecodable {self.msg_type._TYPE} on '{self.topic_name}': {exc}")
+                f'dropping undecodable {messages.type_name(self.msg_type)} on '
+                f"'{self.topic_name}': {exc}")
             return
         self.callback(msg)
 

@@ -4,8 +4,10 @@ Field names, defaults and value types follow rclpy's generated classes: numeric 
 ``array.array`` (lists, tuples and numpy arrays are accepted and converted by the constructor
 and accepted as they are by the serializer), string sequences are lists, ``byte`` fields are
 ``bytes`` of length 1, ``Quaternion.w`` defaults to 1.0. Each class knows its ROS type name
-(``_TYPE``), its DDS type name (``_DDS_TYPE``, as ``rmw_cyclonedds_cpp`` names it) and its
-Jazzy type hash (``_HASH``, RIHS01, checked against rosbags in the tests).
+(:func:`type_name`), its fields (:func:`fields`), its DDS type name (:func:`dds_type`, as
+``rmw_cyclonedds_cpp`` names it), its Jazzy type hash (:func:`type_hash`, RIHS01, checked
+against rosbags in the tests) and its compiled CDR :func:`codec`: the message protocol other
+modules use (the class constants behind them are this module's and the codec compiler's).
 
     msg = JointState(name=['a1'], position=[0.1])
     data = serialize(msg)          # CDR bytes with the 4-byte encapsulation header
@@ -22,7 +24,8 @@ from ifc_spg.errors import ParameterError
 from ifc_spg.ros.cdr import CDR_HEADER, PRIMITIVES, compile_codec, parse_field_type
 
 __all__ = [
-    'Message', 'REGISTRY', 'serialize', 'deserialize', 'dds_type_name', 'type_hash',
+    'Message', 'REGISTRY', 'serialize', 'deserialize', 'codec', 'dds_type', 'dds_type_name',
+    'fields', 'type_hash', 'type_name',
     'Time', 'Duration', 'Header', 'String', 'MultiArrayDimension', 'MultiArrayLayout',
     'Float64MultiArray', 'JointState', 'Vector3', 'Point', 'Quaternion', 'Pose', 'PoseStamped',
     'Wrench', 'WrenchStamped', 'KeyValue', 'DiagnosticStatus', 'DiagnosticArray',
@@ -42,6 +45,32 @@ def dds_type_name(ros_type):
 def type_hash(cls):
     """The RIHS01 type hash of message class ``cls`` (what rosidl generates for it)."""
     return cls._HASH
+
+
+def type_name(cls):
+    """The ROS type name of message class ``cls``: ``'pkg/msg/Name'``."""
+    return cls._TYPE
+
+
+def fields(cls):
+    """The fields of message class ``cls`` in wire order: ``((name, ROS type string), ...)``."""
+    return cls._FIELDS
+
+
+def dds_type(cls):
+    """The DDS type name of message class ``cls`` (as ``rmw_cyclonedds_cpp`` names it)."""
+    return cls._DDS_TYPE
+
+
+def codec(cls):
+    """``(write, read)`` of message class ``cls``, compiled once.
+
+    ``write(msg, bytearray)`` appends the CDR body; ``read(memoryview, offset)`` returns
+    ``(msg, offset)``.
+    """
+    if cls._codec is None:
+        cls._codec = compile_codec(cls, REGISTRY)
+    return cls._codec
 
 
 def _default_factory(ftype):
@@ -164,16 +193,10 @@ class Message:
         return f'{self._TYPE.replace("/msg/", ".msg.").replace("/", ".")}({inner})'
 
 
-def _codec(cls):
-    if cls._codec is None:
-        cls._codec = compile_codec(cls, REGISTRY)
-    return cls._codec
-
-
 def serialize(msg):
     """Return the CDR bytes (with the 4-byte header) of a built-in message, as rosbags does."""
     b = bytearray(CDR_HEADER)
-    _codec(type(msg))[0](msg, b)
+    codec(type(msg))[0](msg, b)
     return bytes(b)
 
 
@@ -184,7 +207,7 @@ def deserialize(cls, data):
         raise ParameterError(f'{cls._TYPE}: expected little-endian plain CDR (header 00 01), got '
                              f'{bytes(view[:4]).hex()}')
     try:
-        msg, _ = _codec(cls)[1](view[4:], 0)
+        msg, _ = codec(cls)[1](view[4:], 0)
     except Exception as exc:  # struct.error, ValueError, UnicodeDecodeError on truncated data
         raise ParameterError(f'{cls._TYPE}: cannot decode {len(view)} CDR bytes: {exc}') from exc
     return msg
