@@ -33,7 +33,7 @@ from ifc_spg.offline.sweep import run_sweep
 from ifc_spg.offline.sweep_spec import load_sweep
 
 __all__ = ['SWEEP', 'UNSTABLE_RATIO', 'analyse', 'joint_velocity', 'main', 'oscillation',
-           'table_markdown']
+           'summary', 'table_markdown']
 
 #: The sweep file.
 SWEEP = find_config_dir() / 'sweeps' / 'table_4_5_fri_delay.yaml'
@@ -100,6 +100,18 @@ def table_markdown(numbers):
     return '\n'.join(lines)
 
 
+def summary(numbers):
+    """One sentence per delay: the D5 values found unstable (from the numbers only)."""
+    delays = sorted({p['fri_delay'] for p in numbers['points']})
+    parts = []
+    for d in delays:
+        bad = sorted(p['d5'] for p in numbers['points']
+                     if p['fri_delay'] == d and p.get('unstable'))
+        parts.append(f'delay {d} ({2 * d} ms): ' + (', '.join(f'{v:g}' for v in bad)
+                                                     if bad else 'none'))
+    return 'Unstable D5 [Nms/rad] per FRI delay: ' + '; '.join(parts) + '.'
+
+
 def _figure(out_dir, numbers, path):
     import matplotlib
     matplotlib.use('Agg')
@@ -152,8 +164,10 @@ def _report(numbers, rows, out_dir, figure):
              '', table_markdown(numbers), '', '| claim | metric | ours | rule | verdict |',
              '|---|---|---|---|---|']
     for r in rows:
-        lines.append(f'| {r["id"]} | {r["metric"]} | {r["ours"]} | {r["rule"]} | '
+        metric = r['metric'].replace('|', '\\|')
+        lines.append(f'| {r["id"]} | {metric} | {r["ours"]} | {r["rule"]} | '
                      f'{"holds" if r["passed"] else "**fails**"} |')
+    lines += ['', summary(numbers)]
     if figure:
         lines += ['', f'![table_4_5_fri_delay]({figure})']
     return '\n'.join(lines) + '\n'
@@ -178,6 +192,7 @@ def main(argv=None):
     rows = claims.evaluate('table_4_5_delay', numbers, claims=claims.FRI_DELAY_CLAIMS)
     (out / 'numbers.json').write_text(json.dumps({**numbers, 'claims': rows}, indent=1) + '\n')
     print(table_markdown(numbers))
+    print(summary(numbers))
     for r in rows:
         print(f'{r["id"]}: {r["ours"]} (rule {r["rule"]}): '
               f'{"holds" if r["passed"] else "FAILS"}')
