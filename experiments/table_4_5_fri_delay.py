@@ -15,7 +15,8 @@ more). A point is called unstable when ratio > :data:`UNSTABLE_RATIO`, the thres
 pass rules ``experiments.claims.FRI_DELAY_CLAIMS`` (committed before the first run), which
 judge the thesis' claim at D5 = 2.5 Nms/rad (our estimate of the LBR-IV's; the thesis gives
 no D) with 1 and with 0 periods of delay. The sweep resumes: points whose record exists in
-``DIR/runs`` are not run again.
+``DIR/runs`` are not run again (a point's key includes the code version: after a commit,
+use a fresh ``-o``).
 """
 
 import argparse
@@ -73,6 +74,10 @@ def analyse(out_dir):
     for path in sorted((Path(out_dir) / 'runs').glob('*.json')):
         rec = json.loads(path.read_text())
         delay, d5 = rec['params'][_DELAY], rec['params'][_D5]
+        if any(p['fri_delay'] == delay and p['d5'] == d5 for p in points):
+            raise ValueError(f"'{out_dir}' holds two runs of fri_delay {delay}, D5 {d5} (a "
+                             'sweep of another code version: its points have other keys); '
+                             'give a fresh -o directory')
         row = {'fri_delay': delay, 'd5': d5, 'status': rec['status']}
         if rec['status'] == 'ok':
             row.update(oscillation(*joint_velocity(Path(out_dir) / 'runs' / path.stem /
