@@ -14,7 +14,14 @@ is not keeps oscillating or grows, bounded by the SPG's acceleration limit (rati
 more). A point is called unstable when ratio > :data:`UNSTABLE_RATIO`, the threshold of the
 pass rules ``experiments.claims.FRI_DELAY_CLAIMS`` (committed before the first run), which
 judge the thesis' claim at D5 = 2.5 Nms/rad (our estimate of the LBR-IV's; the thesis gives
-no D) with 1 and with 0 periods of delay. The sweep resumes: points whose record exists in
+no D) with 1 and with 0 periods of delay.
+
+A second sweep, ``config/sweeps/table_4_5_fri_delay_pspm.yaml``, runs the regulator WITH
+PSPM at D5 = 0.5 Nms/rad (unstable without it) over the delay and reports the energy the
+SPG injects through the IFC, -int tau_5 qdot_5 dt with tau_5 = K (q_v - q) - D qdot_5 and
+q_v the command acting (sent ``1 + fri_delay`` ticks before), against the tank's bound
+-c^2 (Sec. 4.2, (4.84)). It has no pass rule (an observation: a one-off run had shown the
+answer before the sweep was written). The sweeps resume: points whose record exists in
 ``DIR/runs`` are not run again (a point's key includes the code version: after a commit,
 use a fresh ``-o``).
 """
@@ -29,15 +36,20 @@ import numpy as np
 
 from experiments import claims
 from ifc_spg.offline.bag import BagReader, stamp_ns
-from ifc_spg.offline.runner import find_config_dir
+from ifc_spg.offline.runner import CONFIG_KEY, ROBOT_PARAMS_KEY, find_config_dir
 from ifc_spg.offline.sweep import run_sweep
 from ifc_spg.offline.sweep_spec import load_sweep
 
-__all__ = ['SWEEP', 'UNSTABLE_RATIO', 'analyse', 'joint_velocity', 'main', 'oscillation',
-           'summary', 'table_markdown']
+__all__ = ['PSPM_SWEEP', 'SWEEP', 'UNSTABLE_RATIO', 'analyse', 'analyse_pspm',
+           'injected_energy', 'joint_velocity', 'main', 'oscillation', 'summary',
+           'table_markdown']
 
 #: The sweep file.
 SWEEP = find_config_dir() / 'sweeps' / 'table_4_5_fri_delay.yaml'
+#: The PSPM sweep (D5 = 0.5, over the delay).
+PSPM_SWEEP = find_config_dir() / 'sweeps' / 'table_4_5_fri_delay_pspm.yaml'
+#: Tolerance of the energy bound [J] (table_4_5.bounded's: integration error).
+ENERGY_TOL = 1e-4
 #: A point is unstable when its ratio exceeds this (the claims' bound).
 UNSTABLE_RATIO = 0.5
 #: The push response window [s] and the length of the late window [s].
@@ -62,6 +74,64 @@ def oscillation(t, qd, push_window=PUSH_WINDOW, late=LATE_WINDOW):
     push = float(np.max(np.abs(qd[(t >= push_window[0]) & (t < push_window[1])])))
     end = float(np.max(np.abs(qd[t >= t[-1] - late])))
     return {'push': push, 'late': end, 'ratio': end / push if push > 0 else math.inf}
+
+
+def injected_energy(bag_dir, delay, joint=JOINT):
+    """``(min, end)`` of -int tau qdot dt [J] of ``joint``, and c^2 [J] of the run's tanks.
+
+    tau = K (q_v - q) - D qdot of the IFC with the q_v acting over each step (sent
+    ``1 + delay`` samples before it ends; the spring at the step's midpoint), K and D as
+    recorded in the bag (``ifc_spg.robot_params``); c^2 = E_r,init + shuffle budget.
+    """
+    q, qd, qv = [], [], []
+    with BagReader(bag_dir) as bag:
+        cfg = json.loads(bag.custom_data[CONFIG_KEY])
+        rob = json.loads(bag.custom_data[ROBOT_PARAMS_KEY])
+        for topic, _, msg in bag.messages({'/joint_states', '/command/joint_position'}):
+            if topic == '/joint_states':
+                q.append(msg.position[joint])
+                qd.append(msg.velocity[joint])
+            else:
+                qv.append(msg.position[joint])
+    q, qd, qv = np.array(q), np.array(qd), np.array(qv)
+    n, shift = min(len(q), len(qv)), 1 + int(delay)
+    q, qd = q[:n], qd[:n]
+    acting = np.concatenate([np.full(shift, q[0]), qv[:n - shift]])
+    q_prev = np.concatenate([q[:1], q[:-1]])
+    tau = rob['stiffness'][joint] * (acting - 0.5 * (q + q_prev)) - rob['damping'][joint] * qd
+    w = -np.cumsum(tau * (q - q_prev))
+    return float(w.min()), float(w[-1]), cfg['pspm_initial_energy'] + cfg['pspm_shuffle_budget']
+
+
+def analyse_pspm(out_dir):
+    """Per delay of the PSPM sweep in ``out_dir``: ratio, injected energy, c^2, bounded."""
+    rows = []
+    for path in sorted((Path(out_dir) / 'runs').glob('*.json')):
+        rec = json.loads(path.read_text())
+        delay = rec['params'][_DELAY]
+        row = {'fri_delay': delay, 'status': rec['status']}
+        if rec['status'] == 'ok':
+            bag = Path(out_dir) / 'runs' / path.stem / 'bag'
+            row.update(oscillation(*joint_velocity(bag)))
+            e_min, e_end, c2 = injected_energy(bag, delay)
+            row.update(energy_min_j=e_min, energy_end_j=e_end, c2_j=c2,
+                       tank_min_j=rec.get('metrics', {}).get('tank_energy_min_j'),
+                       bounded=e_min >= -c2 - ENERGY_TOL)
+        rows.append(row)
+    return sorted(rows, key=lambda r: r['fri_delay'])
+
+
+def _pspm_markdown(rows):
+    lines = ['| FRI delay | ratio (unstable > 0.5) | min -int tau_5 qdot_5 dt [mJ] | '
+             'bound -c^2 [mJ] | within the bound (0.1 mJ) |', '|---|---|---|---|---|']
+    for r in rows:
+        if r['status'] != 'ok':
+            lines.append(f'| {r["fri_delay"]} | error | | | |')
+            continue
+        lines.append(f'| {r["fri_delay"]} ({2 * r["fri_delay"]} ms) | {r["ratio"]:.3g} | '
+                     f'{r["energy_min_j"] * 1e3:.2f} | {-r["c2_j"] * 1e3:g} | '
+                     f'{"yes" if r["bounded"] else "**no**"} |')
+    return '\n'.join(lines)
 
 
 def _key(delay, d5):
@@ -155,7 +225,7 @@ def _figure(out_dir, numbers, path):
     plt.close(fig)
 
 
-def _report(numbers, rows, out_dir, figure):
+def _report(numbers, rows, out_dir, figure, pspm=None):
     lines = ['# Table 4.5 with a delayed FRI', '',
              'Generated by `python -m experiments.table_4_5_fri_delay` from the sweep '
              '`config/sweeps/table_4_5_fri_delay.yaml` (code '
@@ -178,6 +248,13 @@ def _report(numbers, rows, out_dir, figure):
     lines += ['', summary(numbers)]
     if figure:
         lines += ['', f'![table_4_5_fri_delay]({figure})']
+    if pspm:
+        lines += ['', '## With PSPM at D5 = 0.5 Nms/rad', '',
+                  'The same regulator with the tank (Fig. 4.18 right; `config/sweeps/'
+                  'table_4_5_fri_delay_pspm.yaml`), where the loop without it is unstable. '
+                  'No pass rule (an observation: a one-off run had shown it before the sweep '
+                  "was written); the bound is table_4_5.bounded's.", '',
+                  _pspm_markdown(pspm)]
     return '\n'.join(lines) + '\n'
 
 
@@ -197,10 +274,15 @@ def main(argv=None):
     versions = {json.loads(q.read_text()).get('code_version')
                 for q in (out / 'runs').glob('*.json')}
     numbers['code_version'] = ', '.join(sorted(v for v in versions if v))
+    pspm_result = run_sweep(load_sweep(PSPM_SWEEP), out / 'pspm', workers=args.workers,
+                            resume=True)
+    pspm = analyse_pspm(out / 'pspm')
     rows = claims.evaluate('table_4_5_delay', numbers, claims=claims.FRI_DELAY_CLAIMS)
-    (out / 'numbers.json').write_text(json.dumps({**numbers, 'claims': rows}, indent=1) + '\n')
+    (out / 'numbers.json').write_text(json.dumps({**numbers, 'claims': rows, 'pspm': pspm},
+                                                 indent=1) + '\n')
     print(table_markdown(numbers))
     print(summary(numbers))
+    print(_pspm_markdown(pspm))
     for r in rows:
         print(f'{r["id"]}: {r["ours"]} (rule {r["rule"]}): '
               f'{"holds" if r["passed"] else "FAILS"}')
@@ -209,8 +291,8 @@ def main(argv=None):
         fig = report.parent / 'figures' / 'table_4_5_fri_delay.png'
         fig.parent.mkdir(parents=True, exist_ok=True)
         _figure(out, numbers, fig)
-        report.write_text(_report(numbers, rows, out, fig.relative_to(report.parent)))
-    return 1 if result['failed'] else 0
+        report.write_text(_report(numbers, rows, out, fig.relative_to(report.parent), pspm))
+    return 1 if result['failed'] or pspm_result['failed'] else 0
 
 
 if __name__ == '__main__':
