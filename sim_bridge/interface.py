@@ -26,7 +26,7 @@ import numpy as np
 
 from ifc_spg.errors import ParameterError
 
-__all__ = ['FakeInterface', 'RobotInterface', 'State']
+__all__ = ['FakeInterface', 'RobotInterface', 'State', 'check_fri_delay']
 
 
 @dataclass(frozen=True)
@@ -131,6 +131,20 @@ def check_vector(x: Sequence[float] | np.ndarray, n: int, what: str,
     if not np.all(np.isfinite(a)):
         raise ParameterError(f'{what} must be finite, got {a.tolist()}')
     return a
+
+
+def check_fri_delay(value: Any, where: str = 'fri_delay') -> int:
+    """Return ``value`` as an FRI delay in periods, or raise :class:`ParameterError`.
+
+    Args:
+        value: Whole number of FRI (command) periods >= 0 (``True``/``1.5``/``-1`` are errors).
+        where: What to call the value in the message (a scenario names its file).
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ParameterError(f'{where} must be a whole number of FRI periods >= 0 (0: the '
+                             f'command acts in the period it is sent, 1: one period later), '
+                             f'got {value!r}')
+    return int(value)
 
 
 class FakeInterface(RobotInterface):

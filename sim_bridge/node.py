@@ -5,7 +5,9 @@
 Parameters: ``robot``, ``interface`` (``lbr_fri|icub|accrea``, empty: implied by the
 robot), ``scene``, ``scene_options`` (JSON object), ``mode`` (``realtime|lockstep``),
 ``rate`` [Hz] (500), ``timestep`` [s] (0.001), ``q0`` [rad] (empty: home), ``duration``
-[s] of simulated time (0: forever), ``push_duration`` [s] (0.5), ``ft_raw`` (false).
+[s] of simulated time (0: forever), ``push_duration`` [s] (0.5), ``ft_raw`` (false),
+``fri_delay`` (FRI loop delay in whole periods, ``lbr_fri`` only; 0: the command acts in the
+period it answers, n: n periods later — see :mod:`sim_bridge.simulation`).
 
 Topics (relative names, ARCHITECTURE.md "Topics"):
 
@@ -75,6 +77,7 @@ class BridgeParams:
     command_topic: str = 'command/joint_position'
     command_joints: tuple[str, ...] = ()
     state_rate: float = 0.0
+    fri_delay: int = 0
 
 
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
@@ -110,6 +113,9 @@ _DESCRIPTIONS = {
                  'impedance.stiffness alike)',
     'damping': 'Joint impedance damping D in [Nms/rad], per joint or one for all (default: '
                "the robot configuration's)",
+    'fri_delay': 'FRI loop delay in whole command periods (lbr_fri only): a command acts this '
+                 'many periods after the period it answers (0: in that period; 1: a client '
+                 'answering at the end of the period)',
 }
 
 
@@ -125,6 +131,8 @@ def declare(node: RosNode) -> 'BridgeParams':
             gains = gains or robot_gains(values['robot'])
             default = gains[name]
         desc = ros.ParameterDescriptor(description=_DESCRIPTIONS[name])
+        if name == 'fri_delay':
+            desc.integer_range = [ros.IntegerRange(from_value=0, to_value=1000, step=0)]
         values[name] = declare_checked(node, name, default, desc)
         if name == 'command_joints':
             values[name] = () if list(values[name]) == default else tuple(values[name])
@@ -217,7 +225,8 @@ class SimBridge:
             robot=p.robot, interface=p.interface or None, scene=p.scene,
             scene_options=json.loads(p.scene_options or '{}'), q0=p.q0 or None,
             timestep=p.timestep, command_period=1.0 / p.rate,
-            stiffness=list(p.stiffness) or None, damping=list(p.damping) or None))
+            stiffness=list(p.stiffness) or None, damping=list(p.damping) or None,
+            fri_delay=p.fri_delay))
         self.steps_per_tick = round(1.0 / p.rate / p.timestep)
         self._spin = spin or (lambda t: ros.spin_once(node, timeout_sec=t))
         self.pub_joints = node.create_publisher(msg.JointState, 'joint_states', 10)
@@ -252,7 +261,8 @@ class SimBridge:
         node.get_logger().info(
             f"sim_bridge: robot '{self.sim.robot.name}', interface '{self.sim.interface}', "
             f"scene '{p.scene}', mode '{p.mode}', {p.rate:g} Hz, physics {1 / p.timestep:g} Hz"
-            f'; {ros.describe()}')
+            + (f', FRI delay {p.fri_delay} period(s)' if p.fri_delay else '')
+            + f'; {ros.describe()}')
 
     # -- callbacks ------------------------------------------------------------------------
     def _on_command(self, message):

@@ -9,13 +9,31 @@ held between updates (zero-order hold; the node writes it at 500 Hz). One physic
     pushes            person-like wrenches -> xfrc_applied
     mj_step2          constraint forces, sensors, integration (implicitfast, elliptic cones)
     latches           break-away doors release/re-engage
+    (fri_delay > 0)   at a period boundary, the command due now starts to act
 
 The robot base frame is the world frame (robot root body at the origin, as pinocchio
 assumes). Commands are checked once per ``command_period``: a period that starts without
 a new command (after the first one) keeps the last q_v and is counted in
 ``State.missed_commands``.
+
+FRI loop delay (``fri_delay``, ``lbr_fri`` only): a command is applied ``fri_delay`` whole
+command periods (FRI periods) after the period boundary at which it is sent; the state read
+at a period's start is the one the client answers. ``0`` (the default) applies a command
+sent at a period's start during that same period: a client that answers instantly. ``1`` is
+a client that answers at the end of the period: the command computed from the state of
+period k acts from period k + 1 on; n > 1 models a client or network slower than that.
+Source: KUKA's Sunrise.Connectivity FRI Client SDK 1.14 (``friClientApplication.h``,
+``ClientApplication::step``; public copy at github.com/lbr-stack/fri) describes one
+processing step per period as "receiving a new FRI monitoring message, calling the
+corresponding client callback and sending the resulting FRI command message back to the
+KUKA Sunrise controller": one command answers each state. Neither the SDK nor any other
+KUKA text we found (the FRI manuals are not public) says in which controller cycle the
+answer takes effect, so the delay in periods is not KUKA's number: the default 0 (the
+emulation as it was, bit for bit) is our choice, and 1 is the conservative setting for a
+client that uses its whole period.
 """
 
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 import math
@@ -27,7 +45,7 @@ import numpy as np
 from ifc_spg.errors import ModelError, ParameterError, UnknownFrame, did_you_mean
 from ifc_spg.model import RobotModel
 from sim_bridge.cartesian_admittance import CartesianAdmittanceLaw
-from sim_bridge.interface import RobotInterface, State, check_vector
+from sim_bridge.interface import RobotInterface, State, check_fri_delay, check_vector
 from sim_bridge.joint_impedance import JointImpedance
 from sim_bridge.robot_spec import load_robot_spec
 from sim_bridge.scenes import Anchor, build_scene
@@ -77,6 +95,9 @@ class SimConfig:
             :class:`~sim_bridge.cartesian_admittance.CartesianAdmittanceLaw`.
         contact_chain: Chain whose tool reports ``contact_wrench`` (default: ``tool`` or the
             first chain with an F/T sensor, else the first chain).
+        fri_delay: FRI loop delay in whole command periods (int >= 0; ``lbr_fri`` only): a
+            command acts ``fri_delay`` periods after the period boundary it is sent at (see
+            the module docstring; 0: in the same period, our default).
     """
 
     robot: str | RobotModel = 'lbr_iiwa14'
@@ -95,6 +116,7 @@ class SimConfig:
     admittance: dict[str, Any] | None = None  # keyword options, from YAML/JSON
     admittance_gains: dict[str, Any] = field(default_factory=dict)
     contact_chain: str | None = None
+    fri_delay: int = 0
 
 
 def _per_joint(value: 'PerJoint | None', n: int, what: str,
@@ -148,6 +170,10 @@ class Simulation(RobotInterface):
         if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
             raise ParameterError(f'command_period {config.command_period} s must be a multiple '
                                  f'of timestep {config.timestep} s')
+        self.fri_delay = check_fri_delay(config.fri_delay)
+        if self.fri_delay and self.interface != 'lbr_fri':
+            raise ParameterError(f"fri_delay is a parameter of the 'lbr_fri' interface, not "
+                                 f"'{self.interface}'; leave it 0")
         self.dt = float(config.timestep)
         self._steps_per_command = round(ratio)
         self.joint_names: tuple[str, ...] = tuple(robot.joint_names)
@@ -311,6 +337,8 @@ class Simulation(RobotInterface):
         self._fresh_command = False
         self._commanded = False
         self.missed_commands = 0
+        # commands sent and not yet applied (fri_delay > 0): (physics step due, q_v, qd_v)
+        self._in_flight: deque[tuple[int, np.ndarray, Any]] = deque()
         self._q_v = np.array(q0, dtype=float)
         self.law.reset(self, self._q_v)
         mujoco.mj_forward(m, d)
@@ -318,14 +346,24 @@ class Simulation(RobotInterface):
     def write_command(self, q_v: Sequence[float] | np.ndarray,
                       qd_v: Sequence[float] | np.ndarray | None = None,
                       tau_offset: Sequence[float] | np.ndarray | None = None) -> None:
-        """Set q_v [rad] (held until the next command); ``tau_offset`` [Nm]: iCub only."""
+        """Send q_v [rad] (held until the next command); ``tau_offset`` [Nm]: iCub only.
+
+        With ``fri_delay`` n > 0 the command acts from the n-th period boundary after the
+        one it is sent at (a command sent mid-period counts from the next boundary); until
+        then the previous q_v is held and ``State.q_v`` is the one acting.
+        """
         self._check_open()
         q_v = check_vector(q_v, len(self.joint_names), 'q_v', self.joint_names)
         if tau_offset is not None and self.interface != 'icub':
             raise ParameterError(f"tau_offset is an input of the 'icub' interface only, not "
                                  f"'{self.interface}'")
-        self._q_v = q_v
-        self.law.command(self, q_v, qd_v, tau_offset)
+        if self.fri_delay:
+            spc = self._steps_per_command
+            boundary = -(-self._step_count // spc)  # this or the next period boundary
+            self._in_flight.append(((boundary + self.fri_delay) * spc, q_v, qd_v))
+        else:
+            self._q_v = q_v
+            self.law.command(self, q_v, qd_v, tau_offset)
         self._fresh_command = True
         self._commanded = True
 
@@ -346,6 +384,16 @@ class Simulation(RobotInterface):
             if self._latches:
                 self._update_latches()
             self._step_count += 1
+            if self._in_flight and self._in_flight[0][0] <= self._step_count:
+                self._apply_due()  # fri_delay: at the boundary, before anyone reads the state
+
+    def _apply_due(self):
+        """Apply the newest in-flight command that is due (fri_delay > 0; older ones expire)."""
+        _, q_v, qd_v = self._in_flight.popleft()
+        while self._in_flight and self._in_flight[0][0] <= self._step_count:
+            _, q_v, qd_v = self._in_flight.popleft()
+        self._q_v = q_v
+        self.law.command(self, q_v, qd_v, None)
 
     def step_until(self, t: float) -> None:
         """Advance whole physics steps until the time reaches ``t`` [s] (within dt/2)."""

@@ -78,6 +78,34 @@ def test_lockstep_over_dds_equals_in_process_run(domain):
     bridge.close()
 
 
+def test_fri_delay_parameter_over_dds_equals_the_in_process_delayed_run(domain):
+    """fri_delay:=2 reaches the emulated FRI: the lockstep run over DDS is the in-process
+    run with fri_delay 2, whose first two periods still hold q0; bad values are refused."""
+    bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=lockstep', 'fri_delay:=2'])
+    spg = EchoSpg(spg_node, bridge.sim.q0)
+    assert ros.spin_until(lambda: spg.pub.get_subscription_count() == 1, 5.0,
+                          nodes=(bridge.node, spg_node))
+    bridge.run_lockstep(max_ticks=30)
+    final = bridge.sim.read_state()
+    ref = Simulation(robot='lbr4', fri_delay=2)
+    for k in range(30):
+        np.testing.assert_array_equal(spg.states[k].position, ref.read_state().q)
+        ref.write_command(_commands(k, ref.q0))
+        if k < 2:
+            np.testing.assert_array_equal(ref.read_state().q_v, ref.q0)
+        ref.step(2)
+    np.testing.assert_array_equal(final.q, ref.read_state().q)
+    np.testing.assert_array_equal(final.q_v, _commands(28, ref.q0))  # sent at 28: acts at 30
+    bridge.close()
+    ros.shutdown()
+    with pytest.raises(ParameterError, match=r"'fri_delay': value -1 is outside its range"):
+        _bridge(['fri_delay:=-1'])
+    ros.shutdown()
+    with pytest.raises(ParameterError, match=r"'fri_delay': value 1.5 has type "
+                                             r'PARAMETER_DOUBLE, expected PARAMETER_INTEGER'):
+        _bridge(['fri_delay:=1.5'])
+
+
 @pytest.mark.realtime
 def test_realtime_holds_q_v_and_counts_missing_commands(domain):
     bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=realtime'])

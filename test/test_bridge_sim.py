@@ -96,6 +96,65 @@ def test_missing_commands_hold_q_v_and_are_counted():
     np.testing.assert_array_equal(s.q_v, q_v)
 
 
+def _sent(sim, k):
+    """A distinct q_v per command period k."""
+    return sim.q0 + 0.05 * np.sin(0.1 * k + np.arange(7))
+
+
+@pytest.mark.parametrize('n', [0, 1, 3])
+def test_fri_delay_applies_the_sent_commands_n_periods_later(n):
+    """Lockstep (write at the period's start, then step): the q_v acting during period k
+    (the actuators' ctrl, and State.q_v) is the one sent at period k - n (q0 before)."""
+    sim = Simulation(robot='lbr4', scene='free', fri_delay=n)
+    sent, applied, reported = [], [], []
+    for k in range(12):
+        sent.append(_sent(sim, k))
+        sim.write_command(sent[-1])
+        applied.append(sim.data.ctrl[sim.actuator_index].copy())
+        reported.append(sim.read_state().q_v)
+        sim.step(1)
+        np.testing.assert_array_equal(sim.data.ctrl[sim.actuator_index], applied[-1])
+        sim.step(1)
+    expected = [sim.q0] * n + sent[:len(sent) - n]
+    np.testing.assert_array_equal(applied, expected)
+    np.testing.assert_array_equal(reported, expected)
+    assert sim.read_state().missed_commands == 0
+
+
+def test_fri_delay_equals_the_undelayed_run_of_the_shifted_commands():
+    """The delay changes nothing but when a command acts: fri_delay 2 with commands c_k is
+    bit for bit fri_delay 0 with c_(k-2); fri_delay 0 is the default."""
+    def run(n, shift):
+        sim = Simulation(robot='lbr4', scene='free', **({'fri_delay': n} if n else {}))
+        q = []
+        for k in range(150):
+            sim.write_command(_sent(sim, k - shift) if k >= shift else sim.q0)
+            sim.step(2)
+            q.append(sim.read_state().q)
+        return np.array(q)
+
+    delayed = run(2, 0)
+    assert np.array_equal(delayed, run(0, 2))
+    assert not np.array_equal(delayed, run(0, 0))
+    sim = Simulation(robot='lbr4', scene='free', fri_delay=1)
+    sim.step(1)  # mid-period: the command counts from the next boundary (step 2), acts at 4
+    sim.write_command(sim.q0 + 0.01)
+    sim.step(2)
+    np.testing.assert_array_equal(sim.read_state().q_v, sim.q0)
+    sim.step(1)
+    np.testing.assert_array_equal(sim.read_state().q_v, sim.q0 + 0.01)
+
+
+def test_fri_delay_errors_name_the_value_and_fix():
+    for bad in (-1, 1.5, True, '1'):
+        with pytest.raises(ParameterError, match=r'fri_delay must be a whole number of FRI '
+                                                 r'periods >= 0.*got'):
+            Simulation(robot='lbr4', scene='free', fri_delay=bad)
+    with pytest.raises(ParameterError, match="fri_delay is a parameter of the 'lbr_fri' "
+                                             "interface, not 'icub'"):
+        Simulation(robot='icub_upper_body', scene='free', fri_delay=1)
+
+
 def test_admittance_static_pose_offset_matches_inverse_cartesian_stiffness():
     """ACCREA (2.22): a constant tool force f gives x − x_d = K_x⁻¹ f (5 %)."""
     k_x = np.array([500.0, 500.0, 500.0, 50.0, 50.0, 50.0])

@@ -160,3 +160,26 @@ def test_scenario_gains_reach_the_record(tmp_path):
     (tmp_path / 'bad.yaml').write_text(bad)
     with pytest.raises(ParameterError, match=r'sim\.stiffness must be > 0 \(scalar or 7 values'):
         run_scenario(load_scenario(tmp_path / 'bad.yaml'), tmp_path / 'o2', quiet=True)
+
+
+def test_scenario_fri_delay_reaches_the_simulation_and_the_record(tmp_path):
+    """sim.fri_delay: 0 is today's run bit for bit; n > 0 is recorded in the metadata; a bad
+    value names the scenario, the key and the fix."""
+    def commands(overrides, out):
+        sc = load_scenario(SCENARIO, {'duration': 0.1, 'progress': 0, **overrides})
+        run_scenario(sc, out, quiet=True)
+        with BagReader(out / 'bag') as bag:
+            meta = json.loads(bag.custom_data['ifc_spg.scenario'])
+            q_v = [list(m.position) for _, _, m in bag.messages({'/command/joint_position'})]
+        return meta, np.array(q_v)
+
+    meta0, default = commands({}, tmp_path / 'a')
+    meta1, zero = commands({'sim': {'fri_delay': 0}}, tmp_path / 'b')
+    meta2, delayed = commands({'sim': {'fri_delay': 2}}, tmp_path / 'c')
+    assert np.array_equal(default, zero) and 'fri_delay' not in meta0 | meta1
+    assert meta2['fri_delay'] == 2 and not np.array_equal(default, delayed)
+    for bad in ('-1', '1.5', 'true'):
+        (tmp_path / 'bad.yaml').write_text(SCENARIO.read_text() + f'sim: {{fri_delay: {bad}}}\n')
+        with pytest.raises(ParameterError, match=r'bad\.yaml: sim\.fri_delay must be a whole '
+                                                 r'number of FRI periods >= 0'):
+            load_scenario(tmp_path / 'bad.yaml')

@@ -2,14 +2,16 @@
 
     ifc-spg run config/scenarios/demo_lbr.yaml -o out/demo [--duration S] [--quiet]
 
-Each SPG tick: the simulation's state becomes the ``joint_states`` message (stamp = sim
-time), the SPG (:class:`~ifc_spg.node.core.SpgRunner`, the live node's logic) answers with
-``command/joint_position`` (same stamp), the simulation holds that q_v for one command
-period. The bag in ``DIR/bag`` has the topics a live run records, with the same types,
-QoS and header stamps (log time = sim time): ``joint_states``, ``command/joint_position``,
-``spg/task_stack``, ``spg/status``, ``sim/contact_wrench``, ``ft_sensor/wrench`` (robots
-with wrist sensors), ``sim/env_joint_states`` (scenes with mechanisms) and
-``sim/apply_wrench`` (the scenario's pushes), and what Foxglove draws the robot from:
+Each SPG tick: the simulation's state at the period's start becomes the ``joint_states``
+message (stamp = sim time), the SPG (:class:`~ifc_spg.node.core.SpgRunner`, the live node's
+logic) answers with ``command/joint_position`` (same stamp), the simulation holds that q_v
+for one command period — from this period on, or with ``sim: {fri_delay: n}`` (the LBR FRI
+emulation's loop delay, :mod:`sim_bridge.simulation`) from n periods later. The bag in
+``DIR/bag`` has the topics a live run records, with the same types, QoS and header stamps
+(log time = sim time): ``joint_states``, ``command/joint_position``, ``spg/task_stack``,
+``spg/status``, ``sim/contact_wrench``, ``ft_sensor/wrench`` (robots with wrist sensors),
+``sim/env_joint_states`` (scenes with mechanisms) and ``sim/apply_wrench`` (the scenario's
+pushes), and what Foxglove draws the robot from:
 ``robot_description``, ``tf_static``, ``tf`` (measured q and, as ``virtual/...``, q_v, every
 10 ms) and ``spg/markers`` (the Cartesian task targets), see
 :mod:`ifc_spg.offline.foxglove`. Everything that sets the SPG's output besides
@@ -46,7 +48,10 @@ A scenario file (YAML)::
     progress: 10                 # print a progress line every N % (0: none)
     sim: {joint_damping: 0.1}    # bridge overrides: joint_damping, frictionloss, armature,
                                  #  contact_chain; stiffness K / damping D of the IFC
-                                 #  (scalar or per joint; used by the bridge AND the SPG)
+                                 #  (scalar or per joint; used by the bridge AND the SPG);
+                                 #  fri_delay: FRI loop delay in whole periods (int >= 0,
+                                 #  lbr_fri only; 0, the default: the command acts in the
+                                 #  period it answers, n: n periods later)
 
 Metrics: ``final_task_errors`` (per task of the last stack: distance of the value at the
 measured q, and of the virtual value, to the bounds), ``max_contact_force`` [N],
@@ -84,6 +89,7 @@ from ifc_spg.offline.foxglove import FoxgloveTopics, cartesian_targets
 from ifc_spg.offline.metrics import MetricsRecorder, band_error
 from ifc_spg.ros import messages as m
 from ifc_spg.tasks.subspace import subspace_in_base
+from sim_bridge.interface import check_fri_delay
 
 __all__ = [
     'CONFIG_KEY',
@@ -110,7 +116,7 @@ _DEFAULT_METRICS = ('final_task_errors', 'max_contact_force', 'tank_energy_min',
                     'limit_violations', 'tick_time', 'missed_ticks')
 _METRICS = _DEFAULT_METRICS + ('force_error_rms', 'task_error_rms')
 _SIM_KEYS = ('joint_damping', 'frictionloss', 'armature', 'contact_chain', 'stiffness',
-             'damping')
+             'damping', 'fri_delay')
 
 
 def find_config_dir() -> Path:
@@ -369,6 +375,8 @@ def scenario_from_dict(data: Mapping[str, Any], where: str = 'scenario',
     if bad:
         raise _err(where, f"sim: unknown key '{bad[0]}'{did_you_mean(bad[0], _SIM_KEYS)}; keys: "
                    f"{', '.join(_SIM_KEYS)}")
+    if 'fri_delay' in sim:
+        sim['fri_delay'] = check_fri_delay(sim['fri_delay'], f'{where}: sim.fri_delay')
     return Scenario(
         name=str(data.get('name') or Path(where).stem), robot=robot_name,
         interface=data.get('interface'), scene=str(data.get('scene', 'free')),
@@ -515,7 +523,9 @@ class _LockstepRun:
             'interface': sim.interface, 'duration': duration,
             # ifc-spg render rebuilds the scene: it is anchored at the tool pose of q0
             'scene_options': scenario.scene_options or {},
-            'q0': [float(x) for x in sim.q0]}))
+            'q0': [float(x) for x in sim.q0],
+            # the FRI loop delay [periods], when there is one (absent: 0, as before it existed)
+            **({'fri_delay': sim.fri_delay} if sim.fri_delay else {})}))
         topics = ['joint_states', 'command/joint_position', 'spg/task_stack', 'spg/status',
                   'sim/contact_wrench']
         if sim.read_state().ft_wrench:
