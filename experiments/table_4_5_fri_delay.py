@@ -83,17 +83,19 @@ def injected_energy(bag_dir, delay, joint=JOINT):
     ``1 + delay`` samples before it ends; the spring at the step's midpoint), K and D as
     recorded in the bag (``ifc_spg.robot_params``); c^2 = E_r,init + shuffle budget.
     """
-    q, qd, qv = [], [], []
+    q_l: list[float] = []
+    qd_l: list[float] = []
+    qv_l: list[float] = []
     with BagReader(bag_dir) as bag:
         cfg = json.loads(bag.custom_data[CONFIG_KEY])
         rob = json.loads(bag.custom_data[ROBOT_PARAMS_KEY])
         for topic, _, msg in bag.messages({'/joint_states', '/command/joint_position'}):
             if topic == '/joint_states':
-                q.append(msg.position[joint])
-                qd.append(msg.velocity[joint])
+                q_l.append(msg.position[joint])
+                qd_l.append(msg.velocity[joint])
             else:
-                qv.append(msg.position[joint])
-    q, qd, qv = np.array(q), np.array(qd), np.array(qv)
+                qv_l.append(msg.position[joint])
+    q, qd, qv = np.array(q_l), np.array(qd_l), np.array(qv_l)
     n, shift = min(len(q), len(qv)), 1 + int(delay)
     q, qd = q[:n], qd[:n]
     acting = np.concatenate([np.full(shift, q[0]), qv[:n - shift]])
@@ -140,7 +142,8 @@ def _key(delay, d5):
 
 def analyse(out_dir):
     """The numbers of the sweep in ``out_dir``: per point and ``ratio[fri<n>_D<d5>]``."""
-    points, ratio = [], {}
+    points: list[dict] = []
+    ratio: dict[str, float] = {}
     for path in sorted((Path(out_dir) / 'runs').glob('*.json')):
         rec = json.loads(path.read_text())
         delay, d5 = rec['params'][_DELAY], rec['params'][_D5]
