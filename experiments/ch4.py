@@ -398,6 +398,41 @@ def _fig_4_5(runs, quick, path):
     _save(fig, path)
 
 
+#: Table 4.5 with a delayed FRI (issue 29): (FRI delay [periods], D5 [Nms/rad]) per run. D5
+#: 2.5 is our estimate of the LBR-IV's A5 damping (the rules read it), 0.5 a plant the sweep
+#: ``config/sweeps/table_4_5_fri_delay.yaml`` finds unstable (shown, read by no rule).
+_DELAY_RUNS = ((0, 2.5), (1, 2.5), (0, 0.5), (1, 0.5))
+
+
+def _delay_overrides(delay, d5):
+    """Scenario overrides: the no-PSPM Table 4.5 scenario with ``fri_delay`` and D5."""
+    import copy
+
+    import yaml
+
+    from ifc_spg.offline.runner import find_config_dir
+    doc = yaml.safe_load((find_config_dir() / 'scenarios' /
+                          'thesis_4_5_stability_no_pspm.yaml').read_text())
+    sim = copy.deepcopy(doc['sim'])
+    sim['fri_delay'] = delay
+    sim['damping'][4] = d5
+    return {'sim': sim}
+
+
+def _check_4_5_delay(runs, quick):
+    from experiments.table_4_5_fri_delay import oscillation
+
+    ratio, rows = {}, []
+    for delay, d5 in _DELAY_RUNS:
+        r = runs[f'fri{delay}_D{d5}']
+        osc = oscillation(r.s.t_js, r.s.qd[:, 4])
+        ratio[f'fri{delay}_D{d5}'] = osc['ratio']
+        rows.append(f'FRI delay {delay} period(s), D5 {d5} Nms/rad: max |qdot_5| '
+                    f'{osc["push"]:.3g} rad/s after the push, {osc["late"]:.3g} in the last '
+                    f'second, ratio {osc["ratio"]:.3g}')
+    return Check({'ratio': ratio}, '; '.join(rows))
+
+
 #: The Ch. 4 experiments, in report order.
 CH4_EXPERIMENTS = (
     Experiment('table_4_1', 'Table 4.1', 'Constrained trajectory tracking into an obstacle: '
@@ -423,4 +458,12 @@ CH4_EXPERIMENTS = (
                (RunSpec('no_pspm', 'thesis_4_5_stability_no_pspm.yaml', quick=6.0),
                 RunSpec('pspm', 'thesis_4_5_stability_pspm.yaml', quick=6.0)),
                _check_4_5, _fig_4_5),
+    Experiment('table_4_5_delay', 'Table 4.5 (FRI delay)', 'The Table 4.5 regulator without '
+               'PSPM with a delayed FRI (sim.fri_delay): is the loop delay what makes the '
+               "thesis' regulator unstable at our D5? (the sweep over delay x D5: "
+               'docs/TABLE_4_5_FRI_DELAY.md)',
+               tuple(RunSpec(f'fri{delay}_D{d5}', 'thesis_4_5_stability_no_pspm.yaml',
+                             _delay_overrides(delay, d5), duration=8.0, quick=4.0)
+                     for delay, d5 in _DELAY_RUNS),
+               _check_4_5_delay),
 )
