@@ -268,6 +268,19 @@ def test_task_stack_file_parameter(domain, tmp_path, capsys):
         spg.runner.status()['pending_stack'] == {'id': 1, 'name': 'reach'}
 
 
+def test_velocity_box_false_is_warned_at_start(domain, capfd):
+    """velocity_box:=false (the Ch. 3 baseline) drops the velocity/acceleration guarantee:
+    the node says so when it starts; the default does not."""
+    for value, warned in (('false', True), ('true', False)):
+        ros.init(['spg_node', '--ros-args', '-p', f'velocity_box:={value}'])
+        node = ros.Node('spg_node')
+        SpgNode(node)
+        err = capfd.readouterr().err
+        assert ('velocity_box is false' in err) is warned, err
+        node.destroy_node()
+        ros.shutdown()
+
+
 def test_help_exits_0(capsys):
     assert main(['spg_node', '--help']) == 0
     assert 'watchdog.timeout' in capsys.readouterr().out

@@ -221,6 +221,10 @@ class SpgNode:
             self.log.warning('solver proxsuite is for comparisons: on degenerate levels it '
                              'falls back to the higher levels on most ticks, and one tick can '
                              'take seconds (README, Benchmarks); use daqp on a robot')
+        if not c.velocity_box:
+            self.log.warning('velocity_box is false: q_v is kept inside the position limits '
+                             'only, not the velocity and acceleration limits (the thesis Ch. 3 '
+                             'baseline, for comparisons; README, What is always true)')
         if c.task_stack_file:
             self.load_file(c.task_stack_file)
         self.publish_config()
