@@ -6,7 +6,11 @@ deferred import hides a cycle from the interpreter, not from a reader) — excep
 """
 
 import ast
+import importlib.util
+import os
 from pathlib import Path
+import subprocess
+import sys
 
 import pytest
 
@@ -204,6 +208,55 @@ def test_offline_imports_no_dds_transport():
                  for name in named_imports(p)
                  if name in DDS_TRANSPORT or name.split('.')[0] in DDS_PACKAGES)
     assert not bad, f'offline/ imports the DDS transport (live record/play is live/): {bad}'
+
+
+def _fresh_interpreter(code, backend=None):
+    """Run ``code`` in a new interpreter (nothing imported yet) on this tree; its stdout."""
+    env = {k: v for k, v in os.environ.items() if k != 'IFC_SPG_ROS_BACKEND'}
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, (str(ROOT), env.get('PYTHONPATH'))))
+    if backend is not None:
+        env['IFC_SPG_ROS_BACKEND'] = backend
+    done = subprocess.run([sys.executable, '-c', code], env=env, cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+LOADED = ("import sys; print(sorted(k for k in sys.modules if k.split('.')[0] in {pkgs} "
+          "or k in {transport}))")
+
+
+def test_offline_and_the_wire_format_load_no_dds_library():
+    """ifc_spg.ros picks its backend on first use of a backend name, not when a submodule
+    (the wire format, stamps) is imported: MCAP files alone load neither rclpy nor Cyclone DDS."""
+    modules = [_module_name(p) for p in sorted((ROOT / 'ifc_spg' / 'offline').rglob('*.py'))]
+    modules += ['ifc_spg.ros.stamps', 'ifc_spg.ros.cdr', 'ifc_spg.ros.messages']
+    code = ''.join(f'import {m}; ' for m in modules) + LOADED.format(
+        pkgs=set(DDS_PACKAGES), transport=set(DDS_TRANSPORT) - {'ifc_spg.ros'})
+    assert _fresh_interpreter(code).strip() == '[]'
+
+
+@pytest.mark.parametrize('backend', ['rclpy', 'cyclonedds'])
+def test_the_backend_is_picked_on_first_use_as_before(backend):
+    if backend == 'rclpy' and importlib.util.find_spec('rclpy') is None:
+        pytest.skip('rclpy is not installed')
+    module = {'rclpy': 'rclpy_backend', 'cyclonedds': 'builtin_backend'}[backend]
+    out = _fresh_interpreter(
+        'import sys; from ifc_spg import ros; '
+        "print('rclpy' in sys.modules); "
+        f'from ifc_spg.ros import Node, {module}; '
+        f'print(ros.BACKEND, ros.Node is Node is {module}.Node, '
+        f"ros.spin_until is {module}.spin_until, 'rclpy' in sys.modules); print(ros.describe())",
+        backend=backend)
+    assert out.split('\n')[:2] == ['False', f'{backend} True True {backend == "rclpy"}']
+    assert out.split('\n')[2].startswith(f'ROS 2 backend: {backend} on ')
+
+
+def test_a_bad_backend_choice_fails_on_first_use_with_the_same_message():
+    out = _fresh_interpreter(
+        'import ifc_spg.ros.stamps\nfrom ifc_spg import ros\n'
+        'try:\n    ros.BACKEND\nexcept ImportError as exc:\n    print(exc)', backend='bogus')
+    assert out.strip() == "IFC_SPG_ROS_BACKEND='bogus' is not one of auto, rclpy, cyclonedds"
 
 
 # Command lines live in ifc_spg/cli/, one module per verb (and per executable); the library

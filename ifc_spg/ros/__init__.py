@@ -21,11 +21,13 @@ offers the few helpers both backends need to behave alike in tools and tests: ``
 ahead of the executor: rclpy's hot path), ``executor`` (one reusable single-threaded
 executor over a set of nodes), ``spin_until`` and ``describe`` (the start-up log line).
 ``parse_ros_args`` is the same pure parser in both cases. The two flavours live in
-``rclpy_backend.py`` and ``builtin_backend.py``; this module only picks one.
+``rclpy_backend.py`` and ``builtin_backend.py``; this module only picks one, on first use of
+one of its names: importing a submodule (``ifc_spg.ros.stamps``, ``.cdr``, ``.messages``) loads
+neither rclpy nor Cyclone DDS.
 """
 
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
@@ -64,36 +66,11 @@ def _rclpy_available(choice: str) -> bool:
     return True
 
 
+# the backend's names, resolved on first use (PEP 562): importing a submodule (stamps, cdr,
+# messages: the wire format and time helpers offline MCAP I/O uses) loads no DDS library.
 # mypy checks the code written against this module with the built-in backend's names (always
 # importable, and the API both backends share); rclpy_backend.py is checked on its own
-if not TYPE_CHECKING and _rclpy_available(_choice()):
-    from ifc_spg.ros.rclpy_backend import (
-        BACKEND,
-        RMW,
-        DurabilityPolicy,
-        FloatingPointRange,
-        HistoryPolicy,
-        IntegerRange,
-        Node,
-        Parameter,
-        ParameterDescriptor,
-        QoSProfile,
-        ReliabilityPolicy,
-        SetParametersResult,
-        executor,
-        init,
-        latched,
-        new_context,
-        ok,
-        qos_profile_sensor_data,
-        shutdown,
-        spin,
-        spin_hot,
-        spin_once,
-        spin_until,
-        wait_for_acks,
-    )
-else:
+if TYPE_CHECKING:
     from ifc_spg.ros.builtin_backend import (
         BACKEND,
         RMW,
@@ -121,10 +98,40 @@ else:
         wait_for_acks,
     )
 
+_OWN = frozenset(('describe', 'parse_ros_args', 'remove_ros_args', 'RosArgs'))
+_BACKEND_NAMES = tuple(name for name in __all__ if name not in _OWN)
+
+
+def _resolve() -> None:
+    """Pick the backend (once) and bind its names in this module."""
+    if 'BACKEND' in globals():
+        return
+    if _rclpy_available(_choice()):
+        from ifc_spg.ros import rclpy_backend
+        chosen = vars(rclpy_backend)
+    else:
+        from ifc_spg.ros import builtin_backend
+        chosen = vars(builtin_backend)
+    globals().update({name: chosen[name] for name in _BACKEND_NAMES})
+
+
+if not TYPE_CHECKING:  # mypy sees the names above, and still flags a misspelt one
+    def __getattr__(name: str) -> Any:
+        # only the backend's names: ``from ifc_spg.ros import stamps`` asks for 'stamps' first
+        if name not in _BACKEND_NAMES:
+            raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+        _resolve()
+        return globals()[name]
+
+    def __dir__() -> list[str]:
+        return sorted(set(globals()) | set(__all__))
+
+
 def describe() -> str:
     """The backend line every node logs at start-up.
 
     For example ``ROS 2 backend: rclpy on rmw_fastrtps_cpp, ROS_DOMAIN_ID 0``.
     """
+    _resolve()
     domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
     return f'ROS 2 backend: {BACKEND} on {RMW}, ROS_DOMAIN_ID {domain}'
