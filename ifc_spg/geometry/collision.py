@@ -168,8 +168,16 @@ def _urdf_hulls_cached(model: pin.Model, path: str, frames: tuple) -> pin.Geomet
     for o in gm.geometryObjects:
         mesh = o.geometry
         if isinstance(mesh, coal.BVHModelBase):
-            mesh.buildConvexHull(True, 'Qt')  # keep the hull's triangles; qhull option Qt
-            o.geometry = mesh.convex
+            # the hull about the center of the mesh's bounding box, so that the cull's
+            # bounding sphere (about the shape's origin) is the box's, not one about the
+            # link frame the mesh was drawn in (522 of the 564 iCub self pairs passed the
+            # first cull at 5 cm with the latter, 2x fewer with the box's)
+            mesh.computeLocalAABB()
+            center = np.array(mesh.aabb_center)
+            points = coal.StdVec_Vec3s()
+            points.extend(list(np.array(mesh.vertices()) - center))
+            o.geometry = coal.ConvexBase.convexHull(points, True, 'Qt')  # keep triangles
+            o.placement = o.placement * pin.SE3(np.eye(3), center)
     return gm
 
 
