@@ -39,8 +39,10 @@ def test_the_geometry_is_the_convex_hulls_of_the_urdf_meshes(robot):
     excluded = {(a, b) for a, b, _ in geometry.excluded}
     assert ('l_hand_0', 'r_hand_0') not in excluded and ('chest_0', 'l_hand_0') not in excluded
     assert ('l_forearm_0', 'l_hand_0') in excluded  # touching at q_home
-    # the hulls are built once per process: a second geometry shares them
-    assert CollisionGeometry(robot).model.geometryObjects[0].geometry is shapes[0]
+    # the hulls are built once per process: a second geometry, also of a second model of
+    # the same robot, shares them
+    again = RobotModel.from_config('icub_upper_body')
+    assert CollisionGeometry(again).model.geometryObjects[0].geometry is shapes[0]
 
 
 def _run(robot, avoid):

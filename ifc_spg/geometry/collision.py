@@ -28,7 +28,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-import functools
 import math
 from pathlib import Path
 from types import ModuleType
@@ -149,18 +148,25 @@ def _bounding_radius(geom: Any) -> float:
     return float(np.linalg.norm(geom.aabb_center) + geom.aabb_radius)
 
 
+#: (URDF path, the model's frames) -> its collision geometry with convex hulls
+_URDF_HULLS: dict[tuple[str, tuple], pin.GeometryModel] = {}
+
+
 def _urdf_hulls(model: pin.Model, path: str) -> pin.GeometryModel:
     """The collision geometry of a URDF file, each mesh replaced by its convex hull.
 
-    A copy of the process-wide one of (``path``, the model's frames): loading the meshes
-    and building the hulls takes ~2 s for the iCub, once.
+    A copy of the process-wide one of (``path``, the model's frames: every model of the same
+    robot shares it): loading the meshes and building the hulls takes ~2 s for the iCub,
+    once.
     """
-    frames = tuple((f.name, f.parentJoint) for f in model.frames)
-    return _urdf_hulls_cached(model, path, frames).copy()
+    key = (path, tuple((f.name, f.parentJoint, f.parentFrame) for f in model.frames))
+    gm = _URDF_HULLS.get(key)
+    if gm is None:
+        gm = _URDF_HULLS[key] = _build_urdf_hulls(model, path)
+    return gm.copy()
 
 
-@functools.lru_cache(maxsize=4)
-def _urdf_hulls_cached(model: pin.Model, path: str, frames: tuple) -> pin.GeometryModel:
+def _build_urdf_hulls(model: pin.Model, path: str) -> pin.GeometryModel:
     # ``package://NAME/...`` is looked up in the four folders above the URDF file (the
     # icub-models wheel: share/iCub/robots/<model>/model.urdf, meshes in share/iCub/meshes)
     dirs = [str(p) for p in Path(path).resolve().parents[:4]]
@@ -171,7 +177,7 @@ def _urdf_hulls_cached(model: pin.Model, path: str, frames: tuple) -> pin.Geomet
             # the hull about the center of the mesh's bounding box, so that the cull's
             # bounding sphere (about the shape's origin) is the box's, not one about the
             # link frame the mesh was drawn in (522 of the 564 iCub self pairs passed the
-            # first cull at 5 cm with the latter, 2x fewer with the box's)
+            # first cull at 5 cm with the latter, 54 with the box's)
             mesh.computeLocalAABB()
             center = np.array(mesh.aabb_center)
             points = coal.StdVec_Vec3s()
