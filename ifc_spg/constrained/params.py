@@ -29,6 +29,11 @@ ORIENTATIONS = ('free', 'fixed', 'align_z', 'release_y')
 STRATEGIES = ('admittance', 'joint_compliance', 'task_specification')
 
 
+#: Largest SMA order N (samples: 2000 s at 500 Hz, a 24 MB ring buffer); the fuzz of the
+#: task-stack language found N = 5e8 allocating 12 GB in the stack's build.
+MAX_WINDOW = 1_000_000
+
+
 @dataclass(frozen=True)
 class EstimatorParams:
     """First-order constraint estimator (5.4/5.5).
@@ -47,8 +52,9 @@ class EstimatorParams:
     initial_direction: tuple = (0.0, 0.0, 1.0)
 
     def __post_init__(self):
-        if int(self.window) != self.window or self.window < 1:
-            raise ParameterError(f'estimator.window (SMA order N) must be an integer >= 1, got '
+        if int(self.window) != self.window or not 1 <= self.window <= MAX_WINDOW:
+            raise ParameterError(f'estimator.window (SMA order N) must be an integer in [1, '
+                                 f'{MAX_WINDOW}] (the ring buffer holds N samples), got '
                                  f'{self.window!r}')
         for key in ('v_threshold', 'w0'):
             v = getattr(self, key)
