@@ -132,3 +132,39 @@ def wait_cli_line(proc, word, timeout=20.0):
         if not line and proc.poll() is not None:
             break
     raise AssertionError(f'no "{word}" from {proc.args}: {proc.stderr.read()}')
+
+
+def self_collision_run(robot, stack_path, frames, ticks, dt, avoid=True, **spg_kwargs):
+    """A shipped self-collision stack in a kinematic closed loop (q = q_v).
+
+    ``avoid=False`` drops its collision_avoidance level. The distances are coal's over all
+    of the robot's self pairs, independently of the SPG's cull.
+
+    Returns:
+        (closest self distance over the run [m], every q_v inside the joint limits,
+        positions of ``frames`` at the end, the SPG).
+    """
+    import numpy as np
+    import pinocchio as pin
+    import yaml
+
+    from ifc_spg import SetPointGenerator, TaskStack
+    from ifc_spg.geometry import CollisionGeometry, PairQuery
+
+    doc = yaml.safe_load(Path(stack_path).read_text())
+    if not avoid:
+        doc['tasks'] = [t for t in doc['tasks'] if t['type'] != 'collision_avoidance']
+    spg = SetPointGenerator(robot, TaskStack.from_dict(doc), dt=dt, **spg_kwargs)
+    geometry = CollisionGeometry(robot)
+    query = PairQuery(geometry, geometry.self_pairs())
+    data = robot.create_data()
+    q, qdot = robot.q_home.copy(), np.zeros(robot.n)
+    worst, inside = np.inf, True
+    for k in range(ticks):
+        q = spg.step(q, qdot, k * dt)
+        qdot = spg.qdot_v.copy()
+        inside &= bool(np.all(q >= robot.q_min) and np.all(q <= robot.q_max))
+        pin.forwardKinematics(robot.model, data, q)
+        worst = min(worst, query.distances_only(data).min())
+    pin.framesForwardKinematics(robot.model, data, q)
+    return worst, inside, [data.oMf[robot.frame_id(f)].translation.copy() for f in frames], spg

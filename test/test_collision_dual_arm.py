@@ -6,13 +6,12 @@ of the SPG's cull."""
 
 from pathlib import Path
 
+from helpers import self_collision_run
 import numpy as np
-import pinocchio as pin
 import pytest
 import yaml
 
-from ifc_spg import RobotModel, SetPointGenerator, TaskStack
-from ifc_spg.geometry import CollisionGeometry, PairQuery
+from ifc_spg import RobotModel
 
 STACK = Path(__file__).resolve().parent.parent / 'config' / 'tasks' / \
     'table_4_1_accrea_self_collision.yaml'
@@ -25,24 +24,7 @@ def robot():
 
 
 def _run(robot, avoid):
-    doc = yaml.safe_load(STACK.read_text())
-    if not avoid:
-        doc['tasks'] = [t for t in doc['tasks'] if t['type'] != 'collision_avoidance']
-    spg = SetPointGenerator(robot, TaskStack.from_dict(doc), dt=DT)
-    geometry = CollisionGeometry(robot)
-    query = PairQuery(geometry, geometry.self_pairs())
-    data = robot.create_data()
-    q, qdot = robot.q_home.copy(), np.zeros(robot.n)
-    worst, inside = np.inf, True
-    for k in range(TICKS):
-        q = spg.step(q, qdot, k * DT)
-        qdot = spg.qdot_v.copy()
-        inside &= bool(np.all(q >= robot.q_min) and np.all(q <= robot.q_max))
-        pin.forwardKinematics(robot.model, data, q)
-        worst = min(worst, query.distances_only(data).min())
-    pin.framesForwardKinematics(robot.model, data, q)
-    tools = [data.oMf[robot.frame_id(f)].translation.copy() for f in ('l_tool', 'r_tool')]
-    return worst, inside, tools, spg
+    return self_collision_run(robot, STACK, ('l_tool', 'r_tool'), TICKS, DT, avoid=avoid)
 
 
 def test_the_hands_meet_at_the_margin_and_never_closer(robot):

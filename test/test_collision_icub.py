@@ -7,13 +7,13 @@ over all 564 self pairs, independently of the SPG's cull."""
 from pathlib import Path
 
 import coal
+from helpers import self_collision_run
 import numpy as np
-import pinocchio as pin
 import pytest
 import yaml
 
-from ifc_spg import RobotModel, SetPointGenerator, TaskStack
-from ifc_spg.geometry import CollisionGeometry, PairQuery
+from ifc_spg import RobotModel
+from ifc_spg.geometry import CollisionGeometry
 from ifc_spg.pspm import PspmConfig
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -46,24 +46,8 @@ def test_the_geometry_is_the_convex_hulls_of_the_urdf_meshes(robot):
 
 
 def _run(robot, avoid):
-    doc = yaml.safe_load(STACK.read_text())
-    if not avoid:
-        doc['tasks'] = [t for t in doc['tasks'] if t['type'] != 'collision_avoidance']
-    spg = SetPointGenerator(robot, TaskStack.from_dict(doc), dt=DT, pspm=PSPM)
-    geometry = CollisionGeometry(robot)
-    query = PairQuery(geometry, geometry.self_pairs())
-    data = robot.create_data()
-    q, qdot = robot.q_home.copy(), np.zeros(robot.n)
-    worst, inside = np.inf, True
-    for k in range(TICKS):
-        q = spg.step(q, qdot, k * DT)
-        qdot = spg.qdot_v.copy()
-        inside &= bool(np.all(q >= robot.q_min) and np.all(q <= robot.q_max))
-        pin.forwardKinematics(robot.model, data, q)
-        worst = min(worst, query.distances_only(data).min())
-    pin.framesForwardKinematics(robot.model, data, q)
-    tools = [data.oMf[robot.frame_id(f)].translation.copy() for f in ('l_hand', 'r_hand')]
-    return worst, inside, tools, spg
+    return self_collision_run(robot, STACK, ('l_hand', 'r_hand'), TICKS, DT, avoid=avoid,
+                              pspm=PSPM)
 
 
 def test_the_hands_meet_at_the_margin_and_never_closer(robot):
