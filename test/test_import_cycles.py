@@ -6,6 +6,7 @@ deferred import hides a cycle from the interpreter, not from a reader) — excep
 """
 
 import ast
+import functools
 import importlib.util
 import os
 from pathlib import Path
@@ -137,21 +138,9 @@ def test_sim_bridge_imports_only_models_ros_and_errors_of_ifc_spg():
     assert not bad, f'sim_bridge imports library layers above the models: {bad}'
 
 
-
-
 def imported_packages(path):
     """Top-level names of the packages a module imports (not under ``TYPE_CHECKING``)."""
-    tree = ast.parse(path.read_text(), str(path))
-    hidden = _type_checking_only(tree)
-    names = set()
-    for node in ast.walk(tree):
-        if id(node) in hidden:
-            continue
-        if isinstance(node, ast.Import):
-            names.update(a.name.split('.')[0] for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
-            names.add(node.module.split('.')[0])
-    return names
+    return {name.split('.')[0] for name in named_imports(path)}
 
 
 # The robot models are data for the SPG (pinocchio); loading them into MuJoCo is the
@@ -176,10 +165,16 @@ DDS_TRANSPORT = ('ifc_spg.ros', 'ifc_spg.ros.dds', 'ifc_spg.ros.builtin_backend'
 DDS_PACKAGES = ('rclpy', 'cyclonedds')
 
 
+@functools.cache
+def _tree_modules():
+    """The dotted names of every module of the packages (read once)."""
+    return frozenset(_module_name(p) for pkg in PACKAGES for p in (ROOT / pkg).rglob('*.py'))
+
+
 def named_imports(path):
     """Every module a source file names in an import (not under ``TYPE_CHECKING``):
     ``from a import b`` names ``a.b`` if that is a module of the tree, else ``a``."""
-    files = {_module_name(p) for pkg in PACKAGES for p in (ROOT / pkg).rglob('*.py')}
+    files = _tree_modules()
     tree = ast.parse(path.read_text(), str(path))
     hidden = _type_checking_only(tree)
     names = set()
