@@ -14,7 +14,10 @@ scene                     what
                           ``solref = (timeconst [s], dampratio)``, tool friction
                           ``friction`` (0.3) and ``solref_friction``; optionally an
                           obstacle box on it, ``obstacle_offset`` (x, y) [m] from the
-                          tool start, half sizes ``obstacle_size`` [m]
+                          tool start, half sizes ``obstacle_size`` [m]; optionally a
+                          fixed ball at ``ball`` (x, y, z) [m] in the base frame, radius
+                          ``ball_radius`` [m], with a contact pair against every robot
+                          geom (an obstacle for the arm, not the tool)
 ``obstacle``              a box ``offset`` [m] (world frame) from the tool
 ``post``                  a vertical cylinder (``radius``, ``height`` [m]) on the floor at
                           ``position`` (x, y) [m] in the base frame; every robot geom has
@@ -269,13 +272,17 @@ def _xy(value, name):
 
 def _table(spec, anchor, solref=(0.01, 1.0), gap=0.002, size=(0.4, 0.4), friction=0.3,
            solref_friction=TOOL_SOLREF_FRICTION, offset=(0.0, 0.0), obstacle_offset=None,
-           obstacle_size=(0.05, 0.02, 0.02)):
+           obstacle_size=(0.05, 0.02, 0.02), ball=None, ball_radius=0.05):
     """Table top ``gap`` [m] below the tool frame.
 
     Centred ``offset`` (x, y) [m] (world) from the tool; with ``obstacle_offset`` (x, y) [m]
     (world, from the tool) a box of half sizes ``obstacle_size`` [m] stands on it (same
-    contact parameters as the top).
+    contact parameters as the top). With ``ball`` (x, y, z) [m] (base frame) a fixed sphere
+    of radius ``ball_radius`` [m] (geom ``ball``) with a contact pair against every robot
+    geom, as the ``post`` scene's (``friction``, ``solref``).
     """
+    if ball is not None:
+        _ball(spec, ball, ball_radius, friction, solref)
     off = _xy(offset, 'table offset')
     top = anchor.tool_pos[2] - gap
     table = spec.worldbody.add_body(name='table', pos=[anchor.tool_pos[0] + off[0],
@@ -328,14 +335,37 @@ def _post(spec, anchor, position=(0.45, 0.3), radius=0.04, height=1.2, friction=
     body = spec.worldbody.add_body(name='post', pos=[xy[0], xy[1], height / 2])
     _scene_geom(body, name='post', type=mujoco.mjtGeom.mjGEOM_CYLINDER,
                 size=[radius, height / 2, 0.0], rgba=(0.8, 0.2, 0.2, 1))
+    _robot_pairs(spec, robot_bodies, 'post', friction, solref)
+    return {}
+
+
+def _robot_pairs(spec, robot_bodies, scene_geom, friction, solref):
+    """A contact pair between every geom of ``robot_bodies`` and ``scene_geom``."""
     mu = float(friction)
     for b in robot_bodies:
         for i, geom in enumerate(b.geoms):
             if not geom.name:
                 geom.name = f'{b.name}_geom{i}'
-            spec.add_pair(name=f'{geom.name}_post', geomname1=geom.name, geomname2='post',
-                          condim=3, friction=[mu, mu, 0.005, 1e-4, 1e-4], solref=list(solref))
-    return {}
+            spec.add_pair(name=f'{geom.name}_{scene_geom}', geomname1=geom.name,
+                          geomname2=scene_geom, condim=3,
+                          friction=[mu, mu, 0.005, 1e-4, 1e-4], solref=list(solref))
+
+
+def _ball(spec, position, radius, friction, solref):
+    """A fixed sphere ``ball`` at ``position`` (x, y, z) [m] (base frame), pairs as the post's.
+
+    Call it before adding other scene bodies (the robot's bodies are the world's then).
+    """
+    c = np.asarray(position, dtype=float).reshape(-1)
+    if c.shape != (3,) or not np.all(np.isfinite(c)):
+        raise ParameterError(f'ball must be (x, y, z) [m] in the base frame, got {position!r}')
+    if not (isinstance(radius, (int, float)) and np.isfinite(radius) and radius > 0):
+        raise ParameterError(f'ball_radius must be > 0 m, got {radius!r}')
+    robot_bodies = [b for top in spec.worldbody.bodies for b in _subtree(top)]
+    body = spec.worldbody.add_body(name='ball', pos=c)
+    _scene_geom(body, name='ball', type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                size=[float(radius), 0.0, 0.0], rgba=(0.8, 0.2, 0.2, 1))
+    _robot_pairs(spec, robot_bodies, 'ball', friction, solref)
 
 
 def _latch(spec, joint, force, lever):

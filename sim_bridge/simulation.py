@@ -530,6 +530,47 @@ class Simulation(RobotInterface):
         s = self.site_id(chain)
         return self.data.site_xpos[s].copy(), self.data.site_xmat[s].reshape(3, 3).copy()
 
+    def geom_ids(self, names):
+        """MuJoCo geom ids of ``names`` (geom names of the compiled model).
+
+        Raises:
+            ParameterError: a name is not a geom of the model.
+        """
+        m = self.model
+        known = [m.geom(i).name for i in range(m.ngeom)]
+        ids = []
+        for name in names:
+            if name not in known:
+                raise ParameterError(f"no geom '{name}' in the simulation of "
+                                     f"'{self.robot.name}' with scene '{self.scene.name}'"
+                                     f'{did_you_mean(name, known)}')
+            ids.append(known.index(name))
+        return ids
+
+    def geom_contact(self, geoms, others, distmax=0.2):
+        """Contacts between two sets of geom ids now: ``(count, normal force [N], distance)``.
+
+        ``count``: MuJoCo contacts between a geom of ``geoms`` and one of ``others``;
+        normal force: the sum of their normal forces (``mj_contactForce``); distance: the
+        smallest signed distance over the pairs (``mj_geomDistance``, capped at
+        ``distmax`` [m]; negative: penetration).
+        """
+        m, d = self.model, self.data
+        a, b = set(geoms), set(others)
+        count, force = 0, 0.0
+        f6 = np.zeros(6)
+        for i in range(d.ncon):
+            c = d.contact[i]
+            if (c.geom1 in a and c.geom2 in b) or (c.geom1 in b and c.geom2 in a):
+                count += 1
+                mujoco.mj_contactForce(m, d, i, f6)
+                force += float(f6[0])
+        dist = float(distmax)
+        for g1 in geoms:
+            for g2 in others:
+                dist = min(dist, float(mujoco.mj_geomDistance(m, d, g1, g2, distmax, None)))
+        return count, force, dist
+
     def warnings(self) -> dict[str, int]:
         """Return {warning name: count} of the MuJoCo warnings raised so far (nonzero only)."""
         counts = self.data.warning.number

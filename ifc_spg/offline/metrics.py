@@ -53,6 +53,7 @@ class MetricsRecorder:
         self.violations = 0
         self.force_errors, self.task_errors = [], {}
         self.last_tasks = []
+        self.geom_contacts = []  # (t, count, normal force, distance) per tick (geom_contact)
         self._force_opt = scenario.metrics.get('force_error_rms')
         self._task_opt = scenario.metrics.get('task_error_rms')
         self._axis = None
@@ -95,6 +96,17 @@ class MetricsRecorder:
                 if task['name'] == topt.get('task'):
                     self._task_error(task)
 
+    def on_geom_contact(self, t, count, force, distance):
+        """Record one tick's contacts of the ``geom_contact`` metric.
+
+        Args:
+            t: Sim time of the joint state [s].
+            count: MuJoCo contacts between the two geom sets.
+            force: The sum of their normal forces [N].
+            distance: The smallest signed distance between the sets [m] (capped).
+        """
+        self.geom_contacts.append((float(t), int(count), float(force), float(distance)))
+
     def _task_error(self, task):
         lower, upper = task['lower'], task['upper']
         self.task_errors.setdefault('virtual', []).append(
@@ -125,6 +137,8 @@ class MetricsRecorder:
         if 'task_error_rms' in sc.metrics:
             out['task_error_rms'] = {k: _rms(v) for k, v in self.task_errors.items()}
             out['task_error_rms_options'] = sc.metrics['task_error_rms']
+        if 'geom_contact' in sc.metrics:
+            out['geom_contact'] = self._geom_contact_report(sc.metrics['geom_contact'])
         if runner.spg.tanks is not None:
             out['pspm'] = _pspm_report(runner, duration)
         out['spg'] = {'rejected': dict(runner.rejected), 'errors': list(runner.errors)}
@@ -160,6 +174,25 @@ class MetricsRecorder:
             smooth = np.convolve(errors, np.ones(window) / window, mode='valid')
             out['force_error_rms_filtered_n'] = _rms(smooth)
         out['force_error_rms_options'] = opt
+
+
+    def _geom_contact_report(self, opt):
+        """The ``geom_contact`` metric over the ticks from ``after`` [s] on."""
+        rows = np.array(self.geom_contacts, dtype=float).reshape(-1, 4)
+        rows = rows[rows[:, 0] >= float(opt.get('after', 0.0)) - 1e-9]
+        t, count, force, dist = rows.T
+        out = {'geoms': list(opt['geoms']), 'with': list(opt['with']),
+               'after': float(opt.get('after', 0.0)), 'ticks': len(rows),
+               'ticks_in_contact': int(np.count_nonzero(count)),
+               'contacts': int(count.sum()),
+               'max_normal_force_n': float(force.max()) if len(rows) else 0.0,
+               'mean_normal_force_n': float(force.mean()) if len(rows) else 0.0,
+               'impulse_ns': float(force.sum() * self.scenario.dt),
+               'min_distance_m': float(dist.min()) if len(rows) else None}
+        if opt.get('series'):
+            out['series'] = {'t': t.round(6).tolist(), 'normal_force_n': force.round(4).tolist(),
+                             'distance_m': dist.round(6).tolist()}
+        return out
 
 
 def _pspm_report(runner, duration):

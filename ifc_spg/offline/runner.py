@@ -60,7 +60,11 @@ position limits or |qdot_v| above the velocity limit), ``tick_time`` (p50/p99/ma
 ``missed_ticks`` (command periods without a command), ``force_error_rms`` [N] (force the
 robot exerts along a base axis, from ``sim/contact_wrench``, vs a target; with ``window``
 [s] also after a moving average), ``task_error_rms`` (a task's measured and virtual
-distance to its bounds, over ``components`` (indices) if given).
+distance to its bounds, over ``components`` (indices) if given), ``geom_contact``
+(``{geoms: [...], with: [...], after: s, series: false}``: MuJoCo contacts between two sets
+of geoms of the simulation, per tick at the state the SPG reads: ticks in contact, contacts,
+max and mean normal force [N], impulse [Ns], smallest signed distance [m]
+(``mj_geomDistance``, capped at 0.2 m); with ``series`` the per-tick values).
 """
 
 from collections.abc import Mapping
@@ -114,7 +118,7 @@ _SCENARIO_KEYS = ('name', 'description', 'robot', 'interface', 'scene', 'scene_o
                   'progress', 'sim')
 _DEFAULT_METRICS = ('final_task_errors', 'max_contact_force', 'tank_energy_min',
                     'limit_violations', 'tick_time', 'missed_ticks')
-_METRICS = _DEFAULT_METRICS + ('force_error_rms', 'task_error_rms')
+_METRICS = _DEFAULT_METRICS + ('force_error_rms', 'task_error_rms', 'geom_contact')
 _SIM_KEYS = ('joint_damping', 'frictionloss', 'armature', 'contact_chain', 'stiffness',
              'damping', 'fri_delay')
 
@@ -285,6 +289,14 @@ def _metrics(spec, where):
             raise _err(where, f"unknown metric {name!r}{did_you_mean(str(name), _METRICS)}; "
                        f"metrics: {', '.join(_METRICS)}")
         out[name] = dict(opts or {})  # (a None opts raised above)
+    gc = out.get('geom_contact')
+    if gc is not None:
+        for key in ('geoms', 'with'):
+            names = gc.get(key)
+            if not (isinstance(names, list) and names and
+                    all(isinstance(x, str) for x in names)):
+                raise _err(where, f'metric geom_contact: {key} must be a list of geom names, '
+                           f'got {names!r}')
     return out
 
 
@@ -508,6 +520,9 @@ class _LockstepRun:
         self.writer = BagWriter(bag_path)
         self._write_header(duration)
         self.metrics = MetricsRecorder(scenario, self.sim.robot)
+        gc = scenario.metrics.get('geom_contact')
+        self.geom_sets = None if gc is None else (self.sim.geom_ids(gc['geoms']),
+                                                  self.sim.geom_ids(gc['with']))
         self.progress_every = max(1, int(self.n_ticks * scenario.progress / 100)) \
             if scenario.progress and not quiet else 0
 
@@ -566,6 +581,8 @@ class _LockstepRun:
         self._stacks_due(s.t, t_ns)
         self._pushes_due(s.t, t_ns, stamp)
         js = self._write_state(s, t_ns, stamp)
+        if self.geom_sets is not None:
+            self.metrics.on_geom_contact(s.t, *self.sim.geom_contact(*self.geom_sets))
         # the SPG sees exactly what the bag holds
         runner = self.runner
         cmd, events = runner.tick(js.name, js.position, js.velocity, t_ns)
