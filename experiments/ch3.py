@@ -120,6 +120,115 @@ def _surface_3b_overrides(obstacle=False):
     return over
 
 
+#: Table 3.2's elbow trial (issue 27 item 5, issue 29 item 3; the claims'
+#: ``ELBOW_CLAIMS``): the scenario with task 3b and a ball in the elbow's path (ours, see its
+#: header); the runs: '3b' as the scenario, 'no_task3' (tasks 1 and 2 only), '3a' (the
+#: thesis' other task 3) and 'avoid' (ours: the ball declared in the stack and a
+#: collision_avoidance level of the elbow links on top, on the DAQP cascade).
+ELBOW_SCENARIO = 'thesis_3_2_elbow_obstacle.yaml'
+ELBOW_RUNS = ('3b', 'no_task3', '3a', 'avoid')
+#: The MuJoCo geoms of the elbow (the capsules of the links on either side of A4) and the
+#: bodies the collision_avoidance level lists.
+ELBOW_GEOMS = ('link3_geom', 'link4_geom')
+ELBOW_LINKS = ('link3', 'link4')
+#: The collision_avoidance level of the 'avoid' run (ours): margin, influence [m], gain [m/s].
+ELBOW_AVOID = {'margin': 0.02, 'influence': 0.1, 'gain': 0.3}
+#: The 'avoid' run's SPG: the DAQP cascade (inequality levels) with Ch. 4's velocity box.
+_ELBOW_DAQP = {'status_decimation': 5, 'solver': 'daqp', 'torque_limits': False,
+               'pspm': {'enabled': False}}
+
+
+def _elbow_scenario():
+    """The elbow trial's scenario document."""
+    import yaml
+
+    from ifc_spg.offline.runner import find_config_dir
+
+    return yaml.safe_load((find_config_dir() / 'scenarios' / ELBOW_SCENARIO)
+                          .read_text(encoding='utf8'))
+
+
+def _elbow_overrides(run):
+    """Overrides of the elbow scenario for ``run`` (one of :data:`ELBOW_RUNS`).
+
+    The stack is built from Table 3.2's (:func:`_surface_stack`), so both trials run the same
+    tasks 1 and 2; '3b' gives the scenario's own stack back (test_table_3_2_elbow checks it).
+    """
+    if run not in ELBOW_RUNS:
+        raise ValueError(f'elbow run {run!r} not one of {ELBOW_RUNS}')
+    sc = _elbow_scenario()
+    doc = _surface_stack()
+    tasks_12 = [t for t in doc['tasks'] if t['name'] != 'posture']
+    min_torque = {'name': 'min_torque', 'type': 'joint_torque', 'equal': 0.0, 'gain': 1.0}
+    over = {}
+    if run == '3b':
+        doc['tasks'], doc['name'] = tasks_12 + [min_torque], f'{doc["name"]}_3b'
+    elif run == 'no_task3':
+        doc['tasks'], doc['name'] = tasks_12, f'{doc["name"]}_no_task3'
+    elif run == 'avoid':
+        opts = sc['scene_options']
+        doc['obstacles'] = [{'name': 'ball', 'shape': 'sphere', 'radius': opts['ball_radius'],
+                             'position': list(opts['ball'])}]
+        avoid = {'name': 'avoid_elbow', 'type': 'collision_avoidance',
+                 'pairs': [{'name': 'elbow_ball', 'links': list(ELBOW_LINKS),
+                            'obstacles': ['ball']}], **ELBOW_AVOID}
+        doc['tasks'] = [avoid] + tasks_12 + [min_torque]
+        doc['name'] = f'{doc["name"]}_3b_avoid_elbow'
+        over['spg'] = _ELBOW_DAQP
+    stacks = sc['stacks']
+    stacks[-1] = {'at': stacks[-1]['at'], 'stack': doc}
+    over['stacks'] = stacks
+    return over
+
+
+def _elbow_numbers(r, sim):
+    """The elbow trial's numbers of run ``r`` (see ``experiments.claims.ELBOW_CLAIMS``).
+
+    ``sim``: a :class:`~sim_bridge.simulation.Simulation` of the scenario's scene, for the
+    distances at q_v (mj_geomDistance on the commanded configurations).
+    """
+    import mujoco
+
+    gc = r.metrics['geom_contact']
+    t = np.asarray(gc['series']['t'])
+    f = np.asarray(gc['series']['normal_force_n'])
+    dist = np.asarray(gc['series']['distance_m'])
+    elbow, ball = sim.geom_ids(ELBOW_GEOMS), sim.geom_ids(['ball'])
+    d_v = []
+    for q_v in r.s.q_v:
+        d = sim.kinematics_data(np.asarray(q_v))
+        d_v.append(min(mujoco.mj_geomDistance(sim.model, d, a, b, 0.2, None)
+                       for a in elbow for b in ball))
+    circle = t >= _T_CIRCLE - 1e-9
+    out = _surface_numbers(r)
+    out.update({'mean_elbow_force_n': float(f[circle].mean()),
+                'peak_elbow_force_n': float(np.max(_smooth(f, 25))),
+                'elbow_contacts': int(gc['contacts']),
+                'ticks_in_contact_share': float(np.mean(f[circle] > 0.0)),
+                'min_distance_measured_m': float(dist.min()),
+                'min_distance_virtual_m': float(min(d_v))})
+    return out
+
+
+def _elbow_sim(r):
+    """A Simulation of run ``r``'s robot and scene (for kinematics and distances only)."""
+    from sim_bridge.simulation import SimConfig, Simulation
+
+    sc = r.scenario
+    return Simulation(SimConfig(robot=sc.robot, scene=sc.scene, scene_options=sc.scene_options,
+                                q0=sc.q0, timestep=sc.timestep, command_period=sc.dt))
+
+
+def _text_elbow(run, o):
+    txt = (f'{run}: elbow force mean {o["mean_elbow_force_n"]:.2f} N over the circle, peak '
+           f'{o["peak_elbow_force_n"]:.1f} N, in contact {100 * o["ticks_in_contact_share"]:.0f}'
+           f' % of the circle, {o["elbow_contacts"]} contacts, closest '
+           f'{o["min_distance_measured_m"] * 1e3:.1f} mm')
+    if run == 'avoid':
+        txt += f' (q_v: {o["min_distance_virtual_m"] * 1e3:.1f} mm)'
+    return txt + '; ' + _text_3_2(o)
+
+
 def _surface_numbers(r):
     t0 = _T_CIRCLE + 0.5
     pos, pos_v, ferr = _tracking_errors(r, t0)
@@ -153,6 +262,17 @@ def _check_3_2(runs, quick):
         txt += (f'; obstacle trial (3b): force on the obstacle max {o["max_obstacle_force_n"]:.1f}'
                 f' N, on the table max {o["max_table_force_n"]:.1f} N, peak |qdot| in the last '
                 f'2 s {o["peak_qdot_last_2s_rad_s"]:.3f} rad/s')
+    if 'elbow_3b' in runs:
+        sim = _elbow_sim(runs['elbow_3b'])
+        try:
+            el = out['elbow'] = {v: _elbow_numbers(runs[f'elbow_{v}'], sim) for v in ELBOW_RUNS
+                                 if f'elbow_{v}' in runs}
+        finally:
+            sim.close()
+        el['margin_m'] = ELBOW_AVOID['margin']
+        txt += ('; elbow trial (a ball in the path of the elbow, ours; the SPG not told except '
+                "in 'avoid', ours): " + '; '.join(_text_elbow(v, el[v]) for v in ELBOW_RUNS
+                                                  if v in el))
     if 'damping_ours' in runs:
         out['damping_ours'] = _surface_numbers(runs['damping_ours'])
         txt += ("; ours, not the thesis' (task 3a with include_damping: the IFC damping -D "
@@ -264,11 +384,18 @@ def _fig_3_3(runs, quick, path):
     _save(fig, path)
 
 
+_ELBOW_STYLE = {'3b': ('#2ca02c', 'task 3b'), 'no_task3': ('#d62728', 'no task 3'),
+                '3a': ('#ff7f0e', 'task 3a'), 'avoid': ('#1f77b4', 'ours: avoidance level')}
+
+
 def _fig_3_2(runs, quick, path):
     plt = _plt()
     r = runs['surface']
     d = r.task('circle')
-    fig, axes = plt.subplots(1, 3, figsize=(8, 2.6))
+    elbow = [v for v in ELBOW_RUNS if f'elbow_{v}' in runs]
+    fig, grid = plt.subplots(2 if elbow else 1, 3, figsize=(8, 5.2 if elbow else 2.6),
+                             squeeze=False)
+    axes = grid[0]
     _task_panel(axes[0], d, 0, 'x', ylabel='x [m]')
     _task_panel(axes[1], d, 1, 'y', ylabel='y [m]')
     axes[0].legend()
@@ -276,7 +403,27 @@ def _fig_3_2(runs, quick, path):
     axes[2].plot(r.s.t_cw[mf], r.contact_force()[mf, 2], color='#d62728', lw=0.6)
     axes[2].axhline(-8.0, color='k', ls='--', lw=0.8)
     axes[2].set_ylabel('f_z [N] (robot on table)')
-    for ax in axes:
+    for v in elbow:  # the elbow trial: force on the elbow, its distance, the tool's force
+        e = runs[f'elbow_{v}']
+        c, lab = _ELBOW_STYLE[v]
+        series = e.metrics['geom_contact']['series']
+        t = np.asarray(series['t'])
+        grid[1, 0].plot(t, _smooth(np.asarray(series['normal_force_n']), 25), color=c,
+                        label=lab)
+        grid[1, 1].plot(t, np.asarray(series['distance_m']) * 1e3, color=c, label=lab)
+        m = e.after(0.0, e.s.t_cw)
+        grid[1, 2].plot(e.s.t_cw[m], _smooth(e.contact_force()[m, 2], 25), color=c, lw=0.6,
+                        label=lab)
+    if elbow:
+        grid[1, 0].set_ylabel('elbow on the ball [N] (50 ms mean)')
+        grid[1, 0].legend()
+        grid[1, 1].axhline(ELBOW_AVOID['margin'] * 1e3, color='k', ls='--', lw=0.8,
+                           label='margin (ours)')
+        grid[1, 1].set_ylabel('elbow - ball distance [mm]')
+        grid[1, 1].legend()
+        grid[1, 2].axhline(-8.0, color='k', ls='--', lw=0.8)
+        grid[1, 2].set_ylabel('tool f_z [N], elbow trial')
+    for ax in grid.ravel():
         ax.set_xlabel('time [s]')
     _save(fig, path)
 
@@ -559,7 +706,9 @@ CH3_EXPERIMENTS = (
                 RunSpec('obstacle', 'thesis_3_2_surface_tracking.yaml',
                         _surface_3b_overrides(obstacle=True), full_only=True),
                 RunSpec('damping_ours', 'thesis_3_2_surface_tracking.yaml',
-                        _surface_damping_overrides(), full_only=True)),
+                        _surface_damping_overrides(), full_only=True),
+                *(RunSpec(f'elbow_{v}', ELBOW_SCENARIO, _elbow_overrides(v), full_only=True)
+                  for v in ELBOW_RUNS)),
                _check_3_2, _fig_3_2),
     Experiment('k_sweep', 'Fig. 3.15', 'Position error falls with the joint stiffness K '
                '(40...400 Nm/rad)',
