@@ -127,6 +127,10 @@ def _surface_3b_overrides(obstacle=False):
 #: collision_avoidance level of the elbow links on top, on the DAQP cascade).
 ELBOW_SCENARIO = 'thesis_3_2_elbow_obstacle.yaml'
 ELBOW_RUNS = ('3b', 'no_task3', '3a', 'avoid')
+#: Explanatory runs of the elbow trial (ours, no claim reads them; added after the v6 result):
+#: task 3b with 5 times its gain, and with include_damping (tau_s = K (q_v - q) - D qdot:
+#: the IFC damping of the measured motion, which the thesis' static torque omits).
+ELBOW_EXTRA = ('3b_gain5', '3b_damping')
 #: The MuJoCo geoms of the elbow (the capsules of the links on either side of A4) and the
 #: bodies the collision_avoidance level lists.
 ELBOW_GEOMS = ('link3_geom', 'link4_geom')
@@ -154,15 +158,20 @@ def _elbow_overrides(run):
     The stack is built from Table 3.2's (:func:`_surface_stack`), so both trials run the same
     tasks 1 and 2; '3b' gives the scenario's own stack back (test_table_3_2_elbow checks it).
     """
-    if run not in ELBOW_RUNS:
-        raise ValueError(f'elbow run {run!r} not one of {ELBOW_RUNS}')
+    if run not in ELBOW_RUNS + ELBOW_EXTRA:
+        raise ValueError(f'elbow run {run!r} not one of {ELBOW_RUNS + ELBOW_EXTRA}')
     sc = _elbow_scenario()
     doc = _surface_stack()
     tasks_12 = [t for t in doc['tasks'] if t['name'] != 'posture']
-    min_torque = {'name': 'min_torque', 'type': 'joint_torque', 'equal': 0.0, 'gain': 1.0}
+    min_torque: dict = {'name': 'min_torque', 'type': 'joint_torque', 'equal': 0.0,
+                        'gain': 1.0}
     over = {}
-    if run == '3b':
-        doc['tasks'], doc['name'] = tasks_12 + [min_torque], f'{doc["name"]}_3b'
+    if run.startswith('3b'):
+        doc['tasks'], doc['name'] = tasks_12 + [min_torque], f'{doc["name"]}_{run}'
+        if run == '3b_gain5':
+            min_torque['gain'] = 5.0
+        if run == '3b_damping':
+            min_torque['include_damping'] = True
     elif run == 'no_task3':
         doc['tasks'], doc['name'] = tasks_12, f'{doc["name"]}_no_task3'
     elif run == 'avoid':
@@ -200,7 +209,18 @@ def _elbow_numbers(r, sim):
         d_v.append(min(mujoco.mj_geomDistance(sim.model, d, a, b, 0.2, None)
                        for a in elbow for b in ball))
     circle = t >= _T_CIRCLE - 1e-9
+    cos, idx = _self_motion_share(r, sim, t, f)
+    along = np.zeros(len(f))
+    along[idx] = f[idx] * cos
+    turn = 1.0 / 0.16  # [s] the circle's period (Table 3.2's frequency in the stack)
+    smooth = _smooth(f, 25)
+    turns = [float(np.max(smooth[(t >= _T_CIRCLE + k * turn) & (t < _T_CIRCLE + (k + 1) * turn)],
+                          initial=0.0)) for k in range(int((t[-1] - _T_CIRCLE) // turn + 1))]
     out = _surface_numbers(r)
+    out.update({'peak_elbow_force_per_turn_n': turns,
+                'self_motion_cos_weighted': float(np.sum(f[idx] * cos) / np.sum(f[idx]))
+                if len(idx) else None,
+                'mean_elbow_force_along_self_motion_n': float(along[circle].mean())})
     out.update({'mean_elbow_force_n': float(f[circle].mean()),
                 'peak_elbow_force_n': float(np.max(_smooth(f, 25))),
                 'elbow_contacts': int(gc['contacts']),
@@ -208,6 +228,45 @@ def _elbow_numbers(r, sim):
                 'min_distance_measured_m': float(dist.min()),
                 'min_distance_virtual_m': float(min(d_v))})
     return out
+
+
+def _self_motion_share(r, sim, t, f):
+    """|cos| per tick in contact of the contact normal to the self-motion of the contact point.
+
+    At the measured q of each tick with elbow force ``f`` > 0: the angle between the elbow's
+    contact normal and the direction the self-motion moves the contact point. The
+    self-motion is the nullspace of the tool's 6-D Jacobian (tasks 1 and 2 fix the tool's
+    six coordinates; with a scalar K the force task's row J^+T K adds no other direction);
+    the contact point and normal are those of the ball and the closest elbow capsule. Only
+    the force component along the self-motion is what task 3 can relieve; the rest is held
+    by tasks 1 and 2. Returns (|cos| per contact tick, those ticks' indices).
+    """
+    import mujoco
+
+    m = sim.model
+    ball = sim.geom_ids(['ball'])[0]
+    elbow = sim.geom_ids(ELBOW_GEOMS)
+    tool, dof = sim.site_id('tool'), sim.dof_index
+    jt, jr, jp = np.zeros((3, m.nv)), np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    idx = np.flatnonzero(f > 0.0)
+    cos = np.zeros(len(idx))
+    for n, k in enumerate(np.searchsorted(r.s.t_js, t[idx] - 1e-9)):  # the tick's state
+        d = sim.kinematics_data(np.asarray(r.s.q[k]), jacobians=True)
+        c = d.geom_xpos[ball]
+        near = []
+        for g in elbow:  # capsules: the segment +-half length along the geom's z
+            ax, h = d.geom_xmat[g].reshape(3, 3)[:, 2], m.geom_size[g][1]
+            a, b = d.geom_xpos[g] - h * ax, d.geom_xpos[g] + h * ax
+            near.append((a + np.clip((c - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0) *
+                         (b - a), g))
+        p, g = min(near, key=lambda pg: float(np.linalg.norm(pg[0] - c)))
+        u = (p - c) / np.linalg.norm(p - c)
+        mujoco.mj_jacSite(m, d, jt, jr, tool)
+        null = np.linalg.svd(np.vstack([jt, jr])[:, dof])[2][-1]
+        mujoco.mj_jac(m, d, jp, None, p - m.geom_size[g][0] * u, m.geom_bodyid[g])
+        v = jp[:, dof] @ null
+        cos[n] = abs(u @ v) / max(np.linalg.norm(v), 1e-12)
+    return cos, idx
 
 
 def _elbow_sim(r):
@@ -226,6 +285,9 @@ def _text_elbow(run, o):
            f'{o["min_distance_measured_m"] * 1e3:.1f} mm')
     if run == 'avoid':
         txt += f' (q_v: {o["min_distance_virtual_m"] * 1e3:.1f} mm)'
+    else:
+        txt += (f', along the self-motion {o["mean_elbow_force_along_self_motion_n"]:.2f} N '
+                f'(|cos| {_fmt(o["self_motion_cos_weighted"])})')
     return txt + '; ' + _text_3_2(o)
 
 
@@ -265,14 +327,18 @@ def _check_3_2(runs, quick):
     if 'elbow_3b' in runs:
         sim = _elbow_sim(runs['elbow_3b'])
         try:
-            el = out['elbow'] = {v: _elbow_numbers(runs[f'elbow_{v}'], sim) for v in ELBOW_RUNS
-                                 if f'elbow_{v}' in runs}
+            el = out['elbow'] = {v: _elbow_numbers(runs[f'elbow_{v}'], sim)
+                                 for v in ELBOW_RUNS + ELBOW_EXTRA if f'elbow_{v}' in runs}
         finally:
             sim.close()
         el['margin_m'] = ELBOW_AVOID['margin']
         txt += ('; elbow trial (a ball in the path of the elbow, ours; the SPG not told except '
                 "in 'avoid', ours): " + '; '.join(_text_elbow(v, el[v]) for v in ELBOW_RUNS
                                                   if v in el))
+        extra = [v for v in ELBOW_EXTRA if v in el]
+        if extra:
+            txt += ('; explanatory (ours, no claim): ' +
+                    '; '.join(_text_elbow(v, el[v]) for v in extra))
     if 'damping_ours' in runs:
         out['damping_ours'] = _surface_numbers(runs['damping_ours'])
         txt += ("; ours, not the thesis' (task 3a with include_damping: the IFC damping -D "
@@ -385,14 +451,15 @@ def _fig_3_3(runs, quick, path):
 
 
 _ELBOW_STYLE = {'3b': ('#2ca02c', 'task 3b'), 'no_task3': ('#d62728', 'no task 3'),
-                '3a': ('#ff7f0e', 'task 3a'), 'avoid': ('#1f77b4', 'ours: avoidance level')}
+                '3a': ('#ff7f0e', 'task 3a'), 'avoid': ('#1f77b4', 'ours: avoidance level'),
+                '3b_damping': ('#9467bd', '3b with -D qdot (ours)')}
 
 
 def _fig_3_2(runs, quick, path):
     plt = _plt()
     r = runs['surface']
     d = r.task('circle')
-    elbow = [v for v in ELBOW_RUNS if f'elbow_{v}' in runs]
+    elbow = [v for v in (*ELBOW_RUNS, '3b_damping') if f'elbow_{v}' in runs]
     fig, grid = plt.subplots(2 if elbow else 1, 3, figsize=(8, 5.2 if elbow else 2.6),
                              squeeze=False)
     axes = grid[0]
@@ -708,7 +775,7 @@ CH3_EXPERIMENTS = (
                 RunSpec('damping_ours', 'thesis_3_2_surface_tracking.yaml',
                         _surface_damping_overrides(), full_only=True),
                 *(RunSpec(f'elbow_{v}', ELBOW_SCENARIO, _elbow_overrides(v), full_only=True)
-                  for v in ELBOW_RUNS)),
+                  for v in ELBOW_RUNS + ELBOW_EXTRA)),
                _check_3_2, _fig_3_2),
     Experiment('k_sweep', 'Fig. 3.15', 'Position error falls with the joint stiffness K '
                '(40...400 Nm/rad)',
