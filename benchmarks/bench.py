@@ -261,7 +261,7 @@ def bench_daqp_native_ratio(name, robot, make_stack, ticks):
     for on in (True, False):
         spg = SetPointGenerator(robot, make_stack(robot), kernels=kernels.native)
         if not on:
-            spg._solver.native_daqp = None  # the cascade's Python-module path
+            spg.solver.native_daqp = None  # the cascade's Python-module path
         _closed_loop(spg, robot, 200, False)  # warm-up
         calls = _python_calls(spg, robot)
         plant = JointImpedancePlant(robot, robot.q_home, substeps=1)

@@ -126,6 +126,10 @@ class DaqpCascade(CascadeSolver):
         #: ``(x, fval, exitflag, info)``; attributes so that a test can inject failures.
         self.solve_model = _solve_model
         self.solve_qp = daqp.solve
+        #: The C solve of a level model (where :attr:`native_daqp` is set and
+        #: ``solve_model`` is DAQP's own), ``solve_native(model, mask) -> exitflag`` (see
+        #: ``_daqp_native.c``); an attribute for the same reason.
+        self.solve_native = _solve_native
         self._settings = {'primal_tol': float(primal_tol)}
         self._ws: dict = {}
         self._plans: dict = {}  # level layout -> [_LevelPlan] (see _plan)
@@ -291,12 +295,14 @@ class DaqpCascade(CascadeSolver):
         if lp.native is not None and self.native_daqp is not None \
                 and self.solve_model is _solve_model:
             # the same solves from C: x into lp.x, the working set kept in warm
-            flag = lp.native.solve(_UPDATE_H)
+            solve = self.solve_native
+            flag = lp.native.solve(_UPDATE_H) if solve is _solve_native \
+                else solve(lp.native, _UPDATE_H)
             if flag != 1:
                 self.cold_retries += 1
                 _widen(ws, qdot, start)
                 warm[:] = 0
-                flag = lp.native.solve(_UPDATE_BOUNDS)
+                flag = self.solve_native(lp.native, _UPDATE_BOUNDS)
             x = lp.x
             if flag == 1 and math.isfinite(x @ f):
                 return self._kernels.accept(x, ws.bl, ws.bu, lp.A_unit, lp.norm, lp.lo,
@@ -391,7 +397,9 @@ class DaqpCascade(CascadeSolver):
                                   ws.orig_hi, C, bl, bu)
         if cmodel is not None and self.native_daqp is not None \
                 and self.solve_model is _solve_model:
-            flag = cmodel.solve(_UPDATE_A | _UPDATE_BOUNDS)  # w, and warm kept, in C
+            flag = self.solve_native(cmodel, _UPDATE_A | _UPDATE_BOUNDS)  # w, warm kept, in C
+            if flag != 1:
+                warm[:] = 0  # (as the C solve does: a failed solve forgets it)
             return w.copy(), flag  # (the slacks returned may be views of it)
         model.update(A=C, blower=bl, sense=warm)
         x, _, flag, info = self.solve_model(model)
@@ -530,6 +538,11 @@ class _LevelPlan:
 def _solve_model(model):
     """Solve a DAQP model (``model.solve()``)."""
     return model.solve()
+
+
+def _solve_native(model, mask):
+    """Update (``mask``) and solve a C level model (``model.solve(mask)``)."""
+    return model.solve(mask)
 
 
 def _keep_working_set(warm, flag, info):
