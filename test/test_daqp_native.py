@@ -114,7 +114,13 @@ def test_c_model_equals_the_python_model_on_random_level_problems():
             assert flag_c == flag_py
             np.testing.assert_array_equal(x_c, x_py)
             np.testing.assert_array_equal(warm_c, warm_py)
+            with np.errstate(invalid='ignore', over='ignore'):  # (x is NaN after some failures)
+                assert cmodel.finite() == np.isfinite(x_c @ f)
     assert {1, -1} <= flags, flags  # optimal and infeasible problems were among them
+    x_c[0], f[0] = np.nan, 1.0
+    assert not cmodel.finite()
+    x_c[0], f[0] = 1.0, np.inf
+    assert not cmodel.finite()
 
 
 def nat_solve(cmodel, mask):
@@ -265,10 +271,10 @@ def test_fallback_where_the_module_is_not_built(monkeypatch):
 
 
 @pytest.mark.parametrize('module, why', [
-    (SimpleNamespace(UNBOUND='the daqp module does not export daqp_solve', ABI=1,
+    (SimpleNamespace(UNBOUND='the daqp module does not export daqp_solve', ABI=cdaqp._ABI,
                      DAQP_VERSION='0.11.0'), 'does not export daqp_solve'),
-    (SimpleNamespace(UNBOUND='', ABI=0, DAQP_VERSION='0.11.0'), 'interface 0'),
-    (SimpleNamespace(UNBOUND='', ABI=1, DAQP_VERSION='0.10.0'), 'DAQP 0.10.0'),
+    (SimpleNamespace(UNBOUND='', ABI=1, DAQP_VERSION='0.11.0'), 'interface 1'),
+    (SimpleNamespace(UNBOUND='', ABI=cdaqp._ABI, DAQP_VERSION='0.10.0'), 'DAQP 0.10.0'),
 ])
 def test_a_stale_module_is_not_used(monkeypatch, module, why):
     """Built for another interface or DAQP version, or without DAQP's functions: unused."""

@@ -25,6 +25,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <dlfcn.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -94,7 +95,7 @@ static int bind(void) {
 #endif
 
 /* ABI of this module as ifc_spg/cascade/daqp.py expects it (bumped with the interface). */
-#define IFC_SPG_DAQP_ABI 1
+#define IFC_SPG_DAQP_ABI 2
 
 enum { B_H, B_F, B_A, B_BU, B_BL, B_WARM, B_X, B_COUNT };
 
@@ -238,6 +239,20 @@ static PyObject *Model_solve(Model *self, PyObject *arg) {
     return PyLong_FromLong(res.exitflag);
 }
 
+PyDoc_STRVAR(finite_doc,
+"finite() -> bool\n\n"
+"Whether x @ f is finite: x and the cost finite (the cascade's check of a solution, without\n"
+"numpy's call).");
+
+static PyObject *Model_finite(Model *self, PyObject *unused) {
+    (void)unused;
+    const double *x = self->buf[B_X].buf, *f = self->buf[B_F].buf;
+    const Py_ssize_t n = self->buf[B_X].len / (Py_ssize_t)sizeof(double);
+    double sum = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) sum += x[i] * f[i];
+    return PyBool_FromLong(isfinite(sum));
+}
+
 static PyObject *Model_lam(Model *self, void *closure) {
     (void)closure;
     PyObject *out = PyList_New(self->m);
@@ -260,6 +275,7 @@ static PyObject *Model_iterations(Model *self, void *closure) {
 
 static PyMethodDef Model_methods[] = {
     {"solve", (PyCFunction)Model_solve, METH_O, solve_doc},
+    {"finite", (PyCFunction)Model_finite, METH_NOARGS, finite_doc},
     {NULL, NULL, 0, NULL},
 };
 

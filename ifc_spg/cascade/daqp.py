@@ -30,7 +30,7 @@ __all__ = ['CascadeResult', 'DaqpCascade', 'describe', 'level_violation', 'nativ
 _BIG = 1e30  # what the solvers take as infinity
 _EQ = 5  # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
 _ACTIVE, _LOWER = 1, 2  # DAQP sense flags: in the working set; at its lower bound
-_ABI = 1  # the interface of ifc_spg.cascade._daqp_native this module is written for
+_ABI = 2  # the interface of ifc_spg.cascade._daqp_native this module is written for
 
 #: Why the C module is not used where it was built ('' where it is, or was not built).
 stale = ''
@@ -304,7 +304,7 @@ class DaqpCascade(CascadeSolver):
                 warm[:] = 0
                 flag = self.solve_native(lp.native, _UPDATE_BOUNDS)
             x = lp.x
-            if flag == 1 and math.isfinite(x @ f):
+            if flag == 1 and lp.native.finite():  # (math.isfinite(x @ f), without numpy)
                 return self._kernels.accept(x, ws.bl, ws.bu, lp.A_unit, lp.norm, lp.lo,
                                             lp.band, lp.lock_lo, lp.lock_hi)
             return self._accept_slack(ws, *self._solve_with_slacks(ws, start, end), start,
