@@ -33,6 +33,10 @@
 #include "api.h"
 #include "utils.h"
 
+#ifndef IFC_SPG_DAQP_VERSION
+#define IFC_SPG_DAQP_VERSION "unknown"
+#endif
+
 /* DAQP's functions, from the daqp module's binary (see bind). */
 static struct {
     void (*allocate_settings)(DAQPWorkspace *);
@@ -86,13 +90,31 @@ static int bind(void) {
     *(void **)&daqp.solve = fns[3];
     *(void **)&daqp.free_workspace = fns[4];
     *(void **)&daqp.free_ldp = fns[5];
+    /* The binary must lay out DAQP's structs as the headers do (a build with other types,
+     * say DAQP_SINGLE_PRECISION, would not): its default settings, read through them. */
+    DAQPWorkspace *probe = calloc(1, sizeof(DAQPWorkspace));
+    if (probe == NULL) {
+        snprintf(unbound, sizeof unbound, "out of memory");
+        return -1;
+    }
+    daqp.allocate_settings(probe);
+    const DAQPSettings *st = probe->settings;
+    const int same = st != NULL && st->primal_tol == DAQP_DEFAULT_PRIM_TOL &&
+                     st->dual_tol == DAQP_DEFAULT_DUAL_TOL &&
+                     st->iter_limit == DAQP_DEFAULT_ITER_LIMIT && st->time_limit == 0 &&
+                     st->eq_reduction == DAQP_EQ_REDUCTION_AUTO && st->presolve == 1;
+    free(probe->settings);
+    free(probe);
+    if (!same) {
+        snprintf(unbound, sizeof unbound,
+                 "the daqp module's DAQPSettings differ from DAQP %s's headers",
+                 IFC_SPG_DAQP_VERSION);
+        return -1;
+    }
     unbound[0] = '\0';
     return 0;
 }
 
-#ifndef IFC_SPG_DAQP_VERSION
-#define IFC_SPG_DAQP_VERSION "unknown"
-#endif
 
 /* ABI of this module as ifc_spg/cascade/daqp.py expects it (bumped with the interface). */
 #define IFC_SPG_DAQP_ABI 2
@@ -253,21 +275,6 @@ static PyObject *Model_finite(Model *self, PyObject *unused) {
     return PyBool_FromLong(isfinite(sum));
 }
 
-static PyObject *Model_lam(Model *self, void *closure) {
-    (void)closure;
-    PyObject *out = PyList_New(self->m);
-    if (out == NULL) return NULL;
-    for (int i = 0; i < self->m; i++) {
-        PyObject *v = PyFloat_FromDouble(self->lam[i]);
-        if (v == NULL) {
-            Py_DECREF(out);
-            return NULL;
-        }
-        PyList_SET_ITEM(out, i, v);
-    }
-    return out;
-}
-
 static PyObject *Model_iterations(Model *self, void *closure) {
     (void)closure;
     return PyLong_FromLong(self->iterations);
@@ -280,7 +287,6 @@ static PyMethodDef Model_methods[] = {
 };
 
 static PyGetSetDef Model_getset[] = {
-    {"lam", (getter)Model_lam, NULL, "The multipliers of the last solve (a list).", NULL},
     {"iterations", (getter)Model_iterations, NULL, "Iterations of the last solve.", NULL},
     {NULL, NULL, NULL, NULL, NULL},
 };
