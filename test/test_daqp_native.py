@@ -263,6 +263,7 @@ def test_fallback_where_the_module_is_not_built(monkeypatch):
     monkeypatch.setattr(cdaqp, 'stale', '')
     assert cdaqp._load_native() is None and cdaqp.stale == ''
     monkeypatch.setattr(cdaqp, 'native', None)
+    monkeypatch.setattr(cdaqp, '_disabled', False)  # (IFC_SPG_NATIVE=0 would say that)
     assert 'was not built' in cdaqp.describe() and 'Python module' in cdaqp.describe()
     solver = DaqpCascade(7, RHO)
     assert solver.native_daqp is None
@@ -285,6 +286,7 @@ def test_a_stale_module_is_not_used(monkeypatch, module, why):
     assert cdaqp._load_native() is None
     assert why in cdaqp.stale
     monkeypatch.setattr(cdaqp, 'native', None)
+    monkeypatch.setattr(cdaqp, '_disabled', False)
     assert 'stale' in cdaqp.describe() and why in cdaqp.describe()
 
 
