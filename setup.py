@@ -1,7 +1,12 @@
 """ament_python build script for ifc_spg (Jazzy template)."""
 
 from glob import glob
+import hashlib
 import os
+import sys
+import tarfile
+import tempfile
+import urllib.request
 
 from setuptools import Extension, find_packages, setup
 
@@ -35,7 +40,88 @@ def native_extensions():
             Extension('ifc_spg.dynamics._native_dynamics',
                       ['ifc_spg/dynamics/_native_dynamics.c'],
                       include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
-                      optional=True)]
+                      optional=True), *daqp_extension()]
+
+
+#: DAQP's sdist on PyPI, the version requirements.lock pins (daqp==...): the headers of
+#: its C sources (csrc/include, MIT) declare the C API that ifc_spg.cascade._daqp_native
+#: calls in the daqp module's binary. (URL, sha256.)
+DAQP_VERSION = '0.11.0'
+DAQP_SDIST = ('https://files.pythonhosted.org/packages/c2/5d/'
+              '6ae925a74c02e68a1356a49261dc42af98fa1cda75c16428e49cb7b1f0f9/daqp-0.11.0.tar.gz',
+              '2f27baf18d2acca14186498e651b34e0bed455627e777d3fd8ba655e7e40f920')
+
+
+def _sha256(path):
+    digest = hashlib.sha256()
+    with open(path, 'rb') as f:
+        for chunk in iter(lambda: f.read(1 << 16), b''):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def daqp_headers():
+    """DAQP's C headers from the pinned sdist, fetched once; their directory, or None.
+
+    The sdist is taken from $IFC_SPG_DAQP_SDIST (a local copy) or ~/.cache/ifc_spg/
+    (downloaded there from PyPI if absent), its sha256 checked, and its csrc/include and
+    LICENSE unpacked into build/ (not in git). None, with a note, where it cannot be had
+    (offline) or IFC_SPG_DAQP_SDIST=0: the cascade then calls DAQP through its Python module.
+    """
+    here = os.path.dirname(os.path.abspath(__file__))
+    root = os.path.join(here, 'build', f'daqp-{DAQP_VERSION}')
+    include = os.path.join(root, 'csrc', 'include')
+    if os.path.isfile(os.path.join(include, 'api.h')):
+        return include
+    url, sha = DAQP_SDIST
+    sdist = os.environ.get('IFC_SPG_DAQP_SDIST', '')
+    if sdist == '0':
+        return None
+    if not sdist:
+        cache = os.path.join(os.environ.get('XDG_CACHE_HOME') or
+                             os.path.join(os.path.expanduser('~'), '.cache'), 'ifc_spg')
+        sdist = os.path.join(cache, os.path.basename(url))
+        if not os.path.isfile(sdist) or _sha256(sdist) != sha:
+            try:
+                os.makedirs(cache, exist_ok=True)
+                with urllib.request.urlopen(url, timeout=60) as r, \
+                        tempfile.NamedTemporaryFile(dir=cache, delete=False) as f:
+                    f.write(r.read())
+                os.replace(f.name, sdist)
+            except OSError as e:
+                print(f'ifc_spg: DAQP sources not fetched ({e}); the cascade will call DAQP '
+                      'through its Python module', file=sys.stderr)
+                return None
+    if not os.path.isfile(sdist) or _sha256(sdist) != sha:
+        print(f'ifc_spg: {sdist} is not the DAQP {DAQP_VERSION} sdist (sha256 differs); the '
+              'cascade will call DAQP through its Python module', file=sys.stderr)
+        return None
+    prefix = f'daqp-{DAQP_VERSION}/'
+    with tarfile.open(sdist, 'r:gz') as tar:
+        members = [m for m in tar.getmembers() if m.isfile() and '..' not in m.name and
+                   (m.name.startswith(prefix + 'csrc/include/') or
+                    m.name == prefix + 'LICENSE')]
+        for m in members:
+            m.name = m.name[len(prefix):]
+        tar.extractall(root, members)
+    return include
+
+
+def daqp_extension():
+    """ifc_spg.cascade._daqp_native: the cascade's DAQP solves from C (optional).
+
+    It calls DAQP's C functions in the installed daqp module's binary (the same machine
+    code as the Python path, see _daqp_native.c), declared by the headers of the same
+    version's sdist.
+    """
+    include = daqp_headers()
+    if include is None:
+        return []
+    rel = os.path.relpath(include, os.path.dirname(os.path.abspath(__file__)))
+    return [Extension('ifc_spg.cascade._daqp_native', ['ifc_spg/cascade/_daqp_native.c'],
+                      include_dirs=[rel], libraries=['dl'],
+                      define_macros=[('IFC_SPG_DAQP_VERSION', f'"{DAQP_VERSION}"')],
+                      extra_compile_args=['-O2'], optional=True)]
 
 
 setup(

@@ -12,6 +12,9 @@ joint-impedance plant (the plant is not timed). Stacks:
 - ``native_ratio``: the LBR and iCub stacks with the C kernels of the tick
   (``ifc_spg.kernels._native``) and with their numpy reference code, two closed loops in one
   process, interleaved tick by tick;
+- ``daqp_native_ratio``: the same stacks with the level solves called from C
+  (``ifc_spg.cascade._daqp_native``) and through DAQP's Python module, likewise, and the
+  Python calls per tick of each;
 - ``pink_ratio``: a 2-level strict stack (pose, posture) on the iiwa, next to pink's
   weighted solve of the same two tasks (``pink.solve_ik`` with DAQP), same process,
   interleaved tick by tick so that machine load affects both alike;
@@ -42,6 +45,7 @@ import pinocchio as pin
 from plants import JointImpedancePlant
 
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack, kernels
+from ifc_spg.cascade import daqp as daqp_cascade
 from ifc_spg.offline.runner import find_config_dir
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
 from ifc_spg.tasks.bounds import Bound
@@ -227,6 +231,63 @@ def bench_native_ratio(name, robot, make_stack, ticks):
             'ratio_p99': a['p99_us'] / b['p99_us']}
 
 
+def _python_calls(spg, robot, ticks=100):
+    """Calls per closed-loop tick as ``sys.setprofile`` sees them.
+
+    Python functions and builtins; not the methods of Cython classes (``daqp.Model.update``
+    and ``solve`` are not counted), nor calls of types.
+    """
+    plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
+    state = (plant.q, plant.qdot, 0.0)
+    count = [0]
+
+    def profile(frame, event, arg):
+        if event in ('call', 'c_call'):
+            count[0] += 1
+
+    for _ in range(ticks):
+        sys.setprofile(profile)
+        q_v = spg.step(*state)
+        sys.setprofile(None)
+        state = plant.step(q_v)
+    return count[0] / ticks
+
+
+def bench_daqp_native_ratio(name, robot, make_stack, ticks):
+    """The tick with the level solves from C vs through DAQP's Python module, interleaved.
+
+    Two closed loops (both with the C kernels of the tick), tick by tick, who goes first
+    alternating; and each loop's Python calls per tick. None where the C module is not built.
+    """
+    if daqp_cascade.native is None or kernels.native is None:
+        return None
+    loops = []
+    for on in (True, False):
+        spg = SetPointGenerator(robot, make_stack(robot), kernels=kernels.native)
+        if not on:
+            spg.solver.native_daqp = None  # the cascade's Python-module path
+        _closed_loop(spg, robot, 200, False)  # warm-up
+        calls = _python_calls(spg, robot)
+        plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
+        loops.append([spg, plant, (plant.q, plant.qdot, 0.0), np.empty(ticks), calls])
+    gc.collect()
+    gc.disable()
+    try:
+        for i in range(ticks):
+            for k in (0, 1) if i % 2 == 0 else (1, 0):
+                loop = loops[k]
+                spg, plant, state, times, _ = loop
+                q_v = spg.step(*state)
+                times[i] = spg.info.tick_time
+                loop[2] = plant.step(q_v)
+    finally:
+        gc.enable()
+    a, b = _stats(loops[0][3]), _stats(loops[1][3])
+    return {'stack': name, 'c': a, 'python': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
+            'ratio_p99': a['p99_us'] / b['p99_us'], 'calls_c': loops[0][4],
+            'calls_python': loops[1][4]}
+
+
 def bench_pink(ticks):
     """Our 2-level strict stack vs pink's weighted solve, interleaved in one loop."""
     import pink  # the library compared with: needed by this benchmark only
@@ -375,7 +436,8 @@ def bench_process_first_ticks(runs=3):
 def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
                    slow_ticks=300, slow_budget=60.0, first_runs=3):
     """Run all benchmarks; return a JSON-friendly dict."""
-    out = {'ticks': ticks, 'stacks': [], 'implementation': kernels.describe()}
+    out = {'ticks': ticks, 'stacks': [],
+           'implementation': f'{kernels.describe()}; {daqp_cascade.describe()}'}
     lbr = RobotModel.from_config('lbr_iiwa14')
     icub = RobotModel.from_config('icub_upper_body')
     for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),
@@ -384,14 +446,16 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
             print(f'  {name} ...', file=sys.stderr)
         out['stacks'] += bench_stack(name, robot, make, solvers, ticks, progress, slow_ticks,
                                      slow_budget)
-    out['native'] = []
-    for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),
-                              ('icub_table_3_7', icub, icub_stack)):
-        if progress:
-            print(f'  native_ratio {name} ...', file=sys.stderr)
-        row = bench_native_ratio(name, robot, make, ticks)
-        if row is not None:
-            out['native'].append(row)
+    for key, ratio in (('native', bench_native_ratio),
+                       ('daqp_native', bench_daqp_native_ratio)):
+        out[key] = []
+        for name, robot, make in (('lbr_table_4_1', lbr, lbr_stack),
+                                  ('icub_table_3_7', icub, icub_stack)):
+            if progress:
+                print(f'  {key}_ratio {name} ...', file=sys.stderr)
+            row = ratio(name, robot, make, ticks)
+            if row is not None:
+                out[key].append(row)
     if progress:
         print('  pink_ratio ...', file=sys.stderr)
     out['pink'] = bench_pink(ticks)
@@ -470,6 +534,15 @@ def format_report(res):
             lines.append(f"  {r['stack']:<16}C p50 {a['p50_us']:.1f} / p99 {a['p99_us']:.1f} us,"
                          f" numpy {b['p50_us']:.1f} / {b['p99_us']:.1f} us: ratio "
                          f"{r['ratio_p50']:.2f} / {r['ratio_p99']:.2f}")
+    if res.get('daqp_native'):
+        lines += ['', "Level solves from C vs through DAQP's Python module "
+                  '(ifc_spg.cascade._daqp_native), two closed loops interleaved:']
+        for r in res['daqp_native']:
+            a, b = r['c'], r['python']
+            lines.append(f"  {r['stack']:<16}C p50 {a['p50_us']:.1f} / p99 {a['p99_us']:.1f} us,"
+                         f" Python {b['p50_us']:.1f} / {b['p99_us']:.1f} us: ratio "
+                         f"{r['ratio_p50']:.2f} / {r['ratio_p99']:.2f}; Python calls per "
+                         f"tick {r['calls_c']:.0f} / {r['calls_python']:.0f}")
     p = res['pink']
     lines += ['', '2-level strict stack (pose + posture) vs pink weighted solve (daqp), '
               'interleaved:',

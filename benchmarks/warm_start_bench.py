@@ -44,7 +44,7 @@ class InternalWarmStart(DaqpCascade):
         ws, i, start, end = lp.ws, lp.i, lp.start, lp.end
         n, sl = self.n, slice(start, end)
         A_i, beta, bl = ws.A[sl], ws.orig_lo[sl], ws.bl
-        H, f, model = ws.level(i, start)
+        H, f, model = ws.level(i, start)[:3]
         self._kernels.normal_form(A_i, beta, self.rho, H, f)
         if start:
             model.update(H=H, f=f, A=ws.A_unit[:start], blower=bl[:n + start])
@@ -66,7 +66,7 @@ class InternalWarmStart(DaqpCascade):
     def _solve_slack_level(self, ws, i, start, end):
         if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
             return self._solve_with_slacks(ws, start, end)
-        C, bu, bl, cold, model = ws.slack_level(i, start, end, self.rho)
+        C, bu, bl, cold, model = ws.slack_level(i, start, end, self.rho)[:5]
         self._kernels.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo,
                                   ws.orig_hi, C, bl, bu)
         model.update(A=C, blower=bl)

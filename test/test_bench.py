@@ -3,6 +3,7 @@
 import math
 
 from benchmarks.bench import format_report, run_benchmarks
+from ifc_spg.cascade import daqp as daqp_cascade
 
 
 def test_bench_runs_every_row_and_reports_the_machine_baseline():
@@ -19,6 +20,12 @@ def test_bench_runs_every_row_and_reports_the_machine_baseline():
     report = format_report(res)
     assert 'machine baseline' in report and res['implementation'] in report
     assert 'C kernels vs their numpy reference code' in report
+    if daqp_cascade.native is not None:
+        assert [r['stack'] for r in res['daqp_native']] == ['lbr_table_4_1', 'icub_table_3_7']
+        for r in res['daqp_native']:
+            assert r['c']['ticks'] == r['python']['ticks'] == 40
+            assert 0 < r['calls_c'] < r['calls_python']
+        assert "Level solves from C vs through DAQP's Python module" in report
     f = res['first_ticks']
     for mode in ('prepared', 'lazy'):
         assert f[mode]['first']['ticks'] == f[mode]['switch']['ticks'] == f['repeats']

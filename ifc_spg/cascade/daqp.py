@@ -10,7 +10,10 @@ as the live run did.
 """
 
 from collections.abc import Sequence
+import importlib
+import importlib.metadata
 import math
+import os
 from types import ModuleType
 from typing import Any
 
@@ -22,11 +25,60 @@ from ifc_spg.errors import IfcSpgError
 from ifc_spg.limits.joint_limits import VelocityBox
 from ifc_spg.tasks.task import Level
 
-__all__ = ['CascadeResult', 'DaqpCascade', 'level_violation']
+__all__ = ['CascadeResult', 'DaqpCascade', 'describe', 'level_violation', 'native']
 
 _BIG = 1e30  # what the solvers take as infinity
 _EQ = 5  # DAQP sense flag: equality constraint (ACTIVE | IMMUTABLE)
 _ACTIVE, _LOWER = 1, 2  # DAQP sense flags: in the working set; at its lower bound
+_ABI = 2  # the interface of ifc_spg.cascade._daqp_native this module is written for
+
+#: Why the C module is not used where it was built ('' where it is, or was not built).
+stale = ''
+
+
+def _load_native() -> ModuleType | None:
+    """The level solves from C (``_daqp_native.c``), or None.
+
+    The module calls DAQP's C functions in the installed ``daqp`` module's binary. None
+    where it was not built (no compiler, or setup could not fetch DAQP's headers), and where
+    it is stale: built for another interface or another DAQP version than the ``daqp``
+    module installed, or that module does not export DAQP's functions.
+    """
+    global stale
+    try:
+        module = importlib.import_module('ifc_spg.cascade._daqp_native')
+    except ImportError:
+        return None
+    try:
+        installed = importlib.metadata.version('daqp')
+    except importlib.metadata.PackageNotFoundError:
+        installed = '?'
+    if getattr(module, 'UNBOUND', 'unknown'):  # DAQP's C functions not found
+        stale = f'DAQP not bound: {getattr(module, "UNBOUND", "unknown")}'
+    elif getattr(module, 'ABI', None) != _ABI:
+        stale = f'built for interface {getattr(module, "ABI", None)}, not {_ABI}'
+    elif getattr(module, 'DAQP_VERSION', None) != installed:
+        stale = f'built with DAQP {getattr(module, "DAQP_VERSION", None)}, not {installed}'
+    return None if stale else module
+
+
+#: The C level solves (:mod:`ifc_spg.cascade._daqp_native`), or None where not built or stale.
+native: ModuleType | None = _load_native()
+_disabled = os.environ.get('IFC_SPG_NATIVE', '1').strip() == '0'
+_UPDATE_H, _UPDATE_A, _UPDATE_BOUNDS = 1, 2, 8  # DAQP_UPDATE_Rinv, _M, _d
+
+
+def describe() -> str:
+    """Which DAQP layer a cascade with the C kernels uses, and why."""
+    if native is not None and not _disabled:
+        return 'DAQP from C (ifc_spg.cascade._daqp_native)'
+    if _disabled:
+        return 'DAQP through its Python module (IFC_SPG_NATIVE=0)'
+    if stale:
+        return (f'DAQP through its Python module (ifc_spg.cascade._daqp_native is stale, '
+                f'{stale}: rebuild it with ./run setup or pip install -e .)')
+    return ('DAQP through its Python module (ifc_spg.cascade._daqp_native was not built: '
+            "reinstall with a C compiler and DAQP's headers, see setup.py)")
 
 
 class DaqpCascade(CascadeSolver):
@@ -56,12 +108,17 @@ class DaqpCascade(CascadeSolver):
 
     The cost's condition number grows like |A_i|^2 / rho; below rho = 1e-6 (only used to
     compare with pseudo-inverses) equality levels also take the slack form.
+
+    The warm-started level solves call DAQP from C (:data:`native`, one call per solve
+    over the same arrays, the same DAQP calls and working-set rule) where that module was
+    built and the cascade uses the C kernels; ``daqp_native=False`` (or the numpy kernels)
+    keeps them on DAQP's Python module. The two give the same numbers.
     """
 
     name = 'daqp'
 
     def __init__(self, n: int, rho: float = 0.01, primal_tol: float = 1e-6, *,
-                 kernels: ModuleType | None = None):
+                 kernels: ModuleType | None = None, daqp_native: bool | None = None):
         super().__init__(n, rho)
         import daqp
         #: The two DAQP calls, ``solve_model(model)`` (a persistent model) and
@@ -69,6 +126,10 @@ class DaqpCascade(CascadeSolver):
         #: ``(x, fval, exitflag, info)``; attributes so that a test can inject failures.
         self.solve_model = _solve_model
         self.solve_qp = daqp.solve
+        #: The C solve of a level model (where :attr:`native_daqp` is set and
+        #: ``solve_model`` is DAQP's own), ``solve_native(model, mask) -> exitflag`` (see
+        #: ``_daqp_native.c``); an attribute for the same reason.
+        self.solve_native = _solve_native
         self._settings = {'primal_tol': float(primal_tol)}
         self._ws: dict = {}
         self._plans: dict = {}  # level layout -> [_LevelPlan] (see _plan)
@@ -79,6 +140,11 @@ class DaqpCascade(CascadeSolver):
         self.relaxed_retries = 0
         self._relax = float(primal_tol)
         self._kernels = _kernels.resolve(kernels)
+        if daqp_native is None:
+            daqp_native = self._kernels is not _kernels.reference and not _disabled
+        #: The C level solves (:data:`native`) this cascade makes, or None (DAQP's Python
+        #: module); built with them, a cascade can be switched to None and back.
+        self.native_daqp: ModuleType | None = native if daqp_native else None
 
     @property
     def model_count(self) -> int:
@@ -152,7 +218,8 @@ class DaqpCascade(CascadeSolver):
     def _workspace(self, R: int) -> '_Workspace':
         ws = self._ws.get(R)
         if ws is None:
-            ws = self._ws[R] = _Workspace(self.n, R, self.rho, self._settings)
+            ws = self._ws[R] = _Workspace(self.n, R, self.rho, self._settings,
+                                          self.native_daqp)
         return ws
 
     def solve(self, levels: Sequence[Level], box: VelocityBox,
@@ -225,6 +292,23 @@ class DaqpCascade(CascadeSolver):
         ws, start, end = lp.ws, lp.start, lp.end
         H, f, model, warm = lp.H, lp.f, lp.model, lp.warm
         self._kernels.normal_form(lp.A, lp.lo, self.rho, H, f)
+        if lp.native is not None and self.native_daqp is not None \
+                and self.solve_model is _solve_model:
+            # the same solves from C: x into lp.x, the working set kept in warm
+            solve = self.solve_native
+            flag = lp.native.solve(_UPDATE_H) if solve is _solve_native \
+                else solve(lp.native, _UPDATE_H)
+            if flag != 1:
+                self.cold_retries += 1
+                _widen(ws, qdot, start)
+                warm[:] = 0
+                flag = self.solve_native(lp.native, _UPDATE_BOUNDS)
+            x = lp.x
+            if flag == 1 and lp.native.finite():  # (math.isfinite(x @ f), without numpy)
+                return self._kernels.accept(x, ws.bl, ws.bu, lp.A_unit, lp.norm, lp.lo,
+                                            lp.band, lp.lock_lo, lp.lock_hi)
+            return self._accept_slack(ws, *self._solve_with_slacks(ws, start, end), start,
+                                      end)
         # Each level index has its own DAQP model and working set: the solve starts from
         # this level's active bounds and rows of the last tick (the sense flags ``warm``).
         # The model points at H, f and the workspace's rows and bounds (all written in
@@ -307,10 +391,16 @@ class DaqpCascade(CascadeSolver):
         """
         if (ws.orig_lo[start:end] == ws.orig_hi[start:end]).any():
             return self._solve_with_slacks(ws, start, end)  # equal rows: flagged, cold
-        C, bu, bl, _, model = ws.slack_level(i, start, end, self.rho)
+        C, bu, bl, _, model, cmodel, w = ws.slack_level(i, start, end, self.rho)
         warm = ws.warm[('slack', i, start, end)]
         self._kernels.slack_setup(ws.A_unit, ws.A, start, end, ws.bl, ws.bu, ws.orig_lo,
                                   ws.orig_hi, C, bl, bu)
+        if cmodel is not None and self.native_daqp is not None \
+                and self.solve_model is _solve_model:
+            flag = self.solve_native(cmodel, _UPDATE_A | _UPDATE_BOUNDS)  # w, warm kept, in C
+            if flag != 1:
+                warm[:] = 0  # (as the C solve does: a failed solve forgets it)
+            return w.copy(), flag  # (the slacks returned may be views of it)
         model.update(A=C, blower=bl, sense=warm)
         x, _, flag, info = self.solve_model(model)
         _keep_working_set(warm, flag, info)  # a failed solve forgets it
@@ -342,8 +432,10 @@ class _Workspace:
     model per level index that points at them (so updates only say what changed).
     """
 
-    def __init__(self, n: int, R: int, rho: float, settings: dict):
+    def __init__(self, n: int, R: int, rho: float, settings: dict,
+                 native: ModuleType | None = None):
         self.n = n
+        self.native = native  # the C level solves, or None
         self.R = R
         self.A = np.zeros((R, n))  # rows as the levels give them
         self.A_unit = np.zeros((R, n))  # the same rows scaled to unit norm (the models')
@@ -366,33 +458,43 @@ class _Workspace:
     def slack_level(self, i: int, start: int, end: int, rho: float) -> tuple:
         """The arrays and model of an inequality level with slacks.
 
-        ``(C, bu, bl, cold sense, model)`` of inequality level index i (rows
+        ``(C, bu, bl, cold sense, model, C model, w)`` of inequality level index i (rows
         ``start:end``): over w = [qdot_v; s], C = [[A_higher, 0], [A_i, -I]], bounds [box;
         free; rows]; the model points at C, bu and bl and keeps its working set from tick
-        to tick.
+        to tick. The C model (None without :data:`native`) solves the same over the same
+        arrays into ``w``.
         """
         key = ('slack', i, start, end)
         hit = self.models.get(key)
         if hit is None:
-            hit = self.models[key] = _slack_model(self.n, start, end, rho, self.settings)
-            self.warm[key] = np.zeros(self.n + 2 * end - start, dtype=np.int32)
+            C, bu, bl, cold, model, H, f = _slack_model(self.n, start, end, rho,
+                                                         self.settings)
+            warm = self.warm[key] = np.zeros(self.n + 2 * end - start, dtype=np.int32)
+            w = np.zeros(self.n + end - start)
+            cmodel = None if self.native is None else self.native.Model(
+                H, f, C, bu, bl, warm, w, self.settings['primal_tol'])
+            hit = self.models[key] = (C, bu, bl, cold, model, cmodel, w)
         return hit
 
     def level(self, i: int, start: int) -> tuple:
-        """``(H, f, model)`` of level index i, whose higher levels have ``start`` rows.
+        """``(H, f, model, C model, x)`` of level index i, whose higher levels have ``start`` rows.
 
         The model sees the box and the first ``start`` rows (views of the shared arrays),
-        and keeps its working set from tick to tick: a warm start.
+        and keeps its working set from tick to tick: a warm start. The C model (None
+        without :data:`native`) solves the same over the same arrays into ``x``.
         """
         key = (i, start)
         hit = self.models.get(key)
         if hit is None:
             n = self.n
             H, f = np.eye(n), np.zeros(n)
-            model = _daqp_model(H, f, self.A_unit[:start], self.bu[:n + start],
-                                self.bl[:n + start], self.settings)
-            hit = self.models[key] = (H, f, model)
-            self.warm[key] = np.zeros(n + start, dtype=np.int32)
+            A, bu, bl = self.A_unit[:start], self.bu[:n + start], self.bl[:n + start]
+            model = _daqp_model(H, f, A, bu, bl, self.settings)
+            warm = self.warm[key] = np.zeros(n + start, dtype=np.int32)
+            x = np.zeros(n)
+            cmodel = None if self.native is None else self.native.Model(
+                H, f, A, bu, bl, warm, x, self.settings['primal_tol'])
+            hit = self.models[key] = (H, f, model, cmodel, x)
         return hit
 
 
@@ -401,13 +503,13 @@ class _LevelPlan:
 
     Attributes are views of the :class:`_Workspace` arrays (rows ``start:end``), so that the
     tick slices nothing; ``normal``: an equality level solved in its normal form, whose
-    ``H``, ``f``, ``model`` and ``warm`` are built here (inequality levels get their slack
-    models from the workspace as they are solved).
+    ``H``, ``f``, ``model``, ``warm``, ``native`` (its C model) and ``x`` are built here
+    (inequality levels get their slack models from the workspace as they are solved).
     """
 
     __slots__ = ('ws', 'i', 'start', 'end', 'equality', 'normal', 'A', 'lo', 'hi', 'A_unit',
                  'norm', 'band', 'lo_rows', 'hi_rows', 'lock_lo', 'lock_hi', 'A_higher',
-                 'bl_higher', 'H', 'f', 'model', 'warm')
+                 'bl_higher', 'H', 'f', 'model', 'warm', 'native', 'x')
 
     def __init__(self, cascade: 'DaqpCascade', ws: _Workspace, i: int, start: int, end: int,
                  equality: bool):
@@ -426,14 +528,21 @@ class _LevelPlan:
         self.f: Any = None
         self.model: Any = None
         self.warm: Any = None
+        self.native: Any = None
+        self.x: Any = None
         if self.normal:
-            self.H, self.f, self.model = ws.level(i, start)
+            self.H, self.f, self.model, self.native, self.x = ws.level(i, start)
             self.warm = ws.warm[(i, start)]
 
 
 def _solve_model(model):
     """Solve a DAQP model (``model.solve()``)."""
     return model.solve()
+
+
+def _solve_native(model, mask):
+    """Update (``mask``) and solve a C level model (``model.solve(mask)``)."""
+    return model.solve(mask)
 
 
 def _keep_working_set(warm, flag, info):
@@ -458,15 +567,19 @@ def _keep_working_set(warm, flag, info):
 
 
 def _slack_model(n, start, end, rho, settings):
-    """Arrays and DAQP model of an inequality level with slacks (see ``slack_level``)."""
+    """Arrays and DAQP model of an inequality level with slacks, then its H and f.
+
+    ``(C, bu, bl, cold sense, model, H, f)`` (see ``slack_level``).
+    """
     m = end - start
     C = np.zeros((end, n + m))
     C[start:, n:] = -np.eye(m)
     bu = np.full(n + m + end, np.inf)
     bl = np.full(n + m + end, -np.inf)
     H = np.diag(np.concatenate([np.full(n, rho), np.ones(m)]))
+    f = np.zeros(n + m)
     cold = np.zeros(n + m + end, dtype=np.int32)  # sense flags of a cold start
-    return C, bu, bl, cold, _daqp_model(H, np.zeros(n + m), C, bu, bl, settings)
+    return C, bu, bl, cold, _daqp_model(H, f, C, bu, bl, settings), H, f
 
 
 def _daqp_model(H, f, A, bu, bl, settings):
