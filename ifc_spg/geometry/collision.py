@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import math
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import coal
 import numpy as np
@@ -344,8 +344,7 @@ class CollisionGeometry:
         return self.model.geometryObjects[i].name
 
 
-@dataclass(frozen=True)
-class Distances:
+class Distances(NamedTuple):
     """Distances of a pair set at one configuration.
 
     Attributes:
@@ -404,8 +403,10 @@ class PairQuery:
         self._mask_b = support[geometry.parent_joint[ib]]
         # joints that move one shape of a pair but not the other, times the lever bound
         self._lever = np.abs(self._mask_a - self._mask_b) * geometry.lever
-        self._last_q: np.ndarray | None = None
-        self._last_bound = np.zeros(self.m)
+        self._last_q: np.ndarray | None = None  # (a buffer, once there is a last call)
+        self._last_bound = np.zeros(self.m)  # never written in place: compute's distance
+        self._data: pin.Data | None = None  # the Data of the last call and its data.J (a
+        self._J = np.zeros((6, self._n))  # view, written in place by pinocchio)
         self._normal = np.zeros((self.m, 3))  # scratch: the unit normals of the pairs within
 
     def move_shape(self, shape: int, placement: pin.SE3) -> None:
@@ -420,7 +421,9 @@ class PairQuery:
         self._pin.move_shape(shape, rotation, translation)
         if self._narrow is not self._pin:
             self._narrow.move_shape(shape, rotation, translation)
-        self._last_bound[(self._ia == shape) | (self._ib == shape)] = -np.inf
+        bound = self._last_bound.copy()  # (the last call's distances, returned to its caller)
+        bound[(self._ia == shape) | (self._ib == shape)] = -np.inf
+        self._last_bound = bound
 
     # -- the cull --------------------------------------------------------------------------
     def lower_bounds(self, data: pin.Data) -> np.ndarray:
@@ -489,7 +492,9 @@ class PairQuery:
             within = self._narrow.narrowphase(data, near, influence, _NORMAL_FROM_POINTS,
                                               dist, pa, pb, self._normal)
             if within.size and jacobians:
-                self.kernels.collision_rows(data.J, within, None, pa, pb, dist, self._normal,
+                if data is not self._data:
+                    self._data, self._J = data, data.J
+                self.kernels.collision_rows(self._J, within, None, pa, pb, dist, self._normal,
                                             self._mask_a, self._mask_b, _NORMAL_FROM_POINTS,
                                             rows)
             exact[near] = True
@@ -497,6 +502,8 @@ class PairQuery:
         else:
             self.within = np.zeros(0, dtype=np.intp)
         if q is not None:
-            self._last_q = np.array(q, dtype=float)
-            self._last_bound = dist.copy()
+            if self._last_q is None:
+                self._last_q = np.empty(n)
+            self._last_q[:] = q
+            self._last_bound = dist
         return Distances(dist, exact, rows, pa, pb)
