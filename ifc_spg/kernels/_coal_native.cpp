@@ -1,5 +1,5 @@
 // The narrowphase of ifc_spg.geometry.PairQuery in C++: coal distances and witness points of
-// many shape pairs in one call (numpy fallback: ifc_spg.geometry.collision.PinocchioPairs).
+// many shape pairs in one call (fallback: ifc_spg.geometry.narrowphase.PinocchioPairs).
 //
 // The shapes are the very coal objects of the pinocchio GeometryModel the Python path queries
 // (their C++ pointers, taken from the Python objects through boost.python's converter
