@@ -40,7 +40,8 @@ def native_extensions():
             Extension('ifc_spg.dynamics._native_dynamics',
                       ['ifc_spg/dynamics/_native_dynamics.c'],
                       include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
-                      optional=True), *daqp_extension()]
+                      optional=True),
+            *coal_extension(numpy.get_include()), *daqp_extension()]
 
 
 #: DAQP's sdist on PyPI, the version requirements.lock pins (daqp==...): the headers of
@@ -122,6 +123,45 @@ def daqp_extension():
                       include_dirs=[rel], libraries=['dl'],
                       define_macros=[('IFC_SPG_DAQP_VERSION', f'"{DAQP_VERSION}"')],
                       extra_compile_args=['-O2'], optional=True)]
+
+
+def coal_extension(numpy_include):
+    """The collision narrowphase in C++ on coal (ifc_spg/kernels/_coal_native.cpp).
+
+    Optional, like the C kernels: it needs the headers and libraries of the cmeel wheels that
+    pin brings (coal, pinocchio, boost.python) and Eigen's headers from the ``cmeel-eigen``
+    wheel (requirements.lock), all in the installed ``cmeel.prefix``; without them (or a C++
+    compiler) the collision level uses pinocchio's Python bindings, see
+    ifc_spg/kernels/__init__.py. ``EIGEN3_INCLUDE_DIR`` names another Eigen 3.4 (development).
+    """
+    import importlib.util
+    import sysconfig
+
+    spec = importlib.util.find_spec('coal')  # .../cmeel.prefix/lib/pythonX.Y/site-packages/coal
+    if spec is None or spec.origin is None:
+        return []
+    prefix = os.path.abspath(os.path.join(os.path.dirname(spec.origin), *[os.pardir] * 4))
+    include, lib = os.path.join(prefix, 'include'), os.path.join(prefix, 'lib')
+    eigen = os.environ.get('EIGEN3_INCLUDE_DIR') or os.path.join(include, 'eigen3')
+    python = 'boost_python' + sysconfig.get_config_var('py_version_nodot')
+    needed = [os.path.join(include, 'coal', 'distance.h'),
+              os.path.join(include, 'pinocchio', 'spatial.hpp'),
+              os.path.join(eigen, 'Eigen', 'Core'), os.path.join(lib, 'libcoal.so'),
+              os.path.join(lib, f'lib{python}.so')]
+    missing = [p for p in needed if not os.path.exists(p)]
+    if missing:
+        print(f"ifc_spg: not building ifc_spg.kernels._coal_native (missing {', '.join(missing)})")
+        return []
+    return [Extension('ifc_spg.kernels._coal_native', ['ifc_spg/kernels/_coal_native.cpp'],
+                      language='c++', include_dirs=[numpy_include, include, eigen],
+                      library_dirs=[lib], libraries=['coal', python], runtime_library_dirs=[lib],
+                      # the defines of coal.pc; no -march: Eigen's alignment must be coal's
+                      define_macros=[('COAL_HAS_OCTOMAP', None), ('COAL_HAVE_OCTOMAP', None),
+                                     ('OCTOMAP_MAJOR_VERSION', '1'),
+                                     ('OCTOMAP_MINOR_VERSION', '10'),
+                                     ('OCTOMAP_PATCH_VERSION', '0')],
+                      extra_compile_args=['-O2', '-std=c++17', '-Wno-deprecated-declarations'],
+                      optional=True)]
 
 
 setup(

@@ -6,7 +6,9 @@ machine's load affects both alike:
 - ``tick``: the full SPG tick (``info.tick_time``) with and without a
   ``collision_avoidance`` level on top of the same stack (tool position + posture), each
   SPG in its own closed loop with a tracking plant: the LBR iiwa 14 (self pairs and three
-  obstacles near the wrist) and the ACCREA dual arm (its self pairs, both arms);
+  obstacles near the wrist) and the ACCREA dual arm (its self pairs, both arms); where the
+  C++ narrowphase is built, a third loop with the level on pinocchio's Python bindings
+  (the A/B of :mod:`ifc_spg.geometry.narrowphase`);
 - ``mink``: the rows of our level (``task.level``: distances, cull, witness points,
   distance Jacobian rows, at a given q) next to mink's ``CollisionAvoidanceLimit``
   (``compute_qp_inequalities`` after ``Configuration.update``, its own broadphase on)
@@ -15,12 +17,14 @@ machine's load affects both alike:
   coal's on pinocchio's model of the same MJCF.
 """
 
+import contextlib
 import gc
 import time
 
 import numpy as np
 
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack
+from ifc_spg.geometry import narrowphase
 from ifc_spg.kinematics import Kinematics
 
 __all__ = ['bench_collision', 'format_collision']
@@ -62,42 +66,70 @@ def _stats(times):
             'max_us': float(us.max()), 'ticks': int(us.size)}
 
 
+@contextlib.contextmanager
+def _pinocchio_narrowphase():
+    """New pair queries use pinocchio's Python bindings, not the C++ narrowphase (A/B)."""
+    native = narrowphase.native
+    narrowphase.native = None
+    try:
+        yield
+    finally:
+        narrowphase.native = native
+
+
 def bench_tick(name, ticks):
-    """The tick with and without the avoidance level (two closed loops, interleaved)."""
+    """The tick with and without the avoidance level (closed loops, interleaved).
+
+    Where the C++ narrowphase is used (:mod:`ifc_spg.geometry.narrowphase`), a third loop
+    runs the same level on pinocchio's Python bindings (``with_pinocchio``), interleaved too.
+    """
     robot = RobotModel.from_config(name)
     case = CASES[name]
-    spgs = [SetPointGenerator(robot, _stack(robot, avoid, case['pairs'], case['obstacles'],
-                                            case['reach']), dt=DT) for avoid in (True, False)]
-    states = [robot.q_home.copy(), robot.q_home.copy()]
-    qdots = [np.zeros(robot.n), np.zeros(robot.n)]
-    times = np.empty((2, ticks))
+
+    def spg(avoid):
+        return SetPointGenerator(robot, _stack(robot, avoid, case['pairs'], case['obstacles'],
+                                               case['reach']), dt=DT)
+
+    spgs = [spg(True), spg(False)]
+    if narrowphase.native is not None:
+        with _pinocchio_narrowphase():
+            spgs.append(spg(True))
+    loops = len(spgs)
+    states = [robot.q_home.copy() for _ in spgs]
+    qdots = [np.zeros(robot.n) for _ in spgs]
+    times = np.empty((loops, ticks))
     trajectory = np.empty((ticks, robot.n))
     for k in range(200):  # warm-up
-        for i in (0, 1):
+        for i in range(loops):
             states[i] = spgs[i].step(states[i], qdots[i], k * DT)
             qdots[i] = spgs[i].qdot_v.copy()
     gc.collect()
     gc.disable()
     try:
         for k in range(ticks):
-            for i in ((0, 1) if k % 2 == 0 else (1, 0)):
-                spg = spgs[i]
-                q_v = spg.step(states[i], qdots[i], (k + 200) * DT)
-                times[i, k] = spg.info.tick_time
-                states[i], qdots[i] = q_v, spg.qdot_v.copy()
+            for i in np.roll(np.arange(loops), k % loops).tolist():
+                q_v = spgs[i].step(states[i], qdots[i], (k + 200) * DT)
+                times[i, k] = spgs[i].info.tick_time
+                states[i], qdots[i] = q_v, spgs[i].qdot_v.copy()
             trajectory[k] = states[0]
     finally:
         gc.enable()
     task = spgs[0].tasks[0]
     near = task.report().as_dict()['groups']
     with_, without = _stats(times[0]), _stats(times[1])
-    return {'robot': name, 'pairs': len(task.pairs), 'rows': task.dim,
-            'groups': {g: len(i) for g, i in task.groups},
-            'with': with_, 'without': without,
-            'added_p50_us': with_['p50_us'] - without['p50_us'],
-            'added_p99_us': with_['p99_us'] - without['p99_us'],
-            'status': spgs[0].info.status, 'last_min_distance': near,
-            'trajectory': trajectory, 'task': task}
+    out = {'robot': name, 'pairs': len(task.pairs), 'rows': task.dim,
+           'groups': {g: len(i) for g, i in task.groups},
+           'narrowphase': narrowphase.describe(), 'with': with_, 'without': without,
+           'added_p50_us': with_['p50_us'] - without['p50_us'],
+           'added_p99_us': with_['p99_us'] - without['p99_us'],
+           'added_max_us': with_['max_us'] - without['max_us'],
+           'status': spgs[0].info.status, 'last_min_distance': near,
+           'trajectory': trajectory, 'task': task}
+    if loops == 3:
+        old = out['with_pinocchio'] = _stats(times[2])
+        out['added_p50_pinocchio_us'] = old['p50_us'] - without['p50_us']
+        out['added_p99_pinocchio_us'] = old['p99_us'] - without['p99_us']
+    return out
 
 
 def _mj_shape(g):
@@ -210,7 +242,14 @@ def format_collision(res):
                      f"with p50 "
                      f"{a['p50_us']:.1f} / p99 {a['p99_us']:.1f} / max {a['max_us']:.0f} us, "
                      f"without {b['p50_us']:.1f} / {b['p99_us']:.1f} / {b['max_us']:.0f} us; "
-                     f"added p50 {r['added_p50_us']:.1f} us, p99 {r['added_p99_us']:.1f} us")
+                     f"added p50 {r['added_p50_us']:.1f} us, p99 {r['added_p99_us']:.1f} us; "
+                     f"narrowphase: {r['narrowphase']}")
+        if 'with_pinocchio' in r:
+            c = r['with_pinocchio']
+            lines.append(f"  {'':<16} the same level on pinocchio's Python bindings "
+                         f"(interleaved): p50 {c['p50_us']:.1f} / p99 {c['p99_us']:.1f} / max "
+                         f"{c['max_us']:.0f} us; added p50 {r['added_p50_pinocchio_us']:.1f} us"
+                         f", p99 {r['added_p99_pinocchio_us']:.1f} us")
     if res.get('mink'):
         lines.append('  rows of the level (ours: distances, cull, rows at q) vs mink '
                      'CollisionAvoidanceLimit.compute_qp_inequalities (+ update), same pairs '

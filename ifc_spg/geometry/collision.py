@@ -31,14 +31,14 @@ from dataclasses import dataclass
 import math
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
-import warnings
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import coal
 import numpy as np
 import pinocchio as pin
 
 from ifc_spg.errors import ModelError, ParameterError, did_you_mean
+from ifc_spg.geometry import narrowphase
 from ifc_spg.kernels import resolve
 
 if TYPE_CHECKING:
@@ -344,8 +344,7 @@ class CollisionGeometry:
         return self.model.geometryObjects[i].name
 
 
-@dataclass(frozen=True)
-class Distances:
+class Distances(NamedTuple):
     """Distances of a pair set at one configuration.
 
     Attributes:
@@ -367,7 +366,9 @@ class Distances:
 class PairQuery:
     """Distances and distance Jacobian rows of a fixed list of shape pairs.
 
-    Owns its own ``GeometryModel`` pairs and ``GeometryData`` (one per task and thread).
+    Owns its narrowphase (:mod:`ifc_spg.geometry.narrowphase`: the C++ module on coal, or
+    pinocchio's Python bindings) and a pinocchio ``GeometryModel``/``GeometryData`` of its
+    pairs (:meth:`distances_only`); one query per task and thread.
 
     Args:
         geometry: The :class:`CollisionGeometry`.
@@ -381,42 +382,34 @@ class PairQuery:
         #: the :mod:`ifc_spg.kernels` module of the cull and the rows
         self.kernels = resolve(kernels)
         #: the pairs of the last :meth:`compute` within the influence distance (ascending)
-        self.within: list[int] = []
+        self.within = np.zeros(0, dtype=np.intp)
         self.pairs = [(int(a), int(b)) for a, b in pairs]
         self.m = len(self.pairs)
-        gm = geometry.model.copy()
-        gm.removeAllCollisionPairs()
-        for a, b in self.pairs:
-            gm.addCollisionPair(pin.CollisionPair(a, b))
-        self._gm = gm
-        self._gd = pin.GeometryData(gm)
-        for req in self._gd.distanceRequests:
-            req.enable_signed_distance = True
-            req.gjk_tolerance = GJK_TOLERANCE  # coal's default 1e-6 m leaves ~2e-7 m noise
-            # pinocchio starts GJK from the pair's last solution: the result then depends,
-            # within the GJK tolerance, on what the query computed before (rows by up to
-            # ~5e-6 where the witness points are not unique, e.g. a capsule parallel to a
-            # cylinder), and a replay restored mid-run would not repeat the live ticks
-            with warnings.catch_warnings():
-                warnings.simplefilter('ignore', DeprecationWarning)  # coal 3 renamed it
-                req.enable_cached_gjk_guess = False
-        self._model = geometry.robot.model
+        robot_model = geometry.robot.model
+        # pinocchio's own query of the pairs: distances_only, and the narrowphase where the
+        # C++ module is not used
+        self._pin = narrowphase.PinocchioPairs(geometry.model, robot_model, self.pairs,
+                                               geometry.radius, GJK_TOLERANCE)
+        self._gm = self._pin.model
+        self._narrow = narrowphase.pairs(self._gm, robot_model, self.pairs, geometry.radius,
+                                         GJK_TOLERANCE) \
+            if narrowphase.native is not None else self._pin
         self._n = geometry.robot.n
         ia = np.array([a for a, _ in self.pairs], dtype=int)
         ib = np.array([b for _, b in self.pairs], dtype=int)
         self._ia, self._ib = ia, ib
-        self._rsum = geometry.radius[ia] + geometry.radius[ib]
-        self._unbounded = ~np.isfinite(self._rsum)
-        self._any_unbounded = bool(self._unbounded.any())
-        self._rsum[self._unbounded] = 0.0
         support = geometry.support
         self._mask_a = support[geometry.parent_joint[ia]]
         self._mask_b = support[geometry.parent_joint[ib]]
         # joints that move one shape of a pair but not the other, times the lever bound
         self._lever = np.abs(self._mask_a - self._mask_b) * geometry.lever
-        self._last_q: np.ndarray | None = None
-        self._last_bound = np.zeros(self.m)
+        self._last_q: np.ndarray | None = None  # (a buffer, once there is a last call)
+        self._last_bound = np.zeros(self.m)  # never written in place: compute's distance
+        self._data: pin.Data | None = None  # the Data of the last call and its data.J (a
+        self._J = np.zeros((6, self._n))  # view, written in place by pinocchio)
         self._normal = np.zeros((self.m, 3))  # scratch: the unit normals of the pairs within
+        self._no_points = np.full((self.m, 3), np.nan)  # the witness points of no pair
+        self._no_points.setflags(write=False)
 
     def move_shape(self, shape: int, placement: pin.SE3) -> None:
         """Place shape ``shape`` (an obstacle fixed to the base) at ``placement`` from now on.
@@ -426,8 +419,13 @@ class PairQuery:
         shape moved by an unknown amount, so the last distance minus the joints' motion is
         no lower bound any more; the next call computes those pairs with coal.
         """
-        self._gm.geometryObjects[shape].placement = placement
-        self._last_bound[(self._ia == shape) | (self._ib == shape)] = -np.inf
+        rotation, translation = placement.rotation, placement.translation
+        self._pin.move_shape(shape, rotation, translation)
+        if self._narrow is not self._pin:
+            self._narrow.move_shape(shape, rotation, translation)
+        bound = self._last_bound.copy()  # (the last call's distances, returned to its caller)
+        bound[(self._ia == shape) | (self._ib == shape)] = -np.inf
+        self._last_bound = bound
 
     # -- the cull --------------------------------------------------------------------------
     def lower_bounds(self, data: pin.Data) -> np.ndarray:
@@ -435,27 +433,19 @@ class PairQuery:
 
         ``data`` holds the joint placements (``forwardKinematics``) of the configuration.
         """
-        self._place(data)
-        return self._gaps()
-
-    def _gaps(self) -> np.ndarray:
-        """The bounding spheres' gaps of the placed shapes (-inf where a half-space)."""
-        c = np.array([M.translation for M in self._gd.oMg])
-        diff = c[self._ia] - c[self._ib]
-        gap = np.sqrt(np.einsum('ij,ij->i', diff, diff)) - self._rsum
-        if self._any_unbounded:
-            gap[self._unbounded] = -np.inf
+        gap = np.empty(self.m)
+        self._narrow.gaps(data, gap)
         return gap
 
     # -- exact distances -------------------------------------------------------------------
-    def _place(self, data: pin.Data) -> None:
-        pin.updateGeometryPlacements(self._model, data, self._gm, self._gd)
-
     def distances_only(self, data: pin.Data) -> np.ndarray:
-        """Exact signed distances of every pair (no cull, no rows); ``data`` has oMi."""
-        self._place(data)
-        return np.array([pin.computeDistance(self._gm, self._gd, k).min_distance
-                         for k in range(self.m)])
+        """Exact signed distances of every pair (no cull, no rows); ``data`` has oMi.
+
+        pinocchio's Python bindings, whichever narrowphase :meth:`compute` uses.
+        """
+        out = np.empty(self.m)
+        self._pin.distances(data, out)
+        return out
 
     def compute(self, data: pin.Data, influence: float = math.inf,
                 jacobians: bool = True, q: np.ndarray | None = None) -> Distances:
@@ -477,7 +467,6 @@ class PairQuery:
                 needed. None: the bounding-sphere cull only, nothing kept.
         """
         m, n = self.m, self._n
-        self._place(data)
         near = None
         if not math.isfinite(influence):
             dist = np.full(m, -np.inf)
@@ -486,55 +475,36 @@ class PairQuery:
             near = self.kernels.collision_cull(self._last_bound, self._lever, q,
                                                 self._last_q, influence, dist)
         else:
-            dist = self._gaps()
+            dist = np.empty(m)
+            self._narrow.gaps(data, dist)
         if near is None:
             near = (dist <= influence).nonzero()[0]
         exact = np.zeros(m, dtype=bool)
         rows = np.zeros((m, n))
-        pa = np.empty((m, 3))
-        pa.fill(np.nan)
-        pb = pa.copy()
+        pa = self._no_points.copy()  # (copies of a NaN array: ~3 us less per tick than
+        pb = self._no_points.copy()  # np.empty + fill in the closed loop)
         if near.size:
-            self.within = self._narrowphase(near, influence, dist, pa, pb, rows, data,
-                                            jacobians)
+            # coal's distances of the pairs near; witness points (and coal's normal where
+            # touching) of those within. The rows are n^T (J_b(p_b) - J_a(p_a)) (the kernel
+            # collision_rows): with the joint Jacobians in the world frame (data.J, spatial
+            # velocity at the origin), the velocity of a point p of joint j's body is the
+            # columns of j's support of v + w x p, so n^T J(p) = (n^T J_v + (p x n)^T J_w) on
+            # those columns.
+            within = self._narrow.narrowphase(data, near, influence, _NORMAL_FROM_POINTS,
+                                              dist, pa, pb, self._normal)
+            if within.size and jacobians:
+                if data is not self._data:
+                    self._data, self._J = data, data.J
+                self.kernels.collision_rows(self._J, within, None, pa, pb, dist, self._normal,
+                                            self._mask_a, self._mask_b, _NORMAL_FROM_POINTS,
+                                            rows)
             exact[near] = True
+            self.within = within
         else:
-            self.within = []
+            self.within = np.zeros(0, dtype=np.intp)
         if q is not None:
-            self._last_q = np.array(q, dtype=float)
-            self._last_bound = dist.copy()
+            if self._last_q is None:
+                self._last_q = np.empty(n)
+            self._last_q[:] = q
+            self._last_bound = dist
         return Distances(dist, exact, rows, pa, pb)
-
-    def _narrowphase(self, near: np.ndarray, influence: float, dist: np.ndarray,
-                     pa: np.ndarray, pb: np.ndarray, rows: np.ndarray, data: pin.Data,
-                     jacobians: bool) -> list:
-        """Distances of the pairs ``near`` (coal); witness points and rows where d <= d_i.
-
-        Writes ``dist``, ``pa``, ``pb`` and ``rows`` in place; returns the pairs within.
-        The rows are n^T (J_b(p_b) - J_a(p_a)) (the kernel ``collision_rows``): with the
-        joint Jacobians in the world frame (``data.J``, spatial velocity at the origin),
-        the velocity of a point p of joint j's body is the columns of j's support of
-        v + w x p, so n^T J(p) = (n^T J_v + (p x n)^T J_w) on those columns.
-        """
-        gm, gd, distance = self._gm, self._gd, pin.computeDistance
-        within: list[int] = []
-        found: list[np.ndarray] = []  # p_a, p_b of each pair within
-        keep, point = within.append, found.append
-        normal = self._normal
-        for p in near.tolist():
-            res = distance(gm, gd, p)
-            d = res.min_distance
-            dist[p] = d
-            if d <= influence:
-                keep(p)
-                point(res.getNearestPoint1())
-                point(res.getNearestPoint2())
-                if d <= _NORMAL_FROM_POINTS:  # touching or overlapping: coal's normal
-                    normal[p] = res.normal
-        if within and jacobians:
-            self.kernels.collision_rows(data.J, within, found, pa, pb, dist, normal,
-                                        self._mask_a, self._mask_b, _NORMAL_FROM_POINTS, rows)
-        elif within:
-            pa[within] = found[0::2]
-            pb[within] = found[1::2]
-        return within

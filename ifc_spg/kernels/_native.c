@@ -737,8 +737,9 @@ PyDoc_STRVAR(collision_rows_doc,
 "\n\n"
 "Witness points and distance Jacobian rows of the pairs `within` (integer indices of the m\n"
 "pairs). found: their witness points [p_a, p_b, p_a, p_b, ...] (2 k 3-vectors, coal's), written\n"
-"to point_a[i], point_b[i] (m, 3) first. Then per pair i: normal[i] = (point_b[i] -\n"
-"point_a[i]) / distance[i] where distance[i] > eps (else normal[i] is kept: coal's), and\n"
+"to point_a[i], point_b[i] (m, 3) first (None: they hold them already). Then per pair i:\n"
+"normal[i] = (point_b[i] - point_a[i]) / distance[i] where distance[i] > eps (else normal[i]\n"
+"is kept: coal's), and\n"
 "rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i] - ((p_a x n)^T J_w)\n"
 "mask_a[i] with J (6, n) the joint Jacobian in the world frame (J_v = J[:3], J_w = J[3:]).\n"
 "normal (m, 3); masks and rows (m, n). Writes point_a, point_b, normal and rows (of the pairs\n"
@@ -778,11 +779,12 @@ static PyObject *collision_rows(PyObject *self, PyObject *args) {
             goto done;
         }
     }
-    if (!PyList_Check(f_o) || PyList_GET_SIZE(f_o) != 2 * k) {
-        PyErr_SetString(PyExc_ValueError, "found must be a list of 2 points per pair within");
+    if (f_o != Py_None && (!PyList_Check(f_o) || PyList_GET_SIZE(f_o) != 2 * k)) {
+        PyErr_SetString(PyExc_ValueError,
+                        "found must be a list of 2 points per pair within, or None");
         goto done;
     }
-    for (npy_intp t = 0; t < 2 * k; t++) {
+    for (npy_intp t = 0; f_o != Py_None && t < 2 * k; t++) {
         PyArrayObject *v = (PyArrayObject *)PyArray_FROMANY(
             PyList_GET_ITEM(f_o, t), NPY_DOUBLE, 1, 1, NPY_ARRAY_ALIGNED);
         if (!v || PyArray_SIZE(v) != 3) {

@@ -365,13 +365,14 @@ def collision_level(rows: Array, distance: Array, pairs: Array, influence: float
     return within
 
 
-def collision_rows(J: Array, within: Array, found: list, point_a: Array, point_b: Array,
+def collision_rows(J: Array, within: Array, found: list | None, point_a: Array, point_b: Array,
                    distance: Array, normal: Array, mask_a: Array, mask_b: Array, eps: float,
                    rows: Array) -> None:
     """Witness points and distance Jacobian rows of the pairs ``within``.
 
     ``found``: their witness points ``[p_a, p_b, p_a, p_b, ...]`` (coal's), written to
-    ``point_a`` and ``point_b`` first. Then per pair i:
+    ``point_a`` and ``point_b`` first; None where ``point_a`` and ``point_b`` hold them
+    already. Then per pair i:
     ``normal[i] = (point_b[i] - point_a[i]) / distance[i]`` where ``distance[i] > eps``
     (else ``normal[i]`` is kept: coal's), and
     ``rows[i] = (n^T J_v) (mask_b[i] - mask_a[i]) + ((p_b x n)^T J_w) mask_b[i]
@@ -379,9 +380,9 @@ def collision_rows(J: Array, within: Array, found: list, point_a: Array, point_b
     Writes ``point_a``, ``point_b``, ``normal`` and ``rows`` (of the pairs within only).
     """
     within = np.asarray(within, dtype=np.intp)
-    if len(found) != 2 * within.size:
-        raise ValueError('found must be a list of 2 points per pair within')
-    if within.size:
+    if found is not None and len(found) != 2 * within.size:
+        raise ValueError('found must be a list of 2 points per pair within, or None')
+    if found is not None and within.size:
         point_a[within] = found[0::2]
         point_b[within] = found[1::2]
     a, b, d = point_a[within], point_b[within], distance[within]
