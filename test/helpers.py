@@ -76,6 +76,30 @@ def use_loopback(monkeypatch, env=None):
     return env
 
 
+def once_per_session(tmp_path_factory, name, produce):
+    """``produce()``'s JSON-serialisable result, computed once per test session.
+
+    For an expensive module fixture: pytest-xdist may split a module's tests between its
+    worker processes, each of which would set the fixture up again. Here the first worker
+    that asks runs ``produce`` under a file lock in the session's shared temporary folder
+    and writes the result there; the others wait for the lock and read it. Without xdist
+    it is ``produce()``. If ``produce`` fails, every worker that asks fails the same way.
+    """
+    import fcntl
+    import os
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get('PYTEST_XDIST_WORKER'):
+        root = root.parent  # shared by the workers of this session
+    path = root / f'{name}.json'
+    with open(root / f'{name}.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            return json.loads(path.read_text())
+        path.write_text(json.dumps(produce()))
+        return json.loads(path.read_text())  # the same (JSON) types in every worker
+
+
 def wait_for(condition, timeout):
     """Poll ``condition()`` every 50 ms for up to ``timeout`` [s]; its last value."""
     import time

@@ -20,7 +20,7 @@ import re
 import signal
 import time
 
-from helpers import CONFIG, reach_stack, record_spg_topics, use_loopback
+from helpers import CONFIG, once_per_session, reach_stack, record_spg_topics, use_loopback
 import numpy as np
 import pytest
 from ros_testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
@@ -83,7 +83,14 @@ def _spg_args(doc):
 
 @pytest.fixture(scope='module')
 def live_run(tmp_path_factory):
-    """Run the demo over DDS once; returns the bag path, the logs and the stack times."""
+    """The demo over DDS, run once per session (also when pytest-xdist splits this module
+    between its workers): the bag path, the logs, the scenario document, the wall time."""
+    return once_per_session(tmp_path_factory, 'e2e_surface_tracking_live_run',
+                            lambda: _live_run(tmp_path_factory))
+
+
+def _live_run(tmp_path_factory):
+    """Run the demo over DDS (see ``live_run``)."""
     tmp_path = tmp_path_factory.mktemp('e2e')
     env = loopback_env()
     doc, stacks = _demo_stacks()
@@ -145,7 +152,7 @@ def live_run(tmp_path_factory):
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
-    return {'bag': bag_path, 'logs': {n: procs.log(n) for n in procs.logs}, 'doc': doc,
+    return {'bag': str(bag_path), 'logs': {n: procs.log(n) for n in procs.logs}, 'doc': doc,
             'wall': time.monotonic() - wall}
 
 
