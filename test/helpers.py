@@ -112,26 +112,29 @@ def wait_for(condition, timeout):
     return bool(condition())
 
 
-def start_recorder(procs, path, *topics, name='recorder'):
+def start_recorder(procs, path, *topics, name='recorder', tf=True):
     """Start ``ifc-spg bag record -o path topics...`` in ProcessGroup ``procs`` and wait until
-    it records (it prints 'recording'); fails the test with its log otherwise."""
-    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics, exe='ifc-spg')
+    it records (it prints 'recording'); fails the test with its log otherwise. ``tf=False``:
+    ``--no-tf`` (no /tf computed from the joint states, for tests that do not read it)."""
+    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics,
+                      *(() if tf else ('--no-tf',)), exe='ifc-spg')
     assert wait_for(lambda: 'recording' in procs.log(name) or rec.poll() is not None, 60) \
         and rec.poll() is None, procs.log(name)
     return rec
 
 
-def finish_run(procs, bridge, timeout):
+def finish_run(procs, bridge, timeout, recs=None):
     """The end of a process-level run: ``bridge`` (of ProcessGroup ``procs``, named
     'sim_bridge') ends by itself with exit 0 within ``timeout`` [s]; after 1 s for the last
-    command to reach the recorder, 'recorder' stops on SIGINT and 'spg_node' on SIGTERM, both
-    with exit 0."""
+    command to reach the recorder, 'recorder' (of ``recs``, default ``procs``) stops on SIGINT
+    and 'spg_node' on SIGTERM, both with exit 0."""
     import signal
 
+    recs = procs if recs is None else recs
     assert wait_for(lambda: bridge.poll() is not None, timeout), procs.log('sim_bridge')
     assert bridge.returncode == 0, procs.log('sim_bridge')
     wait_for(lambda: False, 1.0)
-    assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
+    assert recs.stop('recorder', signal.SIGINT) == 0, recs.log('recorder')
     assert procs.stop('spg_node') == 0, procs.log('spg_node')
 
 
