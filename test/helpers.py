@@ -112,29 +112,37 @@ def wait_for(condition, timeout):
     return bool(condition())
 
 
-def start_recorder(procs, path, *topics, name='recorder', tf=True):
+def start_recorder(procs, path, *topics, name='recorder', instrument=False):
     """Start ``ifc-spg bag record -o path topics...`` in ProcessGroup ``procs`` and wait until
-    it records (it prints 'recording'); fails the test with its log otherwise. ``tf=False``:
-    ``--no-tf`` (no /tf computed from the joint states, for tests that do not read it)."""
-    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics,
-                      *(() if tf else ('--no-tf',)), exe='ifc-spg')
+    it records (it prints 'recording'); fails the test with its log otherwise.
+
+    ``instrument=True``, for tests that only read what the nodes under test published: the
+    recorder of the built-in backend (on the same domain, whichever backend the nodes run)
+    with ``--no-tf``. Its readers are reliable and keep all samples, which it takes in batches
+    as raw CDR; the rclpy recorder runs one executor callback per message (60 s of lockstep
+    states and wrenches: 52-62 CPU-s against 7, more than spg_node itself).
+    """
+    env, extra = None, ()
+    if instrument:
+        env, extra = {**procs.env, 'IFC_SPG_ROS_BACKEND': 'cyclonedds'}, ('--no-tf',)
+    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics, *extra, exe='ifc-spg',
+                      env=env)
     assert wait_for(lambda: 'recording' in procs.log(name) or rec.poll() is not None, 60) \
         and rec.poll() is None, procs.log(name)
     return rec
 
 
-def finish_run(procs, bridge, timeout, recs=None):
+def finish_run(procs, bridge, timeout):
     """The end of a process-level run: ``bridge`` (of ProcessGroup ``procs``, named
     'sim_bridge') ends by itself with exit 0 within ``timeout`` [s]; after 1 s for the last
-    command to reach the recorder, 'recorder' (of ``recs``, default ``procs``) stops on SIGINT
-    and 'spg_node' on SIGTERM, both with exit 0."""
+    command to reach the recorder, 'recorder' stops on SIGINT and 'spg_node' on SIGTERM, both
+    with exit 0."""
     import signal
 
-    recs = procs if recs is None else recs
     assert wait_for(lambda: bridge.poll() is not None, timeout), procs.log('sim_bridge')
     assert bridge.returncode == 0, procs.log('sim_bridge')
     wait_for(lambda: False, 1.0)
-    assert recs.stop('recorder', signal.SIGINT) == 0, recs.log('recorder')
+    assert procs.stop('recorder', signal.SIGINT) == 0, procs.log('recorder')
     assert procs.stop('spg_node') == 0, procs.log('spg_node')
 
 

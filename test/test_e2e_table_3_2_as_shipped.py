@@ -27,16 +27,11 @@ def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path)
 
     from ifc_spg.offline.bag import BagReader
 
-    env = loopback_env()
-    procs = ProcessGroup(tmp_path, env)
-    # the measuring instrument, on the same domain: the recorder of the built-in backend
-    # (reliable, keep-all readers whose raw samples it takes in batches; its rclpy twin, one
-    # executor callback per message, took more CPU than spg_node over these 60 000 samples)
-    recs = ProcessGroup(tmp_path, loopback_env(int(env['ROS_DOMAIN_ID']),
-                                               backend='cyclonedds'))
+    procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'
     try:
-        start_recorder(recs, bag_path, 'joint_states', 'sim/contact_wrench', tf=False)
+        # the bag is the measurement only: the built-in backend's recorder (see helpers)
+        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench', instrument=True)
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'))
         pub = procs.start('task_publisher',
@@ -48,10 +43,9 @@ def test_shipped_table_3_2_stack_circles_for_60_s_at_8_n_with_defaults(tmp_path)
             'sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p', 'interface:=lbr_fri',
             '-p', 'scene:=table', '-p', 'mode:=lockstep', '-p', f'duration:={SIM_SECONDS}',
             '-p', 'wait_for_subscribers:=2')
-        finish_run(procs, bridge, 600, recs=recs)
+        finish_run(procs, bridge, 600)
     finally:
         procs.close()
-        recs.close()
     assert not re.search(r'stall', procs.log('spg_node')), procs.log('spg_node')
     robot = RobotModel.from_config('lbr_iiwa14')
     data, fid = robot.create_data(), robot.frame_id('tool')
