@@ -100,6 +100,19 @@ def once_per_session(tmp_path_factory, name, produce):
         return json.loads(path.read_text())  # the same (JSON) types in every worker
 
 
+def replay_cli(argv, result, monkeypatch):
+    """``ifc-spg replay ARGV``'s exit code, the CLI deciding and printing on ``result``: the
+    replay (a re-run of every tick) the test already ran of the same bag, ``ARGV[0]``. The
+    CLI must hand that bag and no robot to the replay (checked here)."""
+    from ifc_spg.cli import replay as cli
+
+    def same(bag, robot=None):
+        assert (str(bag), robot) == (str(argv[0]), None), (bag, robot, argv)
+        return result
+    monkeypatch.setattr(cli, 'replay', same)
+    return cli.main(argv)
+
+
 def wait_for(condition, timeout):
     """Poll ``condition()`` every 50 ms for up to ``timeout`` [s]; its last value."""
     import time
