@@ -76,6 +76,43 @@ def use_loopback(monkeypatch, env=None):
     return env
 
 
+def once_per_session(tmp_path_factory, name, produce):
+    """``produce()``'s JSON-serialisable result, computed once per test session.
+
+    For an expensive module fixture: pytest-xdist may split a module's tests between its
+    worker processes, each of which would set the fixture up again. Here the first worker
+    that asks runs ``produce`` under a file lock in the session's shared temporary folder
+    and writes the result there; the others wait for the lock and read it. Without xdist
+    it is ``produce()``. If ``produce`` fails, every worker that asks fails the same way.
+    """
+    import fcntl
+    import os
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get('PYTEST_XDIST_WORKER'):
+        root = root.parent  # shared by the workers of this session
+    path = root / f'{name}.json'
+    with open(root / f'{name}.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            return json.loads(path.read_text())
+        path.write_text(json.dumps(produce()))
+        return json.loads(path.read_text())  # the same (JSON) types in every worker
+
+
+def replay_cli(argv, result, monkeypatch):
+    """``ifc-spg replay ARGV``'s exit code, the CLI deciding and printing on ``result``: the
+    replay (a re-run of every tick) the test already ran of the same bag, ``ARGV[0]``. The
+    CLI must hand that bag and no robot to the replay (checked here)."""
+    from ifc_spg.cli import replay as cli
+
+    def same(bag, robot=None):
+        assert (str(bag), robot) == (str(argv[0]), None), (bag, robot, argv)
+        return result
+    monkeypatch.setattr(cli, 'replay', same)
+    return cli.main(argv)
+
+
 def wait_for(condition, timeout):
     """Poll ``condition()`` every 50 ms for up to ``timeout`` [s]; its last value."""
     import time
@@ -88,10 +125,21 @@ def wait_for(condition, timeout):
     return bool(condition())
 
 
-def start_recorder(procs, path, *topics, name='recorder'):
+def start_recorder(procs, path, *topics, name='recorder', instrument=False):
     """Start ``ifc-spg bag record -o path topics...`` in ProcessGroup ``procs`` and wait until
-    it records (it prints 'recording'); fails the test with its log otherwise."""
-    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics, exe='ifc-spg')
+    it records (it prints 'recording'); fails the test with its log otherwise.
+
+    ``instrument=True``, for tests that only read what the nodes under test published: the
+    recorder of the built-in backend (on the same domain, whichever backend the nodes run)
+    with ``--no-tf``. Its readers are reliable and keep all samples, which it takes in batches
+    as raw CDR; the rclpy recorder runs one executor callback per message (60 s of lockstep
+    states and wrenches: 52-62 CPU-s against 7, more than spg_node itself).
+    """
+    env, extra = None, ()
+    if instrument:
+        env, extra = {**procs.env, 'IFC_SPG_ROS_BACKEND': 'cyclonedds'}, ('--no-tf',)
+    rec = procs.start(name, 'bag', 'record', '-o', str(path), *topics, *extra, exe='ifc-spg',
+                      env=env)
     assert wait_for(lambda: 'recording' in procs.log(name) or rec.poll() is not None, 60) \
         and rec.poll() is None, procs.log(name)
     return rec

@@ -153,15 +153,16 @@ class ProcessGroup:
         self.bin_dir = Path(sys.executable).parent if bin_dir is None else Path(bin_dir)
         self.procs, self.logs = {}, {}
 
-    def start(self, name, *args, exe=None):
-        """Start console script ``exe`` (default ``name``; ``'python'``: this interpreter).
+    def start(self, name, *args, exe=None, env=None):
+        """Start console script ``exe`` (default ``name``; ``'python'``: this interpreter),
+        with ``env`` (default: the group's).
 
         Returns:
             The :class:`subprocess.Popen`, also kept as ``procs[name]``.
         """
         self.logs[name] = open(self.log_dir / f'{name}.log', 'w+')
         cmd = [sys.executable] if exe == 'python' else [str(self.bin_dir / (exe or name))]
-        self.procs[name] = subprocess.Popen([*cmd, *args], env=self.env,
+        self.procs[name] = subprocess.Popen([*cmd, *args], env=self.env if env is None else env,
                                             stdout=self.logs[name], stderr=subprocess.STDOUT,
                                             preexec_fn=raise_priority)
         return self.procs[name]

@@ -13,7 +13,7 @@ import json
 import signal
 import sys
 
-from helpers import CONFIG, reach_stack, use_loopback
+from helpers import CONFIG, reach_stack, replay_cli, use_loopback
 import pytest
 from ros_testing import ProcessGroup, stamp_ns
 
@@ -51,7 +51,6 @@ def _listener():
     return node, status, sim_t, spin_until, accepted
 
 def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
-    from ifc_spg.cli.replay import main
     from ifc_spg.offline.replay import replay
 
     env = use_loopback(monkeypatch)
@@ -118,9 +117,9 @@ def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsy
     print(f'mid-run replay: {res.compared} commands, {res.skipped} states before the first '
           f'spg/state, {res.unanswered} unanswered, max |dq_v| {res.max_abs_diff:.3e} rad',
           file=sys.stderr)
-    assert main([str(bag)]) == 0
+    assert replay_cli([str(bag)], res, monkeypatch) == 0
     assert 'OK' in capsys.readouterr().out
-    _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys)
+    _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys, monkeypatch)
 
 
 GAP = 18  # joint states in a burst the recorder missed (a CI run lost 18 of 7000)
@@ -144,11 +143,10 @@ def _copy_without(src, dst, drop):
                 w.write(topic, t, data)
 
 
-def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys):
+def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys, monkeypatch):
     """A burst of joint states missing from the bag, where q_v moves fastest: spg/state's tick
     count shows the loss, the replay resynchronises from it and reproduces the rest; without
     the recorded states after the burst the loss goes unnoticed."""
-    from ifc_spg.cli.replay import main
     from ifc_spg.offline.replay import replay
 
     with BagReader(bag) as r:
@@ -164,11 +162,11 @@ def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys):
     gap = set(states[states.index(start): states.index(start) + GAP])
     lossy = tmp_path / 'lossy'
     _copy_without(bag, lossy, lambda topic, m: topic == '/joint_states' and _stamp(m) in gap)
-    got = replay(lossy)
+    got = lossy_got = replay(lossy)
     assert got.lost == res.lost + GAP and got.resyncs == res.resyncs + 1, got
     assert got.max_abs_diff <= TOLERANCE and got.missing == 0, got
     assert got.compared + got.unverified == res.compared + res.unverified - GAP, (got, res)
-    assert main([str(lossy)]) == 0
+    assert replay_cli([str(lossy)], got, monkeypatch) == 0
     assert f'lacks {got.lost} tick(s)' in capsys.readouterr().out
     blind = tmp_path / 'blind'
     _copy_without(bag, blind, lambda topic, m: (topic == '/joint_states' and _stamp(m) in gap)
@@ -179,7 +177,7 @@ def _lost_states_are_detected_and_resynchronised(bag, res, tmp_path, capsys):
     # itself caused after it (a loaded run lost 18 states there: 1 resync in the bag, 0 here)
     assert got.resyncs <= res.resyncs and got.lost <= res.lost, got
     print(f'{GAP} lost states where |qdot_v| is largest: resynchronised, max |dq_v| '
-          f'{replay(lossy).max_abs_diff:.1e} rad; without spg/state after them '
+          f'{lossy_got.max_abs_diff:.1e} rad; without spg/state after them '
           f'{got.max_abs_diff:.1e} rad', file=sys.stderr)
 
 
@@ -206,7 +204,6 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
     the cascade, whose lowest level is then degenerate: a cold-started replay solved it
     elsewhere, 5.7e-4 rad of q_v) and one during which a second stack replaces it. Both
     replay with max |dq_v| = 0, every command compared."""
-    from ifc_spg.cli.replay import main
     from ifc_spg.offline.replay import replay
 
     env = use_loopback(monkeypatch)
@@ -281,5 +278,5 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
         print(f'{bag.name}: {res.compared} commands, {res.not_ticked} states the SPG did not '
               f'tick on, {res.lost} lost, max |dq_v| {res.max_abs_diff:.3e} rad',
               file=sys.stderr)
-        assert main([str(bag)]) == 0
+        assert replay_cli([str(bag)], res, monkeypatch) == 0
         assert 'OK' in capsys.readouterr().out

@@ -51,7 +51,7 @@ def test_press_task_through_each_command_interface(tmp_path, interface):
     procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'
     try:
-        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench')
+        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench', instrument=True)
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'), '-p', f'task_stack_file:={stack}',
                           *command)
@@ -94,7 +94,8 @@ def test_timer_tick_presses_with_states_at_another_rate(tmp_path, rate, state_ra
     procs = ProcessGroup(tmp_path, loopback_env())
     bag_path = tmp_path / 'bag'
     try:
-        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench', 'spg/status')
+        start_recorder(procs, bag_path, 'joint_states', 'sim/contact_wrench', 'spg/status',
+                       instrument=True)
         spg = procs.start('spg_node', '--ros-args', '--params-file',
                           str(CONFIG / 'lbr_iiwa14.yaml'), '-p', f'task_stack_file:={stack}',
                           '-p', 'tick:=timer', '-p', 'status.decimation:=50')

@@ -120,8 +120,15 @@ def _run(strategy, scene='drawer_vertical', target=0.29, duration=30.0, **kw):
     return log
 
 
-def test_joint_compliance_opens_the_vertical_drawer_from_45_degrees():
-    m = _run('joint_compliance').metrics
+@pytest.fixture(scope='module')
+def jc_drawer():
+    """The joint-compliance run on the vertical drawer from 45 deg (deterministic; two tests
+    read it)."""
+    return _run('joint_compliance')
+
+
+def test_joint_compliance_opens_the_vertical_drawer_from_45_degrees(jc_drawer):
+    m = jc_drawer.metrics
     assert m['success'], m
     assert m['final_error_angle_deg'] < 2.0
 
@@ -133,13 +140,13 @@ def test_task_specification_opens_the_vertical_drawer_from_45_degrees():
     assert m['final_error_angle_deg'] < 2.0
 
 
-def test_admittance_strategy_opens_the_vertical_drawer_on_the_lbr():
+def test_admittance_strategy_opens_the_vertical_drawer_on_the_lbr(jc_drawer):
     """Sec. 5.4.3: the Cartesian strategy on a joint-impedance robot opens the drawer but
     leaves erroneous forces (misaligned deflection and force)."""
     log = _run('admittance')
     m = log.metrics
     assert m['success'], m
-    jc = _run('joint_compliance').metrics
+    jc = jc_drawer.metrics
     assert m['rms_f_perp'] > jc['rms_f_perp']
 
 

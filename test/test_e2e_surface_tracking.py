@@ -20,7 +20,14 @@ import re
 import signal
 import time
 
-from helpers import CONFIG, reach_stack, record_spg_topics, use_loopback
+from helpers import (
+    CONFIG,
+    once_per_session,
+    reach_stack,
+    record_spg_topics,
+    replay_cli,
+    use_loopback,
+)
 import numpy as np
 import pytest
 from ros_testing import LOOPBACK_KEYS, ProcessGroup, loopback_env, stamp_ns
@@ -83,7 +90,14 @@ def _spg_args(doc):
 
 @pytest.fixture(scope='module')
 def live_run(tmp_path_factory):
-    """Run the demo over DDS once; returns the bag path, the logs and the stack times."""
+    """The demo over DDS, run once per session (also when pytest-xdist splits this module
+    between its workers): the bag path, the logs, the scenario document, the wall time."""
+    return once_per_session(tmp_path_factory, 'e2e_surface_tracking_live_run',
+                            lambda: _live_run(tmp_path_factory))
+
+
+def _live_run(tmp_path_factory):
+    """Run the demo over DDS (see ``live_run``)."""
     tmp_path = tmp_path_factory.mktemp('e2e')
     env = loopback_env()
     doc, stacks = _demo_stacks()
@@ -145,7 +159,7 @@ def live_run(tmp_path_factory):
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
-    return {'bag': bag_path, 'logs': {n: procs.log(n) for n in procs.logs}, 'doc': doc,
+    return {'bag': str(bag_path), 'logs': {n: procs.log(n) for n in procs.logs}, 'doc': doc,
             'wall': time.monotonic() - wall}
 
 
@@ -305,8 +319,7 @@ def test_circle_is_tracked(recorded):
     assert rms_m <= 0.025, rms_m
 
 
-def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys):
-    from ifc_spg.cli.replay import main
+def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys, monkeypatch):
     from ifc_spg.offline.replay import replay
 
     res = replay(live_run['bag'])
@@ -318,7 +331,7 @@ def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys):
     assert res.missing == 0 and res.compared + res.unverified + res.unanswered == res.ticks
     assert res.compared >= 0.98 * ticks and res.stacks >= 1, res
     assert res.max_abs_diff <= 1e-9, res
-    assert main([str(live_run['bag']), '--tolerance', '1e-9']) == 0
+    assert replay_cli([str(live_run['bag']), '--tolerance', '1e-9'], res, monkeypatch) == 0
     assert 'OK' in capsys.readouterr().out
 
 
