@@ -143,8 +143,11 @@ def _push(no_reset=False, monkeypatch=None, seconds=8.0, speed=0.02):
     """
     if no_reset:  # the obstacle moves, the cull keeps its stale lower bounds (the broken
         # variant of the method has to reach the query's own model: no public way to it)
-        def move_shape(self, shape, placement):
-            self._gm.geometryObjects[shape].placement = placement
+        def move_shape(self, shape, placement):  # both narrowphases, no bound reset
+            rotation, translation = placement.rotation, placement.translation
+            self._pin.move_shape(shape, rotation, translation)
+            if self._narrow is not self._pin:
+                self._narrow.move_shape(shape, rotation, translation)
         monkeypatch.setattr(PairQuery, 'move_shape', move_shape)
     runner = _runner()
     q = np.array(runner.robot.q_home)
