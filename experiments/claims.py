@@ -157,9 +157,9 @@ _V6_51 = (_V6 + '; the v5 report had been read (its Table 5.1 row gives aggregat
 
 def _t51(n, stiffness, kappa, key, strategy):
     """Table 5.1 fixed-direction run (K, kappa): ``key``'s [joint compliance, task spec.]."""
-    row = next((r for r in n['fixed_direction']['runs']
-               if r['stiffness'] == stiffness and r['kappa'] == kappa), None)
-    return row[key][strategy]  # TypeError (n/a, a failing claim) when the run is missing
+    rows = [r for r in n['fixed_direction']['runs']
+            if r['stiffness'] == stiffness and r['kappa'] == kappa]
+    return rows[0][key][strategy]  # IndexError (n/a: the claim fails) when the run is missing
 
 
 def _t51_time(n, stiffness, kappa, strategy):
