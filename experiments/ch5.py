@@ -64,7 +64,10 @@ def _table_5_1(out_dir, quick, figures=True):
                               r['joint_compliance'].get('rms_error_angle_deg'),
                               r['task_specification'].get('rms_error_angle_deg')],
                           'rms_fs_perp_jc_ts_n': [r['joint_compliance']['rms_fs_perp'],
-                                                  r['task_specification']['rms_fs_perp']]}
+                                                  r['task_specification']['rms_fs_perp']],
+                          'time_to_open_jc_ts_s': [
+                              r['joint_compliance']['time_to_open'],
+                              r['task_specification']['time_to_open']]}
                          for r in res[k]['runs']]}
             for k in ('fixed_direction', 'sma_estimator')}
     nums['runs_total'] = 2 * (len(fx['runs']) + len(sma['runs']))
