@@ -20,12 +20,12 @@ ACCREA emulation in the lockstep simulator (:func:`ifc_spg.offline.constrained.r
   up along z as in the thesis), nu = 0.03 m/s, 0.5 s SMA window, without and with the
   projection. The slopes of |f_par| and |f_perp| before the break-away are least-squares
   fits from 0.1 s until the drawer has moved 1 mm.
-- **SMA window** (Fig. 5.5): the cupboard door (0.6 rad) with the SMA windows
-  :data:`FIG_5_5_WINDOWS_S` (the ends of the thesis' 0.3-1 s), otherwise the break-away
+- **SMA window** (Fig. 5.5; full runs only): the cupboard door (0.6 rad) with the SMA
+  windows :data:`FIG_5_5_WINDOWS_S` (the ends of the thesis' 0.3-1 s), otherwise the break-away
   run's setup (nu, initial error and its axis; ours, the thesis gives neither), projection
   on. Over the second half of the opening (door angle 0.3-0.6 rad): the mean estimate
   error (the lag of a turning direction) and the RMS of the second difference of the unit
-  estimate per tick (its jitter: a steady turn adds nothing).
+  estimate per tick (its jitter; a steady turn at omega adds only (omega dt)^2).
 
 "Final" values are means over the last second: the 1 s before the target travel is
 reached, or the last 1 s of the run if it never is. |f_perp| is the measured force minus
@@ -288,6 +288,7 @@ def _numbers(trials, res, brk, n_per_device, wall, windows=()):
 def _text(num):
     """One-paragraph result summary."""
     s, b = num['success_share'], num['breakaway']
+    nb = b['no_projection']
     dev = '; '.join(f"{d}: {c['projection']}/{c['trials']} with, {c['no_projection']}/"
                     f"{c['trials']} without" for d, c in num['per_device'].items())
     return (f"Sec. 5.3.4 on the ACCREA emulation, {num['n_trials']} trials (seed "
@@ -303,13 +304,15 @@ def _text(num):
             f"{b['projection']['final_f_perp_n']:.2f} N with it (error "
             f"{b['projection']['final_error_deg']:.1f} deg); before the break-away (no "
             f"projection) |f_par| rises at {b['no_projection']['slope_f_par_n_s']:.2f} N/s, "
-            f"|f_perp| at {b['no_projection']['slope_f_perp_n_s']:.2f} N/s. SMA window "
-            f"(Fig. 5.5, cupboard door, second half of the opening): " + '; '.join(
+            f"|f_perp| at {b['no_projection']['slope_f_perp_n_s']:.2f} N/s (the force "
+            f"{math.degrees(math.atan2(nb['slope_f_perp_n_s'], nb['slope_f_par_n_s'])):.1f} deg "
+            f"off the drawer axis; d_p0 is {num['breakaway_setup']['error_deg']:g} deg off)."
+            + (' SMA window (Fig. 5.5, cupboard door, second half of the opening): ' + '; '.join(
                 f"{w['window_s']:g} s: mean estimate error {_f(w['mean_error_second_half_deg'])}"
                 f" deg, RMS second difference of the estimate "
                 f"{_f(w['rms_second_difference'], '.3g')} per tick^2, opened "
                 f"{'in ' + _f(w['time_to_open'], '.1f') + ' s' if w['success'] else 'no'}"
-                for w in num['fig_5_5'].values()) + '.')
+                for w in num['fig_5_5'].values()) + '.' if num['fig_5_5'] else ''))
 
 
 def _f(v, fmt='.2f'):
@@ -383,15 +386,15 @@ def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None, schedul
     trials = draw_trials(n)
     jobs = [dict(trial, mode=mode) for trial in trials for mode in _MODES]
     jobs += _breakaway_jobs()
-    win_jobs = _fig_5_5_jobs()
+    win_jobs = [] if quick else _fig_5_5_jobs()  # 14 s of CPU: full runs only
     jobs += win_jobs
     if workers is None:
         workers = max(1, min(4, os.cpu_count() or 1))
     res = _execute(jobs, workers, stream, scheduler)
-    nw = len(win_jobs)
-    windows = [dict(r, window_s=j['window_s']) for r, j in zip(res[-nw:], win_jobs)]
-    brk = res[-nw - 2:-nw]
-    num = _numbers(trials, res[:-nw - 2], brk, n, 0.0, windows)
+    n_run = len(jobs) - len(win_jobs)
+    windows = [dict(r, window_s=j['window_s']) for r, j in zip(res[n_run:], win_jobs)]
+    brk = res[n_run - 2:n_run]
+    num = _numbers(trials, res[:n_run - 2], brk, n, 0.0, windows)
     out = Path(out_dir)
     if figures:
         _figure(num, brk, out / 'figures' / 'sec_5_3.png')
