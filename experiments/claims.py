@@ -507,7 +507,8 @@ CLAIMS: tuple[Claim, ...] = (
     Claim('sec_5_3.fig_5_5_smoother', 'sec_5_3', 'Sec. 5.3.4, Fig. 5.5', '"a larger window '
           'leads to a smoother direction estimation" ("improved noise reduction")',
           'RMS of the second difference of the unit estimate per tick (its jitter; a steady '
-          'turn adds nothing) over the second half of the opening, window 1.0 s / 0.3 s',
+          'turn at omega adds only (omega dt)^2) over the second half of the opening, '
+          'window 1.0 s / 0.3 s',
           lambda n: n['fig_5_5']['w1.0']['rms_second_difference'] /
           n['fig_5_5']['w0.3']['rms_second_difference'], '<', 0.9, quick=False,
           history=_V6 + '; margin 10 %; the simulation has no sensor noise, so what the '
