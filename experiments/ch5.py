@@ -88,7 +88,20 @@ def _table_5_1(out_dir, quick, figures=True):
                  f'overall RMS |f_perp| (measured) joint compliance -> task specification '
                  f'({grid}, 0.29 m lift, runs up to {kw["duration"]:g} s): fixed direction '
                  f'{text(fx)}; SMA estimator from {T51_SMA_ERROR_DEG:g} deg {text(sma)}; '
-                 'thesis 0.58 -> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %)')
+                 'thesis 0.58 -> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %)'
+                 + _per_condition(nums['fixed_direction']['runs']))
+
+
+def _per_condition(runs):
+    """Figs. 5.16/5.17's conditions: every fixed-direction run, RMS |f_perp| and lift time."""
+    if len(runs) < 2:
+        return ''
+    return ('. Per run, fixed direction (K [Nm/rad] / kappa [N/s]: RMS |f_perp| joint '
+            'compliance, task specification; lift time): ' + '; '.join(
+                f'{r["stiffness"]:g}/{r["kappa"]:g}: {r["rms_f_perp_jc_ts_n"][0]:.2f}, '
+                f'{r["rms_f_perp_jc_ts_n"][1]:.2f} N; '
+                + ', '.join('not lifted' if t is None else f'{t:.3g} s'
+                            for t in r['time_to_open_jc_ts_s']) for r in runs))
 
 
 TABLE_5_1 = Experiment('table_5_1', 'Table 5.1', 'Constrained manipulation (vertical drawer '
@@ -283,7 +296,8 @@ def _fig_5_11(out_dir, quick, figures=True):
                     f'|f_s perp| {v["rms_fs_perp_first_half_n"]:.2f} / '
                     f'{v["rms_fs_perp_second_half_n"]:.2f} N, lifted '
                     f'{v["travel_m"] * 100:.0f} cm in {_fmt(v["time_to_open_s"])} s, force '
-                    f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items())
+                    f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items()
+                    if k != 'misalignment')
     return Check(out, 'K = 40 Nm/rad, kappa = 9 N/s, nu = 0.05 m/s; ' + txt + mtxt)
 
 
