@@ -24,7 +24,8 @@ Version 6 (issue 29 item 3): claims the thesis makes that no rule encoded, each 
 before the run that judges it: Fig. 4.14 (VIII), the > 50 deg force misalignment of the
 LBR-IV (Sec. 5.4, read with Fig. 5.11), Fig. 5.5 (SMA window: smoother but later) and
 Fig. 5.6's equal slopes (Sec. 5.3.4), and the per-condition statements of the captions of
-Figs. 5.16/5.17 (on Table 5.1's fixed-direction runs).
+Figs. 5.16/5.17 (on Table 5.1's fixed-direction runs); the report's Gauss-function shape
+(linear when fully constrained, quadratic when partially, report Ch. 5/7).
 """
 
 from collections.abc import Callable
@@ -594,6 +595,23 @@ CLAIMS: tuple[Claim, ...] = (
           'qdd, KDL reading (COM at 1.5 m, I = 2.25 kg m^2) - an INFERENCE about the '
           "report's code, not stated in it", lambda n: n['kdl']['s2_qdd'], 'abs<=', 0.005,
           -0.44, unit='rad/s^2'),
+    Claim('report_6.gauss_linear_full', 'report_6', 'report Sec. 5.6, Fig. 5.5; Ch. 7',
+          '"the cost function becomes linear if a robot is fully constrained" (1-DoF arm, '
+          'desired end-effector angular acceleration 5 rad/s^2)', "Z(mu) of the report's "
+          'sampling method (solve_sampling, 21 mu in [-10, 10] Nm), arm as described, tip '
+          'force -11 N, A_N = the unit moment about z, b_N = 5 rad/s^2: RMS residual of a '
+          'straight-line fit / range of Z', lambda n: n['gauss']['full']['linear_residual'],
+          '<=', 1e-6, history=_V6 + '; 1e-6 (round-off) ours'),
+    Claim('report_6.gauss_quadratic_partial', 'report_6', 'report Sec. 5.6 (Fig. 5.2); Ch. 7',
+          '"if a robot is partially constrained then the Gauss function to be maximized takes '
+          'quadratic form" (not linear)', 'as report_6.gauss_linear_full without A_N (scenario '
+          '2): RMS residual of a straight-line fit / range of Z',
+          lambda n: n['gauss']['partial']['linear_residual'], '>=', 0.01,
+          history=_V6 + '; 1 % ours'),
+    Claim('report_6.gauss_quadratic_exact', 'report_6', 'report Sec. 5.6 (Fig. 5.2); Ch. 7',
+          '... quadratic form', 'as report_6.gauss_quadratic_partial: RMS residual of a '
+          'parabola fit / range of Z', lambda n: n['gauss']['partial']['quadratic_residual'],
+          '<=', 1e-6, history=_V6 + '; 1e-6 (round-off) ours'),
 )
 #: Every Ch. 3 claim names the baseline change of v3 (its setup changed after a result).
 CLAIMS = tuple(dataclasses.replace(c, history=f'{c.history}; {_SNS}' if c.history else _SNS)
