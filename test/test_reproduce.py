@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from experiments import ch3, ch5, claims, report, reproduce
+from experiments import ch3, ch5, claims, report, report_ch6, reproduce
 from ifc_spg.errors import ParameterError
 from ifc_spg.offline.runner import find_config_dir, load_scenario
 
@@ -129,6 +129,15 @@ def test_report_6_both_inertia_readings():
     got = {c['id']: c['passed'] for c in check.claims}
     assert got['report_6.s2_qdd_kdl'] and not got['report_6.s2_qdd_described']
     assert not check.passed
+    # the Gauss-function shape: fully constrained, qdd is the constraint's whatever mu is
+    g = n['gauss']
+    assert g['full']['qdd_range_rad_s2'] == pytest.approx([5.0, 5.0], abs=1e-9) or \
+        g['full']['qdd_range_rad_s2'] == pytest.approx([-5.0, -5.0], abs=1e-9)
+    assert g['partial']['qdd_range_rad_s2'][1] - g['partial']['qdd_range_rad_s2'][0] > 1.0
+    x = np.linspace(-1.0, 1.0, 21)
+    assert report_ch6._fit_residual(x, 3.0 * x + 1.0, 1) < 1e-12
+    assert report_ch6._fit_residual(x, x ** 2, 1) > 0.1
+    assert report_ch6._fit_residual(x, x ** 2, 2) < 1e-12
 
 
 def test_table_3_2_surface_tracking(quick):
