@@ -65,6 +65,14 @@ def _last_second_travel(run, y_v):
     return float(abs(y_v[-1] - y_v[min(i, len(y_v) - 1)]))
 
 
+def _obstacle_face(run):
+    """The y of the obstacle face the tool meets, from the start [m] (None: no obstacle)."""
+    opts = run.scenario.scene_options if run.scenario is not None else {}
+    if opts.get('obstacle_offset') is None:
+        return None
+    return opts['obstacle_offset'][1] - opts.get('obstacle_size', (0, 0.02))[1]
+
+
 def _check_4_1(runs, quick):
     out, txt = {}, []
     for v in _V41:
@@ -97,12 +105,16 @@ def _check_4_1(runs, quick):
                   'max_obstacle_force_n': float(np.max(f_y)),
                   'obstacle_hit_s': None if hit is None else float(hit),
                   'max_virtual_y_m': float(np.max(pos_v[:, 1] - pos[0, 1])),
+                  'max_virtual_penetration_m': None if _obstacle_face(r) is None else
+                  max(0.0, float(np.max(pos_v[:, 1] - pos[0, 1])) - _obstacle_face(r)),
                   'virtual_y_travel_last_1s_m': _last_second_travel(r, pos_v[:, 1]),
                   'max_physical_y_m': y_phys,
                   'trajectory_error_rms_m': _rms(ep[m])}
+        pen = out[v]['max_virtual_penetration_m']
         txt.append(f'{v}: max |tau_s| {tau_v:.1f} Nm, static tangential force max '
                    f'{tang_static:.1f} N, measured force on the obstacle max '
-                   f'{np.max(f_y):.1f} N (25-tick mean)')
+                   f'{np.max(f_y):.1f} N (25-tick mean), virtual tool at most '
+                   f'{_fmt(None if pen is None else pen * 1e3)} mm beyond the obstacle face')
     return Check(out, '; '.join(txt) + f' (static torque and force maxima from '
                  f'{_T41_BAND - _T_CIRCLE:g} s after the switch)')
 
@@ -140,9 +152,8 @@ def _fig_4_1(runs, quick, path):
                           label='y virtual')
         d = r.task('trajectory')
         axes[2, col].plot(d['t'], d['lower'][:, 1] - y0, 'k--', lw=0.8, label='p_d')
-        opts = r.scenario.scene_options if r.scenario is not None else {}
-        if opts.get('obstacle_offset') is not None:
-            face = opts['obstacle_offset'][1] - opts.get('obstacle_size', (0, 0.02))[1]
+        face = _obstacle_face(r)
+        if face is not None:
             axes[2, col].axhline(face, color='#8c564b', lw=0.8, label='obstacle face')
         axes[2, col].set_xlabel('time [s]')
     axes[0, 0].set_ylabel('static torques [Nm]')

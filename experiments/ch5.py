@@ -64,7 +64,10 @@ def _table_5_1(out_dir, quick, figures=True):
                               r['joint_compliance'].get('rms_error_angle_deg'),
                               r['task_specification'].get('rms_error_angle_deg')],
                           'rms_fs_perp_jc_ts_n': [r['joint_compliance']['rms_fs_perp'],
-                                                  r['task_specification']['rms_fs_perp']]}
+                                                  r['task_specification']['rms_fs_perp']],
+                          'time_to_open_jc_ts_s': [
+                              r['joint_compliance']['time_to_open'],
+                              r['task_specification']['time_to_open']]}
                          for r in res[k]['runs']]}
             for k in ('fixed_direction', 'sma_estimator')}
     nums['runs_total'] = 2 * (len(fx['runs']) + len(sma['runs']))
@@ -85,7 +88,20 @@ def _table_5_1(out_dir, quick, figures=True):
                  f'overall RMS |f_perp| (measured) joint compliance -> task specification '
                  f'({grid}, 0.29 m lift, runs up to {kw["duration"]:g} s): fixed direction '
                  f'{text(fx)}; SMA estimator from {T51_SMA_ERROR_DEG:g} deg {text(sma)}; '
-                 'thesis 0.58 -> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %)')
+                 'thesis 0.58 -> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %)'
+                 + _per_condition(nums['fixed_direction']['runs']))
+
+
+def _per_condition(runs):
+    """Figs. 5.16/5.17's conditions: every fixed-direction run, RMS |f_perp| and lift time."""
+    if len(runs) < 2:
+        return ''
+    return ('. Per run, fixed direction (K [Nm/rad] / kappa [N/s]: RMS |f_perp| joint '
+            'compliance, task specification; lift time): ' + '; '.join(
+                f'{r["stiffness"]:g}/{r["kappa"]:g}: {r["rms_f_perp_jc_ts_n"][0]:.2f}, '
+                f'{r["rms_f_perp_jc_ts_n"][1]:.2f} N; '
+                + ', '.join('not lifted' if t is None else f'{t:.3g} s'
+                            for t in r['time_to_open_jc_ts_s']) for r in runs))
 
 
 TABLE_5_1 = Experiment('table_5_1', 'Table 5.1', 'Constrained manipulation (vertical drawer '
@@ -109,6 +125,56 @@ F512_TARGET = 0.25
 #: term (the force-follow of 5.4.2).
 F513_RUNS = ((0.10, 9.0), (0.17, 9.0), (0.25, 9.0), (0.17, 5.0), (0.17, 15.0))
 _S543_CACHE: dict[tuple, Any] = {}
+#: Sec. 5.4's misalignment of p_v - p and f on the LBR-IV: configurations drawn uniformly in
+#: the joint limits (seeded), those with manipulability above ``mu_min`` (the thesis' 0.1)
+#: counted, the misalignment bound the thesis names [deg].
+MISALIGNMENT: dict[str, Any] = {'samples': 5000, 'seed': 5401, 'mu_min': 0.1,
+                                'bound_deg': 50.0}
+
+
+def _worst_misalignment(jac):
+    """(mu, largest angle [deg] between dp and f) for the 6 x n tool Jacobian ``jac``.
+
+    Equal joint stiffness K = k I: any dq with J dq = (dp, 0) gives the static wrench
+    h = J^{+T} K dq = k (J J^T)^-1 (dp, 0) (the nullspace part of dq adds no wrench), so f =
+    k A dp with A the position block of (J J^T)^-1, symmetric positive definite. The largest
+    angle between dp and A dp is arccos(2 sqrt(l_min l_max) / (l_min + l_max)) over A's
+    eigenvalues (Kantorovich); k drops out.
+    """
+    jj = jac @ jac.T
+    mu = math.sqrt(max(float(np.linalg.det(jj)), 0.0))
+    if mu <= 0.0:
+        return mu, 90.0
+    lam = np.linalg.eigvalsh(np.linalg.inv(jj)[:3, :3])
+    cos = 2.0 * math.sqrt(lam[0] * lam[-1]) / (lam[0] + lam[-1])
+    return mu, math.degrees(math.acos(min(1.0, cos)))
+
+
+def _misalignment(q_start=None):
+    """Sec. 5.4: the misalignment over :data:`MISALIGNMENT`'s sample (and at ``q_start``)."""
+    import pinocchio as pin
+
+    from ifc_spg.model import RobotModel
+
+    cfg = MISALIGNMENT
+    robot = RobotModel.from_config('lbr4')
+    model, data, frame = robot.model, robot.create_data(), robot.frame_id('tool')
+
+    def at(q):
+        return _worst_misalignment(pin.computeFrameJacobian(
+            model, data, np.asarray(q, dtype=float), frame, pin.LOCAL_WORLD_ALIGNED))
+    rng = np.random.default_rng(cfg['seed'])
+    rows = [at(rng.uniform(model.lowerPositionLimit, model.upperPositionLimit))
+            for _ in range(cfg['samples'])]
+    worst = np.array([a for mu, a in rows if mu > cfg['mu_min']])
+    out = {**cfg, 'configurations_over_mu_min': int(worst.size),
+           'share_over_50deg': float(np.mean(worst > cfg['bound_deg'])) if worst.size
+           else None,
+           'max_deg': float(worst.max()) if worst.size else None,
+           'median_deg': float(np.median(worst)) if worst.size else None}
+    if q_start is not None:
+        out['start_mu'], out['start_deg'] = at(q_start)
+    return out
 
 
 def _force_slope(log, moved=1e-3, t0=0.1):
@@ -213,15 +279,26 @@ def _fig_5_11(out_dir, quick, figures=True):
             log = _s543_run(strategy, 'drawer_vertical', err, 0.29, duration=60.0)
             out[f'{strategy}_{err:g}'] = _lift_numbers(log)
             panels.append((log, f'{label}, initial error {err:g} deg'))
+    log0 = panels[0][0]
+    out['misalignment'] = mis = _misalignment(None if log0.q is None else log0.q[0])
     if figures:
         _s543_figure(out_dir, 'fig_5_11', panels, 2)
+    share = mis['share_over_50deg']
+    mtxt = (f'. Sec. 5.4, LBR-IV, equal joint stiffness: of {mis["samples"]} configurations '
+            f'drawn in the joint limits, {mis["configurations_over_mu_min"]} have mu > '
+            f'{mis["mu_min"]:g}; in {_fmt(share and 100 * share)} % of those some '
+            f'position deviation and the static force are more than {mis["bound_deg"]:g} deg '
+            f'apart (largest {_fmt(mis["max_deg"])} deg, median {_fmt(mis["median_deg"])} deg)'
+            + (f'; at the start pose of these runs mu = {mis["start_mu"]:.3f}, largest '
+               f'{mis["start_deg"]:.1f} deg' if 'start_deg' in mis else ''))
     txt = '; '.join(f'{k}: |f_perp| RMS {v["rms_f_perp_first_half_n"]:.2f} N (first half of '
                     f'the lift) / {v["rms_f_perp_second_half_n"]:.2f} N (second half), static '
                     f'|f_s perp| {v["rms_fs_perp_first_half_n"]:.2f} / '
                     f'{v["rms_fs_perp_second_half_n"]:.2f} N, lifted '
                     f'{v["travel_m"] * 100:.0f} cm in {_fmt(v["time_to_open_s"])} s, force '
-                    f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items())
-    return Check(out, 'K = 40 Nm/rad, kappa = 9 N/s, nu = 0.05 m/s; ' + txt)
+                    f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items()
+                    if k != 'misalignment')
+    return Check(out, 'K = 40 Nm/rad, kappa = 9 N/s, nu = 0.05 m/s; ' + txt + mtxt)
 
 
 def _fig_5_12(out_dir, quick, figures=True):

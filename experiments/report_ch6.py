@@ -8,7 +8,38 @@ import numpy as np
 
 from experiments.harness import Check, Experiment
 
-__all__ = ['DIRECT', 'REPORT_6']
+__all__ = ['DIRECT', 'GAUSS_SAMPLES', 'REPORT_6']
+
+#: Grid points of mu in [-f, f] for the Gauss-function shape (the report's sampling method).
+GAUSS_SAMPLES = 21
+#: The report's fully constrained task (Sec. 5.6, Fig. 5.5): end-effector angular
+#: acceleration about z [rad/s^2].
+GAUSS_FULL_B = 5.0
+
+
+def _fit_residual(x, z, degree):
+    """RMS residual of a polynomial fit of ``degree`` to z(x), over the range of z."""
+    res = z - np.polyval(np.polyfit(x, z, degree), x)
+    span = float(np.ptp(z))
+    return float(np.sqrt(np.mean(res ** 2)) / span) if span > 0 else 0.0
+
+
+def _gauss_shape(prob):
+    """Z(mu) over the breakaway box (solve_sampling) unconstrained and fully constrained."""
+    solver = prob.friction_solver()
+    full = {'A_N': np.array([[0.0], [0.0], [0.0], [0.0], [0.0], [1.0]]),
+            'b_N': np.array([GAUSS_FULL_B])}
+    out = {}
+    for key, extra in (('partial', {}), ('full', full)):
+        r = solver.solve_sampling(prob.q, prob.qd, prob.tau, samples=GAUSS_SAMPLES,
+                                  **prob.kwargs, **extra)
+        mu, z = np.asarray(r.samples)[:, 0], np.asarray(r.gauss_samples)
+        out[key] = {'linear_residual': _fit_residual(mu, z, 1),
+                    'quadratic_residual': _fit_residual(mu, z, 2),
+                    'mu_at_max_nm': float(np.asarray(r.mu)[0]),
+                    'qdd_range_rad_s2': [float(np.min(r.qdd_samples)),
+                                         float(np.max(r.qdd_samples))]}
+    return out
 
 
 def _report_6(out_dir, quick, figures=True):
@@ -29,13 +60,22 @@ def _report_6(out_dir, quick, figures=True):
             row[f's{k}_stick'] = bool(np.asarray(r.stick)[0])
         row['inertia_kg_m2'] = 0.25 if not impl else 2.25
         out[key] = row
+    out['gauss'] = g = _gauss_shape(report_problems(implemented=False)[1])
     d, kd = out['described'], out['kdl']
+    task = {'partial': 'no A_N',
+            'full': f'A_N: angular acceleration about z = {GAUSS_FULL_B:g} rad/s^2'}
     txt = (f"arm as described (COM 0.5 m, I = 0.25 kg m^2): scenario 1 mu* = {d['s1_mu']:.2f} "
            f"Nm, qdd = {d['s1_qdd']:.3g}; scenario 2 mu* = {d['s2_mu']:.2f} Nm, qdd = "
            f"{d['s2_qdd']:.3f} rad/s^2. KDL reading (COM 1.5 m, I = 2.25 kg m^2; INFERENCE): "
            f"scenario 1 mu* = {kd['s1_mu']:.2f} Nm, qdd = {kd['s1_qdd']:.3g}; scenario 2 mu* = "
            f"{kd['s2_mu']:.2f} Nm, qdd = {kd['s2_qdd']:.3f} rad/s^2. Report: 5 Nm / 0; 10 Nm / "
-           '-0.44 rad/s^2')
+           '-0.44 rad/s^2. Gauss function Z(mu) over ' + f'{GAUSS_SAMPLES} mu in the breakaway '
+           'box (arm as described, -11 N): ' + '; '.join(
+               f"{k} ({task[k]}): RMS residual / range of a "
+               f"straight line {v['linear_residual']:.3g}, of a parabola "
+               f"{v['quadratic_residual']:.3g}, maximum at mu = {v['mu_at_max_nm']:g} Nm, qdd "
+               f"{v['qdd_range_rad_s2'][0]:.3g} ... {v['qdd_range_rad_s2'][1]:.3g} rad/s^2"
+               for k, v in g.items()))
     return Check(out, txt)
 
 

@@ -18,7 +18,14 @@ ACCREA emulation in the lockstep simulator (:func:`ifc_spg.offline.constrained.r
 - **Break-away drawer** (Figs. 5.6/5.7): the horizontal drawer with a 20 N break-away
   latch, 45 deg initial error tilted downwards (d_p0 has a -z component, so f_perp builds
   up along z as in the thesis), nu = 0.03 m/s, 0.5 s SMA window, without and with the
-  projection.
+  projection. The slopes of |f_par| and |f_perp| before the break-away are least-squares
+  fits from 0.1 s until the drawer has moved 1 mm.
+- **SMA window** (Fig. 5.5; full runs only): the cupboard door (0.6 rad) with the SMA
+  windows :data:`FIG_5_5_WINDOWS_S` (the ends of the thesis' 0.3-1 s), otherwise the break-away
+  run's setup (nu, initial error and its axis; ours, the thesis gives neither), projection
+  on. Over the second half of the opening (door angle 0.3-0.6 rad): the mean estimate
+  error (the lag of a turning direction) and the RMS of the second difference of the unit
+  estimate per tick (its jitter; a steady turn at omega adds only (omega dt)^2).
 
 "Final" values are means over the last second: the 1 s before the target travel is
 reached, or the last 1 s of the run if it never is. |f_perp| is the measured force minus
@@ -72,6 +79,8 @@ PATH = 0.25
 BREAKAWAY: dict[str, Any] = {'force': 20.0, 'nu': 0.03, 'window_s': 0.5, 'error_deg': 45.0,
              'error_axis': (0.0, -1.0, 0.0), 'target': 0.25, 'duration': 30.0}
 _MODES = ('projection', 'no_projection')
+#: Fig. 5.5: the SMA windows [s] compared on the cupboard door.
+FIG_5_5_WINDOWS_S = (0.3, 1.0)
 
 
 def draw_trials(n_per_device, seed=SEED):
@@ -120,6 +129,41 @@ def _parallel_perp(log):
     return np.abs(par), perpendicular_force(log.force, log.true_direction)
 
 
+def _slope(t, y, sel):
+    """Least-squares slope of ``y`` over ``t`` on the mask ``sel`` (nan: < 10 samples)."""
+    if np.count_nonzero(sel) < 10:
+        return float('nan')
+    return float(np.polyfit(t[sel], y[sel], 1)[0])
+
+
+def _before_motion(log, moved=1e-3, t0=0.1):
+    """Mask from ``t0`` [s] after the start until the mechanism has moved ``moved``."""
+    t = np.asarray(log.t, dtype=float) - float(log.t[0])
+    x = np.abs(np.asarray(log.env_q, dtype=float) - float(log.env_q[0]))
+    stop = np.flatnonzero(x >= moved)
+    t1 = t[stop[0]] if stop.size else t[-1]
+    return t, (t >= t0) & (t <= t1)
+
+
+def _window_numbers(log, target):
+    """Fig. 5.5 numbers over the second half of the opening (see the module doc)."""
+    t = np.asarray(log.t, dtype=float)
+    angle = np.abs(np.asarray(log.env_q, dtype=float) - float(log.env_q[0]))
+    t_open = log.metrics.get('time_to_open')
+    late = (angle >= 0.5 * target) & (t <= (t[-1] if t_open is None else t[0] + t_open))
+    err = np.degrees(error_angles(log.estimate, log.true_direction))
+    d = np.asarray(log.estimate, dtype=float)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+    dd = np.zeros(len(d))
+    dd[1:-1] = np.linalg.norm(d[2:] - 2.0 * d[1:-1] + d[:-2], axis=1)
+    inner = late.copy()
+    inner[[0, -1]] = False
+    return {'mean_error_second_half_deg': float(np.mean(err[late])) if late.any() else None,
+            'rms_second_difference': float(np.sqrt(np.mean(dd[inner] ** 2)))
+            if inner.any() else None,
+            'samples_second_half': int(np.count_nonzero(late))}
+
+
 def _summary(log, target, series=False):
     """The per-run result row (and decimated time series with ``series``)."""
     f_par, f_perp = _parallel_perp(log)
@@ -132,6 +176,9 @@ def _summary(log, target, series=False):
            'final_f_perp_n': float(np.mean(f_perp[sl])),
            'final_error_deg': float(np.mean(err[sl])),
            'initial_error_deg': float(err[0])}
+    t, sel = _before_motion(log)
+    out['slope_f_par_n_s'] = _slope(t, f_par, sel)
+    out['slope_f_perp_n_s'] = _slope(t, f_perp, sel)
     if series:
         step = max(1, round(0.02 / DT))
         out['series'] = {'t': (log.t[::step] - log.t[0]).tolist(),
@@ -151,7 +198,10 @@ def _run_one(job):
                        target=job['target'], settle=0.0, force_limit=FORCE_LIMIT,
                        scene_options=job['scene_options'],
                        strategy_options={'projection': job['mode'] == 'projection'}))
-    return _summary(log, job['target'], series=job.get('series', False))
+    out = _summary(log, job['target'], series=job.get('series', False))
+    if job['trial'] == 'fig_5_5':
+        out.update(_window_numbers(log, job['target']))
+    return out
 
 
 def _breakaway_jobs():
@@ -162,6 +212,18 @@ def _breakaway_jobs():
             'error_deg': b['error_deg'], 'error_axis': list(b['error_axis']),
             'duration': b['duration'], 'series': True}
     return [dict(base, mode=mode) for mode in _MODES]
+
+
+def _fig_5_5_jobs():
+    """Fig. 5.5: the cupboard door with each SMA window of :data:`FIG_5_5_WINDOWS_S`."""
+    b = BREAKAWAY
+    device, target, options = DEVICES[0]
+    return [{'device': device, 'trial': 'fig_5_5', 'target': target,
+             'scene_options': dict(options), 'nu': b['nu'], 'window_s': w,
+             'window_n': round(w / DT), 'error_deg': b['error_deg'],
+             'error_axis': list(b['error_axis']),
+             'duration': round(1.25 * PATH / b['nu'] + 5.0, 1), 'mode': 'projection'}
+            for w in FIG_5_5_WINDOWS_S]
 
 
 def _execute(jobs, workers, stream, scheduler=None):
@@ -190,7 +252,7 @@ def _execute(jobs, workers, stream, scheduler=None):
     return results
 
 
-def _numbers(trials, res, brk, n_per_device, wall):
+def _numbers(trials, res, brk, n_per_device, wall, windows=()):
     """The numbers dict (see :func:`run_sec_5_3`)."""
     rows, ratios = [], []
     per_device = {d: {'projection': 0, 'no_projection': 0, 'trials': 0} for d, *_ in DEVICES}
@@ -210,10 +272,14 @@ def _numbers(trials, res, brk, n_per_device, wall):
     share = {mode: sum(r[mode]['success'] for r in rows) / n for mode in _MODES}
     breakaway = {mode: {key: brk[i][key] for key in ('final_f_perp_n', 'final_error_deg',
                                                      'success', 'time_to_open', 'max_force',
-                                                     'initial_error_deg')}
+                                                     'initial_error_deg',
+                                                     'slope_f_par_n_s', 'slope_f_perp_n_s')}
                  for i, mode in enumerate(_MODES)}
+    fig_5_5 = {f'w{w["window_s"]:.1f}': {key: w[key] for key in (
+        'window_s', 'mean_error_second_half_deg', 'rms_second_difference',
+        'samples_second_half', 'time_to_open', 'success', 'max_force')} for w in windows}
     return {'success_share': share, 'median_final_ratio': float(np.median(ratios)),
-            'breakaway': breakaway, 'per_device': per_device, 'trials': rows,
+            'breakaway': breakaway, 'fig_5_5': fig_5_5, 'per_device': per_device, 'trials': rows,
             'n_trials': n, 'trials_per_device': n_per_device, 'seed': SEED, 'dt': DT,
             'force_limit_n': FORCE_LIMIT, 'breakaway_setup': dict(BREAKAWAY),
             'wall_s': wall}
@@ -222,6 +288,7 @@ def _numbers(trials, res, brk, n_per_device, wall):
 def _text(num):
     """One-paragraph result summary."""
     s, b = num['success_share'], num['breakaway']
+    nb = b['no_projection']
     dev = '; '.join(f"{d}: {c['projection']}/{c['trials']} with, {c['no_projection']}/"
                     f"{c['trials']} without" for d, c in num['per_device'].items())
     return (f"Sec. 5.3.4 on the ACCREA emulation, {num['n_trials']} trials (seed "
@@ -235,7 +302,21 @@ def _text(num):
             f"without the projection (estimate error "
             f"{b['no_projection']['final_error_deg']:.1f} deg), "
             f"{b['projection']['final_f_perp_n']:.2f} N with it (error "
-            f"{b['projection']['final_error_deg']:.1f} deg).")
+            f"{b['projection']['final_error_deg']:.1f} deg); before the break-away (no "
+            f"projection) |f_par| rises at {b['no_projection']['slope_f_par_n_s']:.2f} N/s, "
+            f"|f_perp| at {b['no_projection']['slope_f_perp_n_s']:.2f} N/s (the force "
+            f"{math.degrees(math.atan2(nb['slope_f_perp_n_s'], nb['slope_f_par_n_s'])):.1f} deg "
+            f"off the drawer axis; d_p0 is {num['breakaway_setup']['error_deg']:g} deg off)."
+            + (' SMA window (Fig. 5.5, cupboard door, second half of the opening): ' + '; '.join(
+                f"{w['window_s']:g} s: mean estimate error {_f(w['mean_error_second_half_deg'])}"
+                f" deg, RMS second difference of the estimate "
+                f"{_f(w['rms_second_difference'], '.3g')} per tick^2, opened "
+                f"{'in ' + _f(w['time_to_open'], '.1f') + ' s' if w['success'] else 'no'}"
+                for w in num['fig_5_5'].values()) + '.' if num['fig_5_5'] else ''))
+
+
+def _f(v, fmt='.2f'):
+    return 'n/a' if v is None else format(v, fmt)
 
 
 def _plt():
@@ -297,19 +378,23 @@ def run_sec_5_3(out_dir, quick, figures=True, stream=None, workers=None, schedul
 
     Returns:
         ``(numbers, text)``: the JSON-serialisable numbers (``success_share``,
-        ``median_final_ratio``, ``breakaway``, ``per_device``, ``trials``, ``n_trials``,
-        ``seed``, ...) and a one-paragraph summary.
+        ``median_final_ratio``, ``breakaway``, ``fig_5_5``, ``per_device``, ``trials``,
+        ``n_trials``, ``seed``, ...) and a one-paragraph summary.
     """
     t0 = time.perf_counter()
     n = QUICK_TRIALS if quick else TRIALS
     trials = draw_trials(n)
     jobs = [dict(trial, mode=mode) for trial in trials for mode in _MODES]
     jobs += _breakaway_jobs()
+    win_jobs = [] if quick else _fig_5_5_jobs()  # 14 s of CPU: full runs only
+    jobs += win_jobs
     if workers is None:
         workers = max(1, min(4, os.cpu_count() or 1))
     res = _execute(jobs, workers, stream, scheduler)
-    brk = res[-2:]
-    num = _numbers(trials, res[:-2], brk, n, 0.0)
+    n_run = len(jobs) - len(win_jobs)
+    windows = [dict(r, window_s=j['window_s']) for r, j in zip(res[n_run:], win_jobs)]
+    brk = res[n_run - 2:n_run]
+    num = _numbers(trials, res[:n_run - 2], brk, n, 0.0, windows)
     out = Path(out_dir)
     if figures:
         _figure(num, brk, out / 'figures' / 'sec_5_3.png')

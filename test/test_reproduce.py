@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from experiments import ch3, ch5, claims, report, reproduce
+from experiments import ch3, ch5, claims, report, report_ch6, reproduce
 from ifc_spg.errors import ParameterError
 from ifc_spg.offline.runner import find_config_dir, load_scenario
 
@@ -129,6 +129,15 @@ def test_report_6_both_inertia_readings():
     got = {c['id']: c['passed'] for c in check.claims}
     assert got['report_6.s2_qdd_kdl'] and not got['report_6.s2_qdd_described']
     assert not check.passed
+    # the Gauss-function shape: fully constrained, qdd is the constraint's whatever mu is
+    g = n['gauss']
+    assert g['full']['qdd_range_rad_s2'] == pytest.approx([5.0, 5.0], abs=1e-9) or \
+        g['full']['qdd_range_rad_s2'] == pytest.approx([-5.0, -5.0], abs=1e-9)
+    assert g['partial']['qdd_range_rad_s2'][1] - g['partial']['qdd_range_rad_s2'][0] > 1.0
+    x = np.linspace(-1.0, 1.0, 21)
+    assert report_ch6._fit_residual(x, 3.0 * x + 1.0, 1) < 1e-12
+    assert report_ch6._fit_residual(x, x ** 2, 1) > 0.1
+    assert report_ch6._fit_residual(x, x ** 2, 2) < 1e-12
 
 
 def test_table_3_2_surface_tracking(quick):
@@ -236,6 +245,9 @@ def test_table_4_1_obstacle_torque_and_force_bands(quick):
     assert n['1a_3a']['max_obstacle_force_n'] > 14.0
     # with 1b or 3b the virtual tool stops inside the obstacle instead of running through
     assert n['1b_3b']['max_virtual_y_m'] < n['1a_3a']['max_virtual_y_m'] - 0.01
+    for v in ('1a_3a', '1b_3a'):  # Fig. 4.14 (VIII): beyond the face (6 cm from the start)
+        assert n[v]['max_virtual_penetration_m'] == pytest.approx(
+            max(0.0, n[v]['max_virtual_y_m'] - 0.06))
 
 
 def test_table_4_2_virtual_tool_stays_in_the_box(quick):
@@ -305,17 +317,38 @@ def test_fig_5_11_static_erroneous_force_vanishes_once_the_estimate_converges(tm
     the report prints both); the claims are evaluated as written."""
     check, fig, _ = reproduce.run_experiment(_BY_NAME['fig_5_11'], tmp_path, quick=True)
     n = check.numbers
-    assert set(n) == {'joint_compliance_45', 'admittance_45'}
+    assert set(n) == {'joint_compliance_45', 'admittance_45', 'misalignment'}
+    mis = n.pop('misalignment')
+    assert 0 < mis['configurations_over_mu_min'] <= mis['samples']
+    assert 0.0 <= mis['share_over_50deg'] <= 1.0 and 0.0 <= mis['max_deg'] <= 90.0
     for v in n.values():
         assert v['travel_m'] >= 0.29
     jc = n['joint_compliance_45']
     assert jc['force_slope_n_s'] == pytest.approx(9.0, rel=0.3)
     assert jc['median_fs_perp_second_half_n'] < 0.2 * jc['max_fs_perp_first_half_n'], jc
     got = {c['id']: c['passed'] for c in check.claims}
-    assert set(got) == {'fig_5_11.jc_vanish', 'fig_5_11.jc_below_tf', 'fig_5_11.jc_slope'}
+    assert set(got) == {'fig_5_11.jc_vanish', 'fig_5_11.jc_below_tf', 'fig_5_11.jc_slope',
+                        'fig_5_11.misalignment'}
+    assert got['fig_5_11.misalignment'] == (mis['share_over_50deg'] >= 0.1)
     assert got['fig_5_11.jc_vanish'] == (jc['rms_f_perp_second_half_n'] <
                                          0.5 * jc['rms_f_perp_first_half_n'])
     assert fig is not None and fig.exists()
+
+
+def test_sec_5_4_worst_misalignment_is_the_largest_angle_over_directions():
+    """The closed form (Kantorovich) against a search over directions of dp."""
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        jac = rng.normal(size=(6, 7))
+        mu, worst = ch5._worst_misalignment(jac)
+        a = np.linalg.inv(jac @ jac.T)[:3, :3]
+        dp = rng.normal(size=(20000, 3))
+        f = dp @ a.T
+        cos = np.sum(dp * f, axis=1) / np.linalg.norm(dp, axis=1) / np.linalg.norm(f, axis=1)
+        assert np.degrees(np.arccos(cos.min())) == pytest.approx(worst, abs=0.5)
+        assert mu == pytest.approx(np.sqrt(np.linalg.det(jac @ jac.T)))
+    assert ch5._worst_misalignment(np.hstack([np.eye(6), np.zeros((6, 1))]))[1] == \
+        pytest.approx(0.0, abs=1e-6)
 
 
 def test_fig_5_12_horizontal_drawer_new_approach_has_less_erroneous_force(tmp_path):

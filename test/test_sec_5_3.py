@@ -3,8 +3,12 @@ pre-registered rules of experiments/claims.py read, and the projection's physica
 
 import json
 import math
+from types import SimpleNamespace
 
-from experiments.sec_5_3 import QUICK_TRIALS, run_sec_5_3
+import numpy as np
+import pytest
+
+from experiments.sec_5_3 import DT, QUICK_TRIALS, _window_numbers, run_sec_5_3
 
 
 def test_sec_5_3_quick(tmp_path):
@@ -39,3 +43,30 @@ def test_sec_5_3_quick(tmp_path):
     # Figs. 5.6/5.7: without the projection the erroneous force persists, with it it goes
     assert num['breakaway']['no_projection']['final_f_perp_n'] > \
         num['breakaway']['projection']['final_f_perp_n']
+    # Fig. 5.6's slopes before the break-away (the claim's numbers; its verdict is the
+    # claim's); Fig. 5.5's two windows run in the full run only
+    for key in ('slope_f_par_n_s', 'slope_f_perp_n_s'):
+        assert math.isfinite(num['breakaway']['no_projection'][key])
+    assert num['fig_5_5'] == {}
+
+
+def test_fig_5_5_window_numbers_see_lag_and_jitter():
+    """A direction turning at a constant rate: the mean error over the second half of the
+    opening is the lag; the second difference sees a wobble, the steady turn only as
+    (omega dt)^2."""
+    t = np.arange(0.0, 4.0, DT)
+    angle = 0.15 * t  # the door turns 0.6 rad in 4 s
+    true = np.stack([np.cos(angle), np.sin(angle), 0 * t], axis=1)
+
+    def log(lag, wobble):
+        a = 0.15 * (t - lag) + wobble * np.sin(2 * np.pi * 5.0 * t)
+        est = np.stack([np.cos(a), np.sin(a), 0 * t], axis=1)
+        return SimpleNamespace(t=t, env_q=angle, estimate=est, true_direction=true,
+                               metrics={'time_to_open': None})
+    steady, late, wobbly = (_window_numbers(log(*a), 0.6)
+                            for a in ((0.1, 0.0), (0.5, 0.0), (0.1, 1e-3)))
+    assert steady['mean_error_second_half_deg'] == pytest.approx(np.degrees(0.015), rel=1e-3)
+    assert late['mean_error_second_half_deg'] == pytest.approx(np.degrees(0.075), rel=1e-3)
+    assert steady['rms_second_difference'] == pytest.approx((0.15 * DT) ** 2, rel=1e-2)
+    assert wobbly['rms_second_difference'] > 10 * steady['rms_second_difference']
+    assert steady['samples_second_half'] == np.count_nonzero(angle >= 0.3)
