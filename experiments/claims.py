@@ -12,6 +12,12 @@ Version 6 (issue 27 item 5, issue 29 item 3): the elbow collision of Sec. 3.3.1 
 3.2 with a ball in the elbow's path, the SPG not told about it; task 3b against the same
 without a task 3 and with task 3a; ours: the ball declared and a collision_avoidance level on
 top), rules written before the first run with the ball (:data:`ELBOW_CLAIMS`).
+Also in version 6 (issue 29 item 3), claims the thesis makes that no rule encoded, each written
+before the run that judges it: Fig. 4.14 (VIII), the > 50 deg force misalignment of the
+LBR-IV (Sec. 5.4, read with Fig. 5.11), Fig. 5.5 (SMA window: smoother but later) and
+Fig. 5.6's equal slopes (Sec. 5.3.4), and the per-condition statements of the captions of
+Figs. 5.16/5.17 (on Table 5.1's fixed-direction runs); the report's Gauss-function shape
+(linear when fully constrained, quadratic when partially, report Ch. 5/7).
 Version 5 (issue 29): the Ch. 3 baseline (Alg. C.1/C.2) runs without Ch. 4's velocity and
 acceleration box, and Table 3.4 with Table 3.2's circle and start pose (rules unchanged,
 the setup changes named in their rows before the run). Version 4 (issue 29): Fig. 5.13's
@@ -23,13 +29,6 @@ compares; after its first results the nullspace baseline of the Ch. 3 claims tak
 velocity box by SNS (every Ch. 3 row says so). Version 2 (issue 21) wrote every rule from
 the thesis. Version 1 was the one-line checks in ``reproduce.py`` (the summary texts of
 docs/REPRODUCTION.md before issue 21).
-
-Version 6 (issue 29 item 3): claims the thesis makes that no rule encoded, each written
-before the run that judges it: Fig. 4.14 (VIII), the > 50 deg force misalignment of the
-LBR-IV (Sec. 5.4, read with Fig. 5.11), Fig. 5.5 (SMA window: smoother but later) and
-Fig. 5.6's equal slopes (Sec. 5.3.4), and the per-condition statements of the captions of
-Figs. 5.16/5.17 (on Table 5.1's fixed-direction runs); the report's Gauss-function shape
-(linear when fully constrained, quadratic when partially, report Ch. 5/7).
 """
 
 from collections.abc import Callable
