@@ -21,7 +21,7 @@ import sys
 __all__ = ['ifc_spg', 'sim_bridge', 'spg_node', 'task_publisher']
 
 
-def _run(name: str, target: str, status: int | None = 0) -> int:
+def _run(name: str, target: str, status: int | None = 0, gl: bool = False) -> int:
     """Run ``target`` ('module:function'), ending at once on a signal until it takes over.
 
     Until the program installs its own handlers (the nodes do when their loop starts, the
@@ -29,7 +29,8 @@ def _run(name: str, target: str, status: int | None = 0) -> int:
     ``status`` (None: 128 + the signal number, the shell's convention for an interrupted
     command) by ``os._exit``: an exception raised from a handler in the middle of an import
     can surface as an unrelated ImportError (numpy's C modules turn it into one), and there
-    is nothing to clean up yet.
+    is nothing to clean up yet. ``gl``: the program renders with MuJoCo (else MuJoCo is
+    imported without a GL backend unless ``MUJOCO_GL`` is set).
     """
     def stop(signum: int, frame: object) -> None:
         sig = signal.Signals(signum)
@@ -38,6 +39,13 @@ def _run(name: str, target: str, status: int | None = 0) -> int:
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, stop)
+    if not gl:
+        # MuJoCo picks a GL backend when it is imported; with MUJOCO_GL unset that is GLFW,
+        # whose import starts a Python child to read the library's version (~50 ms), and a
+        # signal during start-up left that child writing into its closed pipe (a
+        # BrokenPipeError traceback in the program's output). Programs that never render
+        # import MuJoCo without GL; a MUJOCO_GL the user set is kept.
+        os.environ.setdefault('MUJOCO_GL', 'disable')
     module, func = target.split(':')
     main: Callable[[], int | None] = getattr(importlib.import_module(module), func)
     return int(main() or 0)
@@ -64,5 +72,7 @@ def ifc_spg() -> int:
     ``ifc-spg bag`` (record, play) ends with status 0 on a signal like the nodes; the other
     verbs, interrupted before they install handlers of their own, with 128 + the signal.
     """
-    long_running = len(sys.argv) > 1 and sys.argv[1] == 'bag'
-    return _run('ifc-spg', 'ifc_spg.cli:main', 0 if long_running else None)
+    verb = sys.argv[1] if len(sys.argv) > 1 else ''
+    # render draws with MuJoCo (MUJOCO_GL=egl unless set); demo's render child takes the env
+    return _run('ifc-spg', 'ifc_spg.cli:main', 0 if verb == 'bag' else None,
+                gl=verb in ('render', 'demo'))
