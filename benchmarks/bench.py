@@ -209,16 +209,27 @@ def bench_native_ratio(name, robot, make_stack, ticks):
         return None
     fast = SetPointGenerator(robot, make_stack(robot), kernels=kernels.native)
     slow = SetPointGenerator(robot, make_stack(robot), kernels=kernels.reference)
-    loops = []
     for spg in (fast, slow):
         _closed_loop(spg, robot, 200, False)  # warm-up
+    a, b = (_stats(t) for t in _interleaved(robot, (fast, slow), ticks))
+    return {'stack': name, 'native': a, 'numpy': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
+            'ratio_p99': a['p99_us'] / b['p99_us']}
+
+
+def _interleaved(robot, spgs, ticks):
+    """Tick times [s] of two SPGs in closed loops with their own plants, tick by tick.
+
+    Who goes first alternates every tick; the garbage collector is off during the loops.
+    """
+    loops = []
+    for spg in spgs:
         plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
         loops.append([spg, plant, (plant.q, plant.qdot, 0.0), np.empty(ticks)])
     gc.collect()
     gc.disable()
     try:
         for i in range(ticks):
-            for k in (0, 1) if i % 2 == 0 else (1, 0):  # alternate who goes first
+            for k in (0, 1) if i % 2 == 0 else (1, 0):
                 loop = loops[k]
                 spg, plant, state, times = loop
                 q_v = spg.step(*state)
@@ -226,9 +237,7 @@ def bench_native_ratio(name, robot, make_stack, ticks):
                 loop[2] = plant.step(q_v)
     finally:
         gc.enable()
-    a, b = _stats(loops[0][3]), _stats(loops[1][3])
-    return {'stack': name, 'native': a, 'numpy': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
-            'ratio_p99': a['p99_us'] / b['p99_us']}
+    return [loop[3] for loop in loops]
 
 
 def _python_calls(spg, robot, ticks=100):
@@ -261,31 +270,18 @@ def bench_daqp_native_ratio(name, robot, make_stack, ticks):
     """
     if daqp_cascade.native is None or kernels.native is None:
         return None
-    loops = []
+    spgs, calls = [], []
     for on in (True, False):
         spg = SetPointGenerator(robot, make_stack(robot), kernels=kernels.native)
         if not on:
             spg.solver.native_daqp = None  # the cascade's Python-module path
         _closed_loop(spg, robot, 200, False)  # warm-up
-        calls = _python_calls(spg, robot)
-        plant = JointImpedancePlant(robot, robot.q_home, substeps=1)
-        loops.append([spg, plant, (plant.q, plant.qdot, 0.0), np.empty(ticks), calls])
-    gc.collect()
-    gc.disable()
-    try:
-        for i in range(ticks):
-            for k in (0, 1) if i % 2 == 0 else (1, 0):
-                loop = loops[k]
-                spg, plant, state, times, _ = loop
-                q_v = spg.step(*state)
-                times[i] = spg.info.tick_time
-                loop[2] = plant.step(q_v)
-    finally:
-        gc.enable()
-    a, b = _stats(loops[0][3]), _stats(loops[1][3])
+        calls.append(_python_calls(spg, robot))
+        spgs.append(spg)
+    a, b = (_stats(t) for t in _interleaved(robot, spgs, ticks))
     return {'stack': name, 'c': a, 'python': b, 'ratio_p50': a['p50_us'] / b['p50_us'],
-            'ratio_p99': a['p99_us'] / b['p99_us'], 'calls_c': loops[0][4],
-            'calls_python': loops[1][4]}
+            'ratio_p99': a['p99_us'] / b['p99_us'], 'calls_c': calls[0],
+            'calls_python': calls[1]}
 
 
 def bench_pink(ticks):
