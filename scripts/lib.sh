@@ -21,7 +21,7 @@ setup_env() {
   fi
   export CYCLONEDDS_URI="${CYCLONEDDS_URI:-file://$IFC_SPG_ROOT/config/cyclonedds_loopback.xml}"
   export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
-  # Fast DDS: UDP on 127.0.0.1 without shared memory, quick discovery (the file says why)
+  # Fast DDS: ports on 127.0.0.1, announcements every second (the file says what it does)
   export FASTDDS_DEFAULT_PROFILES_FILE="${FASTDDS_DEFAULT_PROFILES_FILE:-$IFC_SPG_ROOT/config/fastdds_loopback.xml}"
   export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$FASTDDS_DEFAULT_PROFILES_FILE}"
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( RANDOM % 101 + 1 ))}"

@@ -49,8 +49,8 @@ def _fastdds_profile():
     return ''
 
 
-# Fast DDS on loopback: UDP on 127.0.0.1, no shared memory, 32 participant indices, quick
-# announcements (the file says why)
+# Fast DDS on loopback: ports on 127.0.0.1, 32 participant indices, an announcement every
+# second (the file says what it does, and that rmw_fastrtps adds shared memory under LOCALHOST)
 FASTDDS_PROFILE = _fastdds_profile()
 
 
@@ -58,15 +58,31 @@ def random_domain_id(rng=None):
     """A ROS domain id in [1, 101] (0 is everybody's default), from ``rng`` or os.urandom.
 
     Under pytest-xdist (``PYTEST_XDIST_WORKER`` gwK of ``PYTEST_XDIST_WORKER_COUNT`` N) only
-    ids with ``id % N == K``: tests running at the same time never share a domain.
+    ids with ``id % N == K``: tests running at the same time never share a domain. Likewise
+    ``IFC_SPG_TEST_DOMAIN_SLOT=J/M`` (./run test's two realtime passes, which run side by
+    side) keeps a test session to the ids with ``(id // N) % M == J``.
     """
     rng = rng or random.Random(os.urandom(8))
     worker = os.environ.get('PYTEST_XDIST_WORKER', '')
     count = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1') or 1)
-    if worker.startswith('gw') and worker[2:].isdigit() and count > 1:
-        k = int(worker[2:]) % count
-        return rng.choice([d for d in range(1, 102) if d % count == k])
-    return rng.randint(1, 101)
+    k = int(worker[2:]) % count if worker.startswith('gw') and worker[2:].isdigit() else 0
+    slot, slots = _domain_slot()
+    ids = [d for d in range(1, 102) if d % count == k and (d // count) % slots == slot]
+    return rng.choice(ids)
+
+
+def _domain_slot():
+    """``(J, M)`` from ``IFC_SPG_TEST_DOMAIN_SLOT=J/M`` (default ``(0, 1)``: every id)."""
+    text = os.environ.get('IFC_SPG_TEST_DOMAIN_SLOT', '').strip()
+    if not text:
+        return 0, 1
+    try:
+        slot, slots = (int(x) for x in text.split('/'))
+    except ValueError:
+        slot, slots = -1, 0
+    if not 0 <= slot < slots <= 8:
+        raise ValueError(f"IFC_SPG_TEST_DOMAIN_SLOT='{text}' is not J/M with 0 <= J < M <= 8")
+    return slot, slots
 
 
 def loopback_env(domain_id=None, base=None, backend=None):
