@@ -34,7 +34,6 @@ from dataclasses import dataclass
 import gc
 import json
 import math
-import signal
 import sys
 import time
 from typing import Any
@@ -47,6 +46,7 @@ from ifc_spg.model import robot_gains
 from ifc_spg.ros import msg
 from ifc_spg.ros.parameters import declare_checked
 from ifc_spg.ros.protocols import Node as RosNode
+from ifc_spg.ros.signals import StopSignals
 from sim_bridge.pacing import DeadlinePacer
 from sim_bridge.simulation import SimConfig, Simulation
 
@@ -495,26 +495,22 @@ def main(argv=None):
         print(f'sim_bridge: {exc}', file=sys.stderr)
         ros.shutdown()
         return 2
-    def stop(signum, frame):
-        raise KeyboardInterrupt
-
-    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        gc.collect()  # the model and scene live as long as the node: out of the cyclic collector
-        gc.freeze()
-        bridge.run(ok=ros.ok)
-    except KeyboardInterrupt:
-        node.get_logger().info(f'sim_bridge: stopped by a signal after {bridge.ticks} periods '
-                               f'({bridge.sim.read_time():.3f} s simulated)')
-    finally:
-        for sig in previous:  # stopping: a second signal must not interrupt the clean-up
-            signal.signal(sig, signal.SIG_IGN)
-        bridge.close()
-        node.destroy_node()
-        if ros.ok():
-            ros.shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with StopSignals() as stops:
+        try:
+            gc.collect()  # the model and scene live as long as the node: out of the cyclic
+            gc.freeze()   # collector
+            bridge.run(ok=ros.ok)
+        except BaseException as exc:
+            if not stops.stopped_by(exc):
+                raise
+            node.get_logger().info(f'sim_bridge: stopped by a signal after {bridge.ticks} '
+                                   f'periods ({bridge.sim.read_time():.3f} s simulated)')
+        finally:
+            stops.ignore()  # stopping: a second signal must not interrupt the clean-up
+            bridge.close()
+            node.destroy_node()
+            if ros.ok():
+                ros.shutdown()
     return 0
 
 

@@ -52,7 +52,6 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
 import gc
-import signal
 import sys
 import time
 from typing import Any
@@ -68,6 +67,7 @@ from ifc_spg.node.stream_subscriptions import StreamSubscriptions
 from ifc_spg.ros import msg
 from ifc_spg.ros.protocols import Node as RosNode
 from ifc_spg.ros.protocols import Timer as RosTimer
+from ifc_spg.ros.signals import StopSignals
 from ifc_spg.ros.stamps import set_stamp, stamp_to_ns
 
 __all__ = ['SpgNode', 'main']
@@ -530,32 +530,27 @@ def main(argv=None):
         ros.shutdown()
         return 2
 
-    def stop(signum, frame):
-        raise KeyboardInterrupt
-
-    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     # everything built so far (models, solvers, ROS entities) lives as long as the node: keep
     # it out of the cyclic collector, whose full passes over it stalled ticks by 10-30 ms
-    try:
-        gc.collect()
-        gc.freeze()
-        if spg.config.hot_path == 'wait_set':
-            ros.spin_hot(node, spg.sub_states)  # rclpy: the joint states without the executor
-        else:
-            ros.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        for sig in previous:  # stopping: a second signal must not interrupt the clean-up
-            signal.signal(sig, signal.SIG_IGN)
-        node.get_logger().info(f'spg_node: {spg.runner.ticks} ticks, {spg.commands_sent} '
-                               f'commands, rejected {spg.runner.rejected}, '
-                               f'{spg.runner.watchdog_trips} watchdog trip(s)')
-        node.destroy_node()
-        if ros.ok():
-            ros.shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with StopSignals() as stops:
+        try:
+            gc.collect()
+            gc.freeze()
+            if spg.config.hot_path == 'wait_set':
+                ros.spin_hot(node, spg.sub_states)  # rclpy: joint states without the executor
+            else:
+                ros.spin(node)
+        except BaseException as exc:
+            if not stops.stopped_by(exc):
+                raise
+        finally:
+            stops.ignore()  # stopping: a second signal must not interrupt the clean-up
+            node.get_logger().info(f'spg_node: {spg.runner.ticks} ticks, {spg.commands_sent} '
+                                   f'commands, rejected {spg.runner.rejected}, '
+                                   f'{spg.runner.watchdog_trips} watchdog trip(s)')
+            node.destroy_node()
+            if ros.ok():
+                ros.shutdown()
     return 0
 
 
