@@ -57,17 +57,18 @@ FASTDDS_PROFILE = _fastdds_profile()
 def random_domain_id(rng=None):
     """A ROS domain id in [1, 101] (0 is everybody's default), from ``rng`` or os.urandom.
 
-    Under pytest-xdist (``PYTEST_XDIST_WORKER`` gwK of ``PYTEST_XDIST_WORKER_COUNT`` N) only
-    ids with ``id % N == K``: tests running at the same time never share a domain. Likewise
-    ``IFC_SPG_TEST_DOMAIN_SLOT=J/M`` (./run test's two realtime passes, which run side by
-    side) keeps a test session to the ids with ``(id // N) % M == J``.
+    ``IFC_SPG_TEST_DOMAIN_SLOT=J/M`` keeps a test session to the ids with ``id % M == J``
+    (./run test runs the rclpy and the built-in backend's sessions side by side); within
+    them, under pytest-xdist (``PYTEST_XDIST_WORKER`` gwK of ``PYTEST_XDIST_WORKER_COUNT``
+    N), each worker gets the ids with ``(id // M) % N == K``: tests running at the same time
+    never share a domain, whatever each session's worker count.
     """
     rng = rng or random.Random(os.urandom(8))
     worker = os.environ.get('PYTEST_XDIST_WORKER', '')
     count = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1') or 1)
     k = int(worker[2:]) % count if worker.startswith('gw') and worker[2:].isdigit() else 0
     slot, slots = _domain_slot()
-    ids = [d for d in range(1, 102) if d % count == k and (d // count) % slots == slot]
+    ids = [d for d in range(1, 102) if d % slots == slot and (d // slots) % count == k]
     return rng.choice(ids)
 
 
