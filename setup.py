@@ -34,6 +34,7 @@ def native_extensions():
     except ImportError:
         return []
     return [Extension('ifc_spg.kernels._native', ['ifc_spg/kernels/_native.c'],
+                      depends=['ifc_spg/kernels/collision_core.h'],
                       include_dirs=[numpy.get_include()], extra_compile_args=['-O2'],
                       optional=True),
             # the Popov-Vereshchagin sweeps (numpy fallback: ifc_spg/dynamics/native.py)
@@ -153,6 +154,7 @@ def coal_extension(numpy_include):
         print(f"ifc_spg: not building ifc_spg.kernels._coal_native (missing {', '.join(missing)})")
         return []
     return [Extension('ifc_spg.kernels._coal_native', ['ifc_spg/kernels/_coal_native.cpp'],
+                      depends=['ifc_spg/kernels/collision_core.h'],
                       language='c++', include_dirs=[numpy_include, include, eigen],
                       library_dirs=[lib], libraries=['coal', python], runtime_library_dirs=[lib],
                       # the defines of coal.pc; no -march: Eigen's alignment must be coal's

@@ -307,6 +307,7 @@ class SetPointGenerator:
         self.qdot_v = np.zeros(n)
         self.tasks: list[Task] = []
         self._reporting: list = []  # tasks with a report() for info.distances
+        self._slack_messages: list = []  # (task index, its slack_message), see _take_pending
         self._pending: tuple | None = None
         self._t0: float | None = None
         self.stack: StackInput | None = None
@@ -526,6 +527,9 @@ class SetPointGenerator:
         if self._pending is not None:
             self.stack, self.tasks, budget = self._pending
             self._reporting = [t for t in self.tasks if hasattr(t, 'report')]
+            # (index, slack_message) of each task that names a pair it could not keep
+            self._slack_messages = [(i, t.slack_message) for i, t in enumerate(self.tasks)
+                                    if hasattr(t, 'slack_message')]
             self._pending = None
             self._t0 = None
             self.activations = []
@@ -622,17 +626,21 @@ class SetPointGenerator:
             max_power=None if tanks is None else tanks.config.max_power,
             refilled=None if tanks is None else tanks.refilled.copy(),
             joint_names=self.robot.joint_names,
-            distances=tuple(r for r in (t.report() for t in self._reporting) if r is not None)
-            if self._reporting else ())
+            distances=self._reports() if self._reporting else ())
         return q_next
+
+    def _reports(self) -> tuple:
+        """This tick's report of each task that has one (none before its first level)."""
+        reports = [t.report() for t in self._reporting]
+        return tuple(reports) if None not in reports else \
+            tuple([r for r in reports if r is not None])
 
     def _collision_message(self, tick: '_Tick') -> str:
         """The pair a collision-avoidance level could not keep this tick (its slack), or ''."""
-        top = len(tick.levels) - len(tick.task_levels)
-        for i, task in enumerate(self.tasks):
-            slack_message = getattr(task, 'slack_message', None)
-            if slack_message is not None and top + i < len(tick.slacks):
-                text = slack_message(tick.slacks[top + i])
+        top, slacks = len(tick.levels) - len(tick.task_levels), tick.slacks
+        for i, slack_message in self._slack_messages:
+            if top + i < len(slacks):
+                text = slack_message(slacks[top + i])
                 if text:
                     return text
         return ''

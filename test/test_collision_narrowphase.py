@@ -1,8 +1,8 @@
 """The C++ narrowphase (ifc_spg/kernels/_coal_native.cpp) against pinocchio's Python bindings
 (ifc_spg.geometry.narrowphase): the same pairs, distances, witness points and rows over seeded
 random configurations of the iiwa (self pairs, obstacles of every shape), the ACCREA dual arm
-and the iCub (convex hulls of its URDF meshes); the fallback where the module is absent, and a
-stale or mismatched build refused."""
+and the iCub (convex hulls of its URDF meshes); the level in one call (Pairs.level) against its
+steps; the fallback where the module is absent, and a stale or mismatched build refused."""
 
 import importlib
 import os
@@ -246,6 +246,67 @@ def test_bad_arguments_are_refused(iiwa):
     scratch = [np.empty(m), np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))]
     with pytest.raises(IndexError):
         native.narrowphase(data, np.array([m]), 0.1, 1e-6, *scratch)
+    n = geometry.robot.n
+    pin.computeJointJacobians(geometry.robot.model, data, np.array(geometry.robot.q_home))
+    state = [np.zeros(m), np.zeros((m, n)), np.zeros(n), np.zeros((m, n)), np.zeros((m, n)),
+             np.zeros((m, 3))]
+    native.level(data, data.J, np.zeros(n), 0.1, 1e-6, 1.0, 0.01, 4, *state)  # (fits)
+    with pytest.raises(ValueError, match='lever must be a C-contiguous float64 array'):
+        native.level(data, data.J, np.zeros(n), 0.1, 1e-6, 1.0, 0.01, 4, state[0],
+                     np.zeros((m, n + 1)), *state[2:])
+    with pytest.raises(ValueError, match='last_q must be a writeable'):
+        native.level(data, data.J, np.zeros(n), 0.1, 1e-6, 1.0, 0.01, 4, *state[:2],
+                     np.zeros(n)[::-1], *state[3:])
+    with pytest.raises(ValueError, match='J must have 6 rows'):
+        native.level(data, data.J[:3], np.zeros(n), 0.1, 1e-6, 1.0, 0.01, 4, *state)
+    with pytest.raises(ValueError, match='R must be >= 0'):
+        native.level(data, data.J, np.zeros(n), 0.1, 1e-6, 1.0, 0.01, -1, *state)
+
+
+@needs_module
+@pytest.mark.parametrize('R', [24, 3])
+def test_the_level_in_one_call_matches_its_steps_and_the_bindings(iiwa, monkeypatch, R):
+    """PairQuery.level in one C++ call (Pairs.level) against the same steps one by one
+    (compute on the C++ narrowphase, then the C kernel collision_level: the same arithmetic,
+    so equal to the last bit) and against pinocchio's bindings, over a walk with the cull
+    across calls and an obstacle moved every 10 steps; R = 3 rows cuts the level short."""
+    geometry, pairs = iiwa
+    fast, slow = _queries(geometry, pairs, monkeypatch)
+    with monkeypatch.context() as m:
+        m.setattr(narrowphase, 'native', compiled)
+        steps = PairQuery(geometry, pairs)
+    steps._fused = None
+    assert fast._fused is not None and slow._fused is None
+    robot = geometry.robot
+    data = robot.create_data()
+    rng = np.random.default_rng(7)
+    q = np.array(robot.q_home)
+    rows_seen = cut = 0
+    for k in range(CONFIGS):
+        q = np.clip(q + rng.normal(scale=0.03, size=robot.n), robot.model.lowerPositionLimit,
+                    robot.model.upperPositionLimit)
+        if k % 10 == 5:
+            placement = pin.SE3(rpy_matrix(rng.uniform(-1, 1, 3)), rng.uniform(-0.5, 0.5, 3))
+            for query in (fast, steps, slow):
+                query.move_shape(geometry.obstacles['ball'], placement)
+        pin.computeJointJacobians(robot.model, data, q)
+        a, b, c = (query.level(data, 0.1, q, 2.0, 0.01, R) for query in (fast, steps, slow))
+        for x, y in zip(a[0], b[0]):  # Distances: bitwise (NaN where NaN)
+            np.testing.assert_array_equal(x, y)
+        for x, y in zip(a[1:], b[1:]):  # the pairs of the rows, A, lower
+            np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(fast.within, steps.within)
+        np.testing.assert_array_equal(fast.within, slow.within)
+        np.testing.assert_array_equal(a[1], c[1])
+        np.testing.assert_allclose(a[0].distance, c[0].distance, rtol=0, atol=TOL)
+        np.testing.assert_allclose(a[2], c[2], rtol=0, atol=1e-8)
+        np.testing.assert_allclose(a[3], c[3], rtol=0, atol=TOL)
+        rows_seen += min(a[1].size, R)
+        cut += a[1].size > R
+    print(f'R = {R}: {rows_seen} rows over {CONFIGS} steps, {cut} steps with more pairs than R')
+    assert rows_seen > CONFIGS  # the comparison saw rows
+    if R == 3:
+        assert cut  # and the level cut short
 
 
 def test_collision_rows_take_points_already_written():

@@ -140,6 +140,8 @@ class DaqpCascade(CascadeSolver):
         self.relaxed_retries = 0
         self._relax = float(primal_tol)
         self._kernels = _kernels.resolve(kernels)
+        self._zeros_n = np.zeros(n)
+        self._zeros_n.setflags(write=False)
         if daqp_native is None:
             daqp_native = self._kernels is not _kernels.reference and not _disabled
         #: The C level solves (:data:`native`) this cascade makes, or None (DAQP's Python
@@ -251,7 +253,7 @@ class DaqpCascade(CascadeSolver):
                 done = self._equality_level(lp, qdot)
             else:
                 if qdot is None:
-                    qdot = np.minimum(np.maximum(0.0, ws.bl_box), ws.bu_box)
+                    qdot = self._box_point(ws)
                 done = self._inequality_level(lp, qdot) if not lp.equality \
                     else self._accept_slack(ws, *self._solve_with_slacks(ws, lp.start, lp.end),
                                             lp.start, lp.end)
@@ -259,13 +261,18 @@ class DaqpCascade(CascadeSolver):
                 i = lp.i
                 slacks.extend(np.full(lv.A.shape[0], np.nan) for lv in levels[i:])
                 if qdot is None:
-                    qdot = np.minimum(np.maximum(0.0, ws.bl_box), ws.bu_box)
+                    qdot = self._box_point(ws)
                 return CascadeResult(qdot, slacks, 'hold' if i == 0 else 'fallback', i)
             qdot, s = done
             slacks.append(s)
         if qdot is None:  # solve() returns early on empty levels
             raise IfcSpgError('internal: cascade solved no level')
         return CascadeResult(qdot, slacks, 'ok', -1)
+
+    def _box_point(self, ws: '_Workspace') -> np.ndarray:
+        """The point of the box nearest zero, min(max(0, lower), upper) (a new array)."""
+        zeros = self._zeros_n  # (the integrate kernel from zero: ~1.3 us less than numpy's)
+        return self._kernels.integrate(zeros, 0.0, zeros, ws.bl_box, ws.bu_box)
 
     def _plan(self, levels: Sequence[Level]) -> list['_LevelPlan']:
         """The per-level views and models of a stack with these level sizes and kinds.

@@ -22,6 +22,9 @@ Methods (``data``: a pinocchio ``Data`` after ``forwardKinematics`` at the confi
 - ``distances(data, out)``: every pair's distance
 - ``gaps(data, out)``: the bounding spheres' gaps (the cull without coal)
 - ``move_shape(shape, rotation, translation)``: a shape's placement in its joint's frame
+
+and, in the C++ module only, ``level(...)``: the cull across calls, the narrowphase, the rows
+and the velocity damper level of :meth:`~ifc_spg.geometry.PairQuery.level` in one call.
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ import pinocchio as pin
 __all__ = ['API', 'PinocchioPairs', 'describe', 'native', 'pairs', 'refused']
 
 #: The ``API`` the C++ module must have (its ``kApi``; bumped with its signatures).
-API = 1
+API = 2
 
 #: Why the C++ module is not used ('' where it is).
 refused = ''

@@ -26,6 +26,8 @@
 #include <coal/distance.h>
 #include <pinocchio/spatial.hpp>
 
+#include "collision_core.h"
+
 namespace {
 
 namespace bpc = boost::python::converter;
@@ -33,7 +35,7 @@ using SE3 = pinocchio::SE3Tpl<double, 0>;
 using SE3Vector = std::vector<SE3>;  // pinocchio::Data::oMi
 
 // Bump when the Python-facing signatures change (ifc_spg.kernels refuses another value).
-constexpr long kApi = 1;
+constexpr long kApi = 2;
 
 struct PairsObject {
     PyObject_HEAD
@@ -344,6 +346,158 @@ PyObject *pairs_narrowphase(PyObject *obj, PyObject *args) {
     return reinterpret_cast<PyObject *>(within);
 }
 
+const char level_doc[] =
+    "level(data, J, q, influence, eps, gain, margin, R, last_bound, lever, last_q, mask_a, mask_b,\n"
+    "      normal) -> (distance, exact, rows, point_a, point_b, within, level_pairs, A, lower)\n\n"
+    "A collision-avoidance level in one call, the steps of PairQuery.compute(q=...) after its\n"
+    "first call and then the kernel collision_level, with the arithmetic of the C kernels\n"
+    "(collision_core.h): the cull across calls (distance = last_bound - lever |q - last_q|),\n"
+    "coal's distances of the pairs near (distance <= influence; exact there), witness points\n"
+    "(NaN elsewhere) and normals of those within, their distance Jacobian rows from J (6, n:\n"
+    "data.J; zero rows elsewhere), last_q = q, and the velocity damper rows A (R, n), lower (R,)\n"
+    "of the pairs within closer than the influence (level_pairs, ascending; the first R of\n"
+    "them). The arrays returned are new; last_q and normal (scratch) are written.";
+
+// The data of an input array: float64, C-contiguous, `size` elements (read only) or NULL.
+double *in_data(PyObject *o, npy_intp size, const char *name) {
+    if (!PyArray_Check(o)) {
+        PyErr_Format(PyExc_TypeError, "%s must be a numpy array", name);
+        return nullptr;
+    }
+    PyArrayObject *a = reinterpret_cast<PyArrayObject *>(o);
+    if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(a) || PyArray_SIZE(a) != size) {
+        PyErr_Format(PyExc_ValueError, "%s must be a C-contiguous float64 array of %zd elements",
+                     name, (Py_ssize_t)size);
+        return nullptr;
+    }
+    return static_cast<double *>(PyArray_DATA(a));
+}
+
+// A new C-contiguous array of `nd` dimensions `dims` and type `type`, filled with `fill`
+// (zeros for a bool array) or NULL.
+PyArrayObject *filled(int nd, npy_intp *dims, int type, double fill) {
+    PyArrayObject *a = reinterpret_cast<PyArrayObject *>(
+        type == NPY_DOUBLE && fill != 0.0 ? PyArray_SimpleNew(nd, dims, type)
+                                          : PyArray_ZEROS(nd, dims, type, 0));
+    if (a && type == NPY_DOUBLE && fill != 0.0) {
+        double *p = static_cast<double *>(PyArray_DATA(a));
+        for (npy_intp i = 0, size = PyArray_SIZE(a); i < size; i++) p[i] = fill;
+    }
+    return a;
+}
+
+PyObject *pairs_level(PyObject *obj, PyObject *args) {
+    PairsObject *self = reinterpret_cast<PairsObject *>(obj);
+    PyObject *data, *J_o, *q_o, *lb_o, *lev_o, *lq_o, *ma_o, *mb_o, *nrm_o;
+    double influence, eps, gain, margin;
+    Py_ssize_t R;
+    if (!PyArg_ParseTuple(args, "OOOddddnOOOOOO", &data, &J_o, &q_o, &influence, &eps, &gain,
+                          &margin, &R, &lb_o, &lev_o, &lq_o, &ma_o, &mb_o, &nrm_o))
+        return nullptr;
+    if (R < 0) {
+        PyErr_SetString(PyExc_ValueError, "R must be >= 0");
+        return nullptr;
+    }
+    npy_intp m = (npy_intp)self->ia->size();
+    PyArrayObject *J = reinterpret_cast<PyArrayObject *>(
+        PyArray_FROMANY(J_o, NPY_DOUBLE, 2, 2, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED));
+    if (!J) return nullptr;
+    PyArrayObject *q = nullptr, *out[9] = {nullptr};  // d, exact, rows, pa, pb, within, pairs, A, lo
+    PyObject *ret = nullptr;
+    npy_intp n = PyArray_DIM(J, 1), count = 0, below = 0;
+    double *lb, *lev, *lq, *ma, *mb, *nrm, *d, *rows, *pa, *pb, *A, *lo;
+    npy_bool *exact;
+    npy_intp *w;
+    const double *Jd, *qd;
+    npy_intp near_count;
+    std::vector<npy_intp> near;
+    npy_intp d1[1] = {m}, dmn[2] = {m, n}, dm3[2] = {m, 3}, dR[1] = {(npy_intp)R},
+             dRn[2] = {(npy_intp)R, n};
+    if (PyArray_DIM(J, 0) != 6) {
+        PyErr_SetString(PyExc_ValueError, "J must have 6 rows");
+        goto done;
+    }
+    q = doubles(q_o, n, "q");
+    if (!q) goto done;
+    lb = in_data(lb_o, m, "last_bound");
+    lev = lb ? in_data(lev_o, m * n, "lever") : nullptr;
+    lq = lev ? out_data(lq_o, n, "last_q") : nullptr;
+    ma = lq ? in_data(ma_o, m * n, "mask_a") : nullptr;
+    mb = ma ? in_data(mb_o, m * n, "mask_b") : nullptr;
+    nrm = mb ? out_data(nrm_o, 3 * m, "normal") : nullptr;
+    if (!nrm || !use_data(self, data)) goto done;
+    out[0] = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(1, d1, NPY_DOUBLE));
+    out[1] = filled(1, d1, NPY_BOOL, 0.0);
+    out[2] = filled(2, dmn, NPY_DOUBLE, 0.0);
+    out[3] = filled(2, dm3, NPY_DOUBLE, NAN);
+    out[4] = filled(2, dm3, NPY_DOUBLE, NAN);
+    out[7] = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(2, dRn, NPY_DOUBLE));
+    out[8] = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(1, dR, NPY_DOUBLE));
+    if (!out[0] || !out[1] || !out[2] || !out[3] || !out[4] || !out[7] || !out[8]) goto done;
+    d = static_cast<double *>(PyArray_DATA(out[0]));
+    exact = static_cast<npy_bool *>(PyArray_DATA(out[1]));
+    rows = static_cast<double *>(PyArray_DATA(out[2]));
+    pa = static_cast<double *>(PyArray_DATA(out[3]));
+    pb = static_cast<double *>(PyArray_DATA(out[4]));
+    A = static_cast<double *>(PyArray_DATA(out[7]));
+    lo = static_cast<double *>(PyArray_DATA(out[8]));
+    Jd = static_cast<const double *>(PyArray_DATA(J));
+    qd = static_cast<const double *>(PyArray_DATA(q));
+    near_count = ifc_collision_cull(m, n, lb, lev, qd, lq, influence, d);
+    near.reserve(near_count);
+    for (npy_intp i = 0; i < m; i++)
+        if (d[i] <= influence) near.push_back(i);
+    out[5] = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(1, &near_count, NPY_INTP));
+    if (!out[5]) goto done;
+    w = static_cast<npy_intp *>(PyArray_DATA(out[5]));
+    try {
+        for (npy_intp p : near) {
+            const coal::DistanceResult &res = distance(self, p);
+            d[p] = res.min_distance;
+            if (!(res.min_distance <= influence)) continue;
+            w[count++] = p;
+            for (int c = 0; c < 3; c++) {
+                pa[3 * p + c] = res.nearest_points[0][c];
+                pb[3 * p + c] = res.nearest_points[1][c];
+            }
+            if (res.min_distance <= eps)
+                for (int c = 0; c < 3; c++) nrm[3 * p + c] = res.normal[c];
+        }
+    } catch (const std::exception &e) {
+        PyErr_Format(PyExc_RuntimeError, "coal: %s", e.what());
+        goto done;
+    }
+    for (npy_intp t = 0; t < count; t++) {
+        npy_intp i = w[t];
+        ifc_collision_row(n, Jd, pa + 3 * i, pb + 3 * i, d[i], eps, nrm + 3 * i, ma + n * i,
+                          mb + n * i, rows + n * i);
+    }
+    for (npy_intp p : near) exact[p] = 1;
+    for (npy_intp j = 0; j < n; j++) lq[j] = qd[j];
+    for (npy_intp t = 0; t < count; t++) below += d[w[t]] < influence;
+    out[6] = reinterpret_cast<PyArrayObject *>(PyArray_SimpleNew(1, &below, NPY_INTP));
+    if (!out[6]) goto done;
+    ifc_collision_level(count, w, n, rows, d, influence, gain, margin, R, A, lo,
+                        static_cast<npy_intp *>(PyArray_DATA(out[6])));
+    {
+        PyArray_Dims shape = {&count, 1};  // shrink to the pairs within
+        PyObject *none = PyArray_Resize(out[5], &shape, 0, NPY_CORDER);
+        if (!none) goto done;
+        Py_DECREF(none);  // PyArray_Resize returns None (a new reference)
+    }
+    ret = PyTuple_New(9);
+    if (ret)
+        for (int i = 0; i < 9; i++) {
+            PyTuple_SET_ITEM(ret, i, reinterpret_cast<PyObject *>(out[i]));  // (steals)
+            out[i] = nullptr;
+        }
+done:
+    Py_DECREF(J);
+    Py_XDECREF(q);
+    for (PyArrayObject *a : out) Py_XDECREF(a);
+    return ret;
+}
+
 const char distances_doc[] =
     "distances(data, out)\n\n"
     "coal distances of every pair at the joint placements of `data` into out (m,).";
@@ -418,6 +572,7 @@ PyObject *pairs_move_shape(PyObject *obj, PyObject *args) {
 PyMethodDef pairs_methods[] = {
     {"narrowphase", pairs_narrowphase, METH_VARARGS, narrowphase_doc},
     {"distances", pairs_distances, METH_VARARGS, distances_doc},
+    {"level", pairs_level, METH_VARARGS, level_doc},
     {"gaps", pairs_gaps, METH_VARARGS, gaps_doc},
     {"move_shape", pairs_move_shape, METH_VARARGS, move_shape_doc},
     {nullptr, nullptr, 0, nullptr},

@@ -15,6 +15,7 @@
 #include <numpy/arrayobject.h>
 #include <math.h>
 #include <string.h>
+#include "collision_core.h"
 
 static inline double np_max(double a, double b) {
     if (isnan(a)) return a;
@@ -798,26 +799,8 @@ static PyObject *collision_rows(PyObject *self, PyObject *args) {
     }
     for (npy_intp t = 0; t < k; t++) {
         npy_intp i = idx[t];
-        const double *a = pa + 3 * i, *b = pb + 3 * i;
-        double *nv = nrm + 3 * i;
-        if (d[i] > eps) {
-            for (int c = 0; c < 3; c++) nv[c] = (b[c] - a[c]) / d[i];
-        }
-        double ca[3] = {a[1] * nv[2] - a[2] * nv[1], a[2] * nv[0] - a[0] * nv[2],
-                        a[0] * nv[1] - a[1] * nv[0]};
-        double cb[3] = {b[1] * nv[2] - b[2] * nv[1], b[2] * nv[0] - b[0] * nv[2],
-                        b[0] * nv[1] - b[1] * nv[0]};
-        const double *mai = ma + n * i, *mbi = mb + n * i;
-        double *r = rows + n * i;
-        for (npy_intp j = 0; j < n; j++) {
-            double lin = 0.0, wa = 0.0, wb = 0.0;
-            for (int c = 0; c < 3; c++) {
-                lin += nv[c] * Jd[c * n + j];
-                wa += ca[c] * Jd[(3 + c) * n + j];
-                wb += cb[c] * Jd[(3 + c) * n + j];
-            }
-            r[j] = lin * (mbi[j] - mai[j]) + wb * mbi[j] - wa * mai[j];
-        }
+        ifc_collision_row(n, Jd, pa + 3 * i, pb + 3 * i, d[i], eps, nrm + 3 * i, ma + n * i,
+                          mb + n * i, rows + n * i);
     }
     ret = Py_None;
     Py_INCREF(ret);
@@ -846,14 +829,7 @@ static PyObject *collision_cull(PyObject *self, PyObject *args) {
     const double *lq = in_data(lq_o, n, "last_q"), *qd = (const double *)PyArray_DATA(q);
     double *d = out_data(d_o, m, "distance");
     if (!lb || !lev || !lq || !d) goto done;
-    npy_intp count = 0;
-    for (npy_intp i = 0; i < m; i++) {
-        double s = 0.0;
-        const double *l = lev + n * i;
-        for (npy_intp j = 0; j < n; j++) s += l[j] * fabs(qd[j] - lq[j]);
-        d[i] = lb[i] - s;
-        if (d[i] <= influence) count++;
-    }
+    npy_intp count = ifc_collision_cull(m, n, lb, lev, qd, lq, influence, d);
     PyArrayObject *near = (PyArrayObject *)PyArray_SimpleNew(1, &count, NPY_INTP);
     if (!near) goto done;
     npy_intp *out = (npy_intp *)PyArray_DATA(near);
@@ -903,21 +879,8 @@ static PyObject *collision_level(PyObject *self, PyObject *args) {
     }
     PyArrayObject *within = (PyArrayObject *)PyArray_SimpleNew(1, &count, NPY_INTP);
     if (!within) goto done;
-    npy_intp *w = (npy_intp *)PyArray_DATA(within), r = 0;
-    for (npy_intp t = 0; t < k; t++) {
-        npy_intp i = p[t];
-        if (!(d[i] < influence)) continue;
-        w[r] = i;
-        if (r < R) {
-            memcpy(A + r * n, rows + i * n, (size_t)n * sizeof(double));
-            lo[r] = -gain * (d[i] - margin);
-        }
-        r++;
-    }
-    for (npy_intp t = count < R ? count : R; t < R; t++) {
-        memset(A + t * n, 0, (size_t)n * sizeof(double));
-        lo[t] = -INFINITY;
-    }
+    ifc_collision_level(k, p, n, rows, d, influence, gain, margin, R, A, lo,
+                        (npy_intp *)PyArray_DATA(within));
     ret = (PyObject *)within;
 done:
     Py_DECREF(pairs);

@@ -213,15 +213,14 @@ class CollisionAvoidanceTask(Task):
 
     def level(self, kin: Kinematics, t: float) -> Level:
         """The velocity damper rows at q_v: the closest pairs within d_i, then open rows."""
-        res = self.query.compute(kin.data(virtual=True), self.influence, q=kin.q_v)
+        query = self.query
+        res, idx, A, lower = query.level(kin.data(virtual=True), self.influence, kin.q_v,
+                                         self._k, self.margin, self.dim)
         self.last = res
         self._last_q = kin.q
-        d, query = res.distance, self.query
-        A, lower = np.empty((self.dim, self._n)), np.empty(self.dim)
-        idx = query.kernels.collision_level(res.rows, d, query.within, self.influence,
-                                            self._k, self.margin, A, lower)
         self.rows_dropped = max(0, idx.size - self.dim)
         if self.rows_dropped:
+            d = res.distance
             idx = idx[self._closest(d[idx])]
             query.kernels.collision_level(res.rows, d, idx, self.influence, self._k,
                                           self.margin, A, lower)
@@ -246,8 +245,9 @@ class CollisionAvoidanceTask(Task):
         k = self.row_pairs.size
         if self.last is None or not k or slack is None:
             return ''
-        s = np.asarray(slack, dtype=float).reshape(-1)
-        for x in s.tolist()[:k]:  # (a loop over a list: numpy's reductions cost more here)
+        s = slack if type(slack) is np.ndarray and slack.ndim == 1 \
+            else np.asarray(slack, dtype=float).reshape(-1)
+        for x in s[:k].tolist():  # (a loop over a list: numpy's reductions cost more here)
             if not -1e-6 <= x <= 1e-6:  # (NaN is not)
                 break
         else:
