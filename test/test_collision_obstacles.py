@@ -77,6 +77,7 @@ def test_markers_are_checked_counted_and_applied_at_the_tick_boundary():
     bad['wrong_shape'].type = m.Marker.CUBE
     bad['size_change'] = _marker(runner, 'ball', START)
     bad['size_change'].scale.x = 0.2
+    bad['out_of_reach'] = _marker(runner, 'held', [3.0, 0.0, 0.0], frame='tool')
     delete = m.Marker()
     delete.action = m.Marker.DELETEALL
     errors = runner.handle_obstacles([delete, good, *bad.values()])
@@ -84,7 +85,8 @@ def test_markers_are_checked_counted_and_applied_at_the_tick_boundary():
     text = dict(errors)
     assert "did you mean 'ball'" in text['unknown_obstacle']
     assert "'link0_typo'" in text['unknown_frame'] and "'world'" in text['unknown_frame']
-    assert "fixed to frame 'tool'" in text['attached']
+    assert "fixed to frame 'tool'" in text['attached'] and "frame_id 'tool'" in text['attached']
+    assert "beyond the collision cull's bound" in text['out_of_reach']
     assert 'norm 1.01' in text['not_unit_quaternion']
     assert 'marker type 2 (SPHERE), got 1' in text['wrong_shape']
     assert 'declared size drawn ([0.1, 0.1, 0.1])' in text['size_change']
@@ -99,7 +101,7 @@ def test_markers_are_checked_counted_and_applied_at_the_tick_boundary():
     assert np.array_equal(task.obstacle_poses['ball'][:3], START + [0.0, 0.05, 0.0])
     assert np.array_equal(task.obstacle_poses['crate'], [0.4, -0.5, 0.3, 0, 0, 0, 1.0])
     doc = json.loads(status_json(runner.status()))
-    assert doc['obstacles'] == {'received': 10, 'accepted': 2, 'ignored': 1, 'moved': 2,
+    assert doc['obstacles'] == {'received': 11, 'accepted': 2, 'ignored': 1, 'moved': 2,
                                 'rejected': dict.fromkeys(bad, 1)}
     assert any(e['source'] == 'obstacles' and 'size_change' in e['message']
                for e in doc['errors'])
@@ -112,6 +114,45 @@ def test_markers_are_checked_counted_and_applied_at_the_tick_boundary():
     now = task.query.distances_only(data)
     ball = [i for i, (_, b) in enumerate(task.names) if b == 'obstacle:ball']
     assert np.min(now[ball]) > np.min(declared[ball]) + 0.049
+
+
+def test_an_obstacle_fixed_to_a_frame_moves_relative_to_it():
+    """'held' is fixed to the tool: a marker in frame_id 'tool' moves it along the tool (a
+    held object shifted in the gripper); the level's distances are those of a geometry that
+    declares it there (the reference), at the SPG's next tick and after the arm moved."""
+    from ifc_spg.geometry import CollisionGeometry, Obstacle
+
+    runner = _runner()
+    q = np.array(runner.robot.q_home)
+    _tick(runner, 0, q)
+    task = runner.spg.tasks[0]
+    shifted = [0.05, -0.02, 0.12]
+    quat = (0.0, np.sin(0.2), 0.0, np.cos(0.2))  # 0.4 rad about y
+    assert runner.handle_obstacles([_marker(runner, 'held', shifted, quat, frame='tool')]) == []
+    _tick(runner, 1, q)
+    assert np.allclose(task.obstacle_poses['held'], [*shifted, *quat])
+    declared = dict(task.geometry.declared)
+    held = declared['held']
+    declared['held'] = Obstacle('held', held.shape, held.size, frame='tool',
+                                position=tuple(shifted),
+                                rotation=tuple(map(tuple, pin.Quaternion(
+                                    quat[3], *quat[:3]).toRotationMatrix())))
+    reference = CollisionGeometry(runner.robot, declared.values())
+    shape = task.geometry.obstacles['held']
+    pairs = [(a, shape) for a in range(len(task.geometry.robot_geoms))
+             if task.geometry.parent_joint[a] != task.geometry.parent_joint[shape]]
+    ours, ref_query = PairQuery(task.geometry, pairs), PairQuery(reference, pairs)
+    ours.move_shape(shape, task.geometry.obstacle_placement('held', task.obstacle_poses['held']))
+    before = PairQuery(task.geometry, pairs)  # (as declared)
+    data = runner.robot.create_data()
+    for q_test in (q, q + 0.3):
+        pin.forwardKinematics(runner.robot.model, data, q_test)
+        d = ours.distances_only(data)
+        np.testing.assert_allclose(d, ref_query.distances_only(data), rtol=0, atol=1e-9)
+        assert np.abs(d - before.distances_only(data)).max() > 0.01  # it did move
+    # the task's own query moved it too
+    assert np.array_equal(task.query._pin.model.geometryObjects[shape].placement,
+                          ours._pin.model.geometryObjects[shape].placement)
 
 
 def test_the_spg_draws_obstacles_with_the_markers_it_takes():

@@ -60,6 +60,9 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _MAX_SIZE = 1e3  # [m]
 #: Below this distance [m] the normal is coal's, above it (p_b - p_a) / d.
 _NORMAL_FROM_POINTS = 1e-6
+#: [m] how much farther from the base an obstacle fixed to a moving frame may be moved at
+#: run time than where it is declared (the cull's lever bound includes it)
+ATTACHED_ALLOWANCE = 0.25
 #: GJK/EPA tolerance of the distance queries [m].
 GJK_TOLERANCE = 1e-9
 
@@ -255,10 +258,16 @@ class CollisionGeometry:
         for j in range(1, model.njoints):
             chain[j] = chain[model.parents[j]] + np.linalg.norm(
                 model.jointPlacements[j].translation)
+        self._chain = chain  # per joint: the reach of its origin from the base, at most
         moving = self.parent_joint > 0
         if not moving.any():
             return 1.0
         reach = chain[self.parent_joint] + np.linalg.norm(self.center, axis=1) + self.radius
+        # an obstacle fixed to a moving frame may be moved (spg/obstacles) up to
+        # ATTACHED_ALLOWANCE farther out than declared (obstacle_placement checks it)
+        for name, obs in self.declared.items():
+            if obs.frame != 'base':
+                reach[self.obstacles[name]] += ATTACHED_ALLOWANCE
         return float(min(max(2.0 * reach[moving].max(), 1.0), 1e6))
 
     def _add_obstacle(self, obs: Obstacle) -> None:
@@ -276,6 +285,39 @@ class CollisionGeometry:
                                 obs.geometry())
         self.obstacles[obs.name] = self.model.addGeometryObject(go)
         self.declared[obs.name] = obs
+
+    def obstacle_placement(self, name: str, pose: Sequence[float]) -> pin.SE3:
+        """Where obstacle ``name`` is in its joint's frame, at ``pose`` in its declared frame.
+
+        Args:
+            name: A declared obstacle.
+            pose: Position [m] and unit quaternion (x, y, z, w) of its center in the frame
+                it was declared in (the base, or a chain id: it moves with that frame).
+
+        Raises:
+            ParameterError: The pose puts an obstacle fixed to a moving frame farther from
+                its joint than the cull's lever bound (:attr:`lever`) allows (about
+                :data:`ATTACHED_ALLOWANCE` beyond where it is declared): the cull would no
+                longer bound how far the joints move it (declare it there instead).
+        """
+        obs = self.declared[name]
+        x, y, z, w = (float(v) for v in pose[3:])
+        placement = pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(),
+                            np.array(pose[:3], dtype=float))
+        if obs.frame == 'base':
+            return placement
+        f = self.robot.model.frames[self.robot.frame_id(obs.frame)]
+        placement = f.placement * placement
+        shape = self.obstacles[name]
+        reach = (self._chain[f.parentJoint] + float(np.linalg.norm(placement.translation))
+                 + self.radius[shape])
+        if f.parentJoint > 0 and not 2.0 * reach <= self.lever:
+            raise ParameterError(
+                f"obstacle '{name}' (fixed to frame '{obs.frame}'): a pose "
+                f'{float(np.linalg.norm(pose[:3])):.3g} m from the frame puts it {reach:.3g} m '
+                f"from the base along the chain, beyond the collision cull's bound "
+                f'({self.lever / 2:.3g} m); declare it there in a new stack')
+        return placement
 
     # -- pairs -----------------------------------------------------------------------------
     def _parent_body(self, frame_id: int) -> str | None:
@@ -421,7 +463,7 @@ class PairQuery:
         self._blank.setflags(write=False)
 
     def move_shape(self, shape: int, placement: pin.SE3) -> None:
-        """Place shape ``shape`` (an obstacle fixed to the base) at ``placement`` from now on.
+        """Place shape ``shape`` (an obstacle) at ``placement`` in its joint's frame from now on.
 
         In this query only (it owns a copy of the geometry). The distances kept for the cull
         across calls (``compute(..., q=...)``) of the pairs with that shape are dropped: the

@@ -8,9 +8,11 @@ and Foxglove draw the same message the SPG takes (:func:`obstacle_marker` builds
 - ``ns`` is the obstacle's name (``id`` is free); ``action`` ADD/MODIFY (0) moves it,
   DELETE and DELETEALL are ignored (counted in ``ignored``: an obstacle leaves with a new
   stack only);
-- ``header.frame_id`` is the base frame: empty, ``world``, the robot's root link or the
-  ``markers.frame`` parameter; only obstacles declared in the base frame move (one fixed
-  to a chain moves with it);
+- ``header.frame_id`` is the frame the obstacle was declared in: for one in the base
+  frame, empty, ``world``, the robot's root link or the ``markers.frame`` parameter; for
+  one fixed to a chain of the robot (``frame: tool``), that chain id: the marker moves it
+  relative to the frame it moves with (a held object shifted in the gripper). Not farther
+  from the frame than the collision cull's bound allows (``out_of_reach``);
 - ``pose``: the shape's center and orientation in that frame (as ``position`` / ``rpy``
   of the stack), the quaternion of norm 1 within 1e-3 (then normalized);
 - ``type`` fits the shape: box CUBE, sphere SPHERE, cylinder CYLINDER, capsule CYLINDER
@@ -36,7 +38,7 @@ __all__ = ['MARKER_TYPES', 'OBSTACLE_MARKER_ID', 'REJECT_REASONS', 'ObstacleInpu
            'obstacle_tasks']
 
 REJECT_REASONS = ('unknown_obstacle', 'unknown_frame', 'attached', 'non_finite',
-                  'not_unit_quaternion', 'wrong_shape', 'size_change')
+                  'not_unit_quaternion', 'wrong_shape', 'size_change', 'out_of_reach')
 #: visualization_msgs/Marker type per obstacle shape (CUBE 1, SPHERE 2, CYLINDER 3)
 MARKER_TYPES = {'box': 1, 'sphere': 2, 'cylinder': 3, 'capsule': 3, 'plane': 1}
 _TYPE_NAMES = {1: 'CUBE', 2: 'SPHERE', 3: 'CYLINDER'}
@@ -153,13 +155,15 @@ class ObstacleInput:
             :meth:`apply`).
         """
         declared = _declared(tasks)
+        geometries = {name: task.geometry for task in obstacle_tasks(tasks)
+                      for name in task.geometry.declared}
         errors = []
         for mk in markers:
             self.received += 1
             if int(mk.action) != _ADD:
                 self.ignored += 1
                 continue
-            pose, error = self._check(mk, declared)
+            pose, error = self._check(mk, declared, geometries)
             if error is not None:
                 self.rejected[error[0]] += 1
                 errors.append(error)
@@ -168,7 +172,7 @@ class ObstacleInput:
             self._pending[str(mk.ns)] = pose
         return errors
 
-    def _check(self, mk, declared):
+    def _check(self, mk, declared, geometries):
         """(pose (7,), None) or (None, (reason, message)) for one ADD marker."""
         name = str(mk.ns)
         obs = declared.get(name)
@@ -178,13 +182,9 @@ class ObstacleInput:
                       '(none: no collision_avoidance task of the running stack lists one)')
             return None, ('unknown_obstacle', f"marker ns '{name}' names no obstacle of the "
                           f'running stack{did_you_mean(name, declared)}; obstacles: {listed}')
-        frame = str(mk.header.frame_id)
-        if frame not in self.base_frames:
-            return None, ('unknown_frame', f"obstacle '{name}': frame_id '{frame}'; give the "
-                          f"pose in the base frame ({' or '.join(map(repr, self.base_frames))})")
-        if obs.frame != 'base':
-            return None, ('attached', f"obstacle '{name}' is fixed to frame '{obs.frame}' and "
-                          'moves with it; only obstacles declared in the base frame move')
+        error = self._frame_error(name, obs, str(mk.header.frame_id))
+        if error is not None:
+            return None, error
         p, o, s = mk.pose.position, mk.pose.orientation, mk.scale
         try:
             vals = np.array([float(v) for v in (p.x, p.y, p.z, o.x, o.y, o.z, o.w)])
@@ -210,7 +210,29 @@ class ObstacleInput:
                           f'its declared size drawn ({drawn.tolist()}) nor zero; sizes come '
                           'from the stack (send a new stack to resize)')
         vals[3:] /= norm
-        return vals, None
+        return self._reach(name, obs, vals, geometries[name])
+
+    def _frame_error(self, name, obs, frame):
+        """(reason, message) if ``frame`` is not the frame ``obs`` was declared in, else None."""
+        if obs.frame != 'base':
+            if frame != obs.frame:
+                return ('attached', f"obstacle '{name}' is fixed to frame '{obs.frame}' and "
+                        f"moves with it: give its pose in frame_id '{obs.frame}', not '{frame}'")
+        elif frame not in self.base_frames:
+            return ('unknown_frame', f"obstacle '{name}': frame_id '{frame}'; give the pose in "
+                    f"the base frame ({' or '.join(map(repr, self.base_frames))})")
+        return None
+
+    @staticmethod
+    def _reach(name, obs, pose, geometry):
+        """(pose, None), or (None, ('out_of_reach', message)) beyond the cull's bound."""
+        if obs.frame != 'base':
+            from ifc_spg.errors import ParameterError
+            try:
+                geometry.obstacle_placement(name, pose)
+            except ParameterError as exc:
+                return None, ('out_of_reach', str(exc))
+        return pose, None
 
     @property
     def due(self):
@@ -226,8 +248,15 @@ class ObstacleInput:
             return
         pending, self._pending = self._pending, {}
         movable = obstacle_tasks(tasks)
+        from ifc_spg.errors import ParameterError
         for name, pose in pending.items():
-            self.moved += any([task.move_obstacle(name, pose) for task in movable])
+            moved = False
+            for task in movable:
+                try:
+                    moved = task.move_obstacle(name, pose) or moved
+                except ParameterError:  # (another stack's cull bound than the one checked)
+                    self.rejected['out_of_reach'] += 1
+            self.moved += moved
 
     def status(self):
         """The ``obstacles`` entry of ``spg/status``."""

@@ -171,24 +171,28 @@ class CollisionAvoidanceTask(Task):
                                for name, obs in geometry.declared.items()}
 
     def move_obstacle(self, name: str, pose: np.ndarray) -> bool:
-        """Put obstacle ``name`` (fixed to the base) at ``pose`` from the next level on.
+        """Put obstacle ``name`` at ``pose`` in its declared frame from the next level on.
 
         Args:
             name: A declared obstacle (others are ignored: False).
-            pose: Position [m] and unit quaternion (x, y, z, w) in the base frame (7,).
+            pose: Position [m] and unit quaternion (x, y, z, w) in the frame the obstacle
+                was declared in (the base, or the chain frame it moves with) (7,).
 
         Returns:
             True if the pose changed. The cull's kept distances of the pairs with the
             obstacle are dropped (:meth:`~ifc_spg.geometry.PairQuery.move_shape`), so the
             level computes them with coal at the next tick.
+
+        Raises:
+            ParameterError: A pose too far from the frame of an obstacle fixed to a moving
+                frame (:meth:`~ifc_spg.geometry.CollisionGeometry.obstacle_placement`).
         """
         old = self.obstacle_poses.get(name)
         pose = np.array(pose, dtype=float)
         if old is None or np.array_equal(old, pose):
             return False
+        placement = self.geometry.obstacle_placement(name, pose)
         self.obstacle_poses[name] = pose
-        x, y, z, w = pose[3:]
-        placement = pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), pose[:3])
         shape = self.geometry.obstacles[name]
         self.query.move_shape(shape, placement)
         self._measured_query.move_shape(shape, placement)
