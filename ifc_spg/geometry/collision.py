@@ -286,7 +286,7 @@ class CollisionGeometry:
         self.obstacles[obs.name] = self.model.addGeometryObject(go)
         self.declared[obs.name] = obs
 
-    def obstacle_placement(self, name: str, pose: Sequence[float]) -> pin.SE3:
+    def obstacle_placement(self, name: str, pose: Sequence[float] | np.ndarray) -> pin.SE3:
         """Where obstacle ``name`` is in its joint's frame, at ``pose`` in its declared frame.
 
         Args:
