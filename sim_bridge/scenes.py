@@ -22,6 +22,10 @@ scene                     what
 ``post``                  a vertical cylinder (``radius``, ``height`` [m]) on the floor at
                           ``position`` (x, y) [m] in the base frame; every robot geom has
                           a contact pair with it (collision avoidance)
+``obstacles``             the obstacles of a task stack (``obstacles``: its list, the
+                          stack's own fields: name, shape, size / radius / length,
+                          position, rpy; base frame only), fixed, each with a contact
+                          pair against every robot geom (collision avoidance)
 ``drawer_horizontal``     1.2 kg drawer pulled towards the robot (−u), 0.3 m travel;
                           optional break-away latch ``breakaway`` [N] (default 0: none)
 ``drawer_vertical``       1.2 kg drawer (sash) pulled up (+z), 0.3 m travel;
@@ -339,6 +343,59 @@ def _post(spec, anchor, position=(0.45, 0.3), radius=0.04, height=1.2, friction=
     return {}
 
 
+def _obstacles(spec, anchor, obstacles=(), friction=0.3, solref=(0.01, 1.0)):
+    """The obstacles a task stack declares (its ``obstacles:`` list), fixed in the world.
+
+    Checked by the stack's own parser (the same errors, naming the field); obstacles fixed
+    to a chain of the robot are refused (the world holds base-frame ones). Each becomes a
+    geom named after it (box: ``size`` edge lengths; capsule and cylinder along their z,
+    ``length`` of the cylinder part; plane: the half-space below its xy plane) with a
+    contact pair against every robot geom, as the post's.
+    """
+    from ifc_spg.errors import IfcSpgError
+    from ifc_spg.task_stack import TaskStack
+
+    if not isinstance(obstacles, (list, tuple)) or not obstacles:
+        raise ParameterError("scene 'obstacles': obstacles must be a non-empty list of the "
+                             "stack's obstacles (name, shape, sizes, position, rpy)")
+    try:
+        stack = TaskStack.from_dict({
+            'version': 1, 'name': 'scene', 'robot': 'scene', 'obstacles': list(obstacles),
+            'tasks': [{'name': 'idle', 'type': 'joint_position', 'equal': 'init'}]})
+    except IfcSpgError as exc:
+        raise ParameterError(f"scene 'obstacles': {exc}") from exc
+    robot_bodies = [b for top in spec.worldbody.bodies for b in _subtree(top)]
+    for o in stack.obstacles:
+        if o.frame != 'base':
+            raise ParameterError(f"scene 'obstacles': obstacle '{o.name}' is fixed to frame "
+                                 f"'{o.frame}'; the scene holds obstacles in the base frame")
+        body = spec.worldbody.add_body(name=f'obstacle_{o.name}', pos=list(o.position))
+        body.quat = _quat_of(o.rpy)
+        size = [float(v) for v in o.size]
+        if o.shape == 'box':
+            kind, size = mujoco.mjtGeom.mjGEOM_BOX, [v / 2 for v in size]
+        elif o.shape == 'sphere':
+            kind, size = mujoco.mjtGeom.mjGEOM_SPHERE, [size[0], 0.0, 0.0]
+        elif o.shape == 'capsule':
+            kind, size = mujoco.mjtGeom.mjGEOM_CAPSULE, [size[0], size[1] / 2, 0.0]
+        elif o.shape == 'cylinder':
+            kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [size[0], size[1] / 2, 0.0]
+        else:
+            kind, size = mujoco.mjtGeom.mjGEOM_PLANE, [0.0, 0.0, 0.05]
+        _scene_geom(body, name=o.name, type=kind, size=size, rgba=(0.8, 0.2, 0.2, 0.6))
+        _robot_pairs(spec, robot_bodies, o.name, friction, solref)
+    return {}
+
+
+def _quat_of(rpy):
+    """MuJoCo's quaternion (w, x, y, z) of roll-pitch-yaw angles (the stack's ``rpy``)."""
+    from ifc_spg.geometry import rpy_matrix
+
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, np.asarray(rpy_matrix(rpy), dtype=float).reshape(-1))
+    return q
+
+
 def _robot_pairs(spec, robot_bodies, scene_geom, friction, solref):
     """A contact pair between every geom of ``robot_bodies`` and ``scene_geom``."""
     mu = float(friction)
@@ -457,6 +514,7 @@ SCENES = {
     'table': _table,
     'obstacle': _obstacle,
     'post': _post,
+    'obstacles': _obstacles,
     'drawer_horizontal': _drawer_horizontal,
     'drawer_vertical': _drawer_vertical,
     'crank': _crank,

@@ -20,9 +20,14 @@ def _hold(sim, seconds):
     return sim.read_state()
 
 
+#: options a scene needs (the others run with their defaults)
+NEEDS = {'obstacles': {'obstacles': [{'name': 'ball', 'shape': 'sphere', 'radius': 0.05,
+                                      'position': [0.5, 0.5, 0.5]}]}}
+
+
 @pytest.mark.parametrize('scene', scene_names())
 def test_scene_steps_10_s_without_warnings(scene):
-    sim = Simulation(robot='lbr_iiwa14', scene=scene)
+    sim = Simulation(robot='lbr_iiwa14', scene=scene, scene_options=NEEDS.get(scene, {}))
     s = _hold(sim, 10.0)
     assert sim.warnings() == {}
     assert np.all(np.isfinite(s.q))
@@ -196,3 +201,63 @@ def test_drawer_breakaway_latch_holds_below_and_releases_above_its_force():
     assert _hold(sim, 1.0).env_q[0] > 0.05
     with pytest.raises(ParameterError, match='breakaway must be a force >= 0 N'):
         Simulation(robot='lbr4', scene='drawer_vertical', scene_options={'breakaway': -1.0})
+
+
+def test_obstacles_scene_holds_the_stacks_obstacles_where_the_stack_has_them():
+    """Every shape of the stack's obstacles in the MuJoCo world: MuJoCo's distances from the
+    robot's geoms to them are coal's on the stack's own geometry (sizes, poses, rpy)."""
+    import mujoco
+    import pinocchio as pin
+
+    from ifc_spg import RobotModel, TaskStack
+    from ifc_spg.geometry import PairQuery
+
+    obstacles = [
+        {'name': 'ball', 'shape': 'sphere', 'radius': 0.06, 'position': [0.45, 0.1, 0.6]},
+        {'name': 'crate', 'shape': 'box', 'size': [0.2, 0.1, 0.3], 'position': [0.3, -0.35, 0.5],
+         'rpy': [0.3, -0.2, 0.5]},
+        {'name': 'bar', 'shape': 'capsule', 'radius': 0.03, 'length': 0.4,
+         'position': [0.0, 0.45, 0.7], 'rpy': [1.2, 0.0, 0.3]},
+        {'name': 'post', 'shape': 'cylinder', 'radius': 0.05, 'length': 0.8,
+         'position': [-0.4, -0.2, 0.4], 'rpy': [0.0, 0.4, 0.0]},
+    ]
+    robot = RobotModel.from_config('lbr_iiwa14')
+    stack = TaskStack.from_dict({
+        'version': 1, 'name': 's', 'robot': 'lbr_iiwa14', 'obstacles': obstacles,
+        'tasks': [{'name': 'avoid', 'type': 'collision_avoidance',
+                   'pairs': [{'links': 'all', 'obstacles': [o['name'] for o in obstacles]}]}]})
+    task = stack.build(robot)[0]
+    query = PairQuery(task.geometry, task.pairs)
+    sim = Simulation(robot='lbr_iiwa14', scene='obstacles',
+                     scene_options={'obstacles': obstacles})
+    m, d = sim.model, mujoco.MjData(sim.model)
+    gid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name.removeprefix('obstacle:'))
+           for name in (task.geometry.shape_name(i) for i in range(len(task.geometry.robot_geoms)
+                                                                     + len(obstacles)))]
+    assert min(gid) >= 0
+    rng = np.random.default_rng(3)
+    data = robot.create_data()
+    checked = worst = 0.0
+    for _ in range(10):
+        q = rng.uniform(robot.q_min, robot.q_max)
+        pin.forwardKinematics(robot.model, data, q)
+        ours = query.distances_only(data)
+        d.qpos[:robot.n] = q
+        mujoco.mj_kinematics(m, d)
+        for k, (a, b) in enumerate(query.pairs):
+            ref = mujoco.mj_geomDistance(m, d, gid[a], gid[b], 10.0, None)
+            if ref > 1e-3 and ours[k] > 1e-3:
+                worst = max(worst, abs(ref - ours[k]))
+                checked += 1
+    assert checked > 100 and worst < 5e-4, (checked, worst)
+
+
+def test_obstacles_scene_refuses_bad_obstacles_naming_the_field():
+    with pytest.raises(ParameterError, match=r"scene 'obstacles'.*obstacles\[0\]\.radius"):
+        Simulation(robot='lbr_iiwa14', scene='obstacles', scene_options={
+            'obstacles': [{'name': 'ball', 'shape': 'sphere', 'radius': -0.1}]})
+    with pytest.raises(ParameterError, match="fixed to frame 'tool'"):
+        Simulation(robot='lbr_iiwa14', scene='obstacles', scene_options={
+            'obstacles': [{'name': 'held', 'shape': 'sphere', 'radius': 0.02, 'frame': 'tool'}]})
+    with pytest.raises(ParameterError, match='non-empty list'):
+        Simulation(robot='lbr_iiwa14', scene='obstacles')
