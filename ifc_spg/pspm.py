@@ -33,6 +33,7 @@ stack asks for energy the budget does not give) and says how much power it asked
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+import math
 from types import ModuleType
 from typing import NamedTuple
 
@@ -170,6 +171,26 @@ class EnergyTanks:
         self.power = power
         self._extra = self._shuffling or power > 0.0
 
+    @property
+    def energy(self) -> np.ndarray:
+        """Energy per tank [J].
+
+        Assign a new array to change it, not in place: the smallest entry is kept alongside
+        (:meth:`any_empty`).
+        """
+        return self._energy
+
+    @energy.setter
+    def energy(self, value: np.ndarray) -> None:
+        self._energy = value
+        v = np.asarray(value, dtype=float)
+        v = v[~np.isnan(v)]  # (as (energy <= tol).any(): a NaN tank is not empty)
+        self._min_energy = float(v.min()) if v.size else math.inf
+
+    def any_empty(self, tol: float = 1e-9) -> bool:
+        """Whether any tank holds at most ``tol`` [J] (a float compare: the 2 ms path)."""
+        return self._min_energy <= tol
+
     def empty(self, tol: float = 1e-9) -> np.ndarray:
         """Mask of the modulated joints whose tank is empty (<= ``tol`` [J]) after the tick."""
         return (self.energy <= tol) & self.mask
@@ -268,9 +289,10 @@ class EnergyTanks:
             # only round-off can make e negative (the step was bounded by E_avail); record it
             self.deficit = float(max(0.0, -e.min()))
             np.maximum(e, 0.0, out=e)
+            self.energy = e
         else:
             self.deficit = 0.0
-        self.energy = e
+            self._energy, self._min_energy = e, e_min  # (the kernel's minimum: no reduction)
         if self._shuffling:
             self.shuffled += np.where(self.mask, self._shuffle_now, 0.0)
         if self.power > 0.0:
@@ -413,7 +435,7 @@ class StallMonitor:
         tanks = self.tanks
         sample = self._ticks % self.probe_every == 0
         if not self._active:
-            if not (tanks.energy <= 1e-9).any():  # the usual tick: no tank is empty
+            if not tanks.any_empty(1e-9):  # the usual tick: no tank is empty
                 if sample:
                     self._sample_drain(None)
                 return
