@@ -145,12 +145,12 @@ class CartesianPoseTask(Task):
             return x[rows], Jx[rows], self._zero
         St = self._S_base(R).T
         if not self._rotational:  # position rows only: the orientation error is not needed
-            return St[:, :3] @ (p - self._p_ref), St[:, :3] @ J[:3], self._zero
+            return St[:, :3].dot(p - self._p_ref), St[:, :3].dot(J[:3]), self._zero
         if not self._translational:
             e_rot, J_rot = self._rotation_error(R, J)
-            return St[:, 3:] @ e_rot, St[:, 3:] @ J_rot, self._zero
+            return St[:, 3:].dot(e_rot), St[:, 3:].dot(J_rot), self._zero
         x, Jx = self._pose_error(p, R, J)
-        return St @ x, St @ Jx, self._zero
+        return St.dot(x), St.dot(Jx), self._zero
 
     def _rotation_error(self, R: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(log3(R_e), Jlog3(R_e) R_e^T J_ang)`` with R_e = R R_ref^T."""
@@ -178,7 +178,7 @@ class CartesianPoseTask(Task):
     def compute_measured_rate(self, kin: Kinematics) -> np.ndarray:
         """S^T J(q) qdot: the task-space velocity of the measured motion."""
         _, R, J = kin.frame(self.frame_id, virtual=False)
-        return self._S_base(kin.frame(self.frame_id, virtual=True)[1]).T @ (J @ kin.qdot)
+        return self._S_base(kin.frame(self.frame_id, virtual=True)[1]).T.dot(J.dot(kin.qdot))
 
 
 def _free_rotation_axis(S: np.ndarray) -> np.ndarray | None:

@@ -61,12 +61,12 @@ def _admittance_wrench(robot: RobotModel, kin: Kinematics,
     p_v, R_v, J_v = kin.frame(fid, virtual=True)
     p, R, J = kin.frame(fid, virtual=False)
     Kx = robot.admittance[frame].stiffness
-    R_e = R_v @ R.T
+    R_e = R_v.dot(R.T)  # (ndarray.dot: half the overhead of @ on small operands)
     Jl = pin.Jlog3(R_e)
     x = np.concatenate([p_v - p, pin.log3(R_e)])
-    A = np.vstack([J_v[:3], Jl @ R_e.T @ J_v[3:]])
-    v = J @ kin.qdot
-    g = np.concatenate([v[:3], Jl @ v[3:]])
+    A = np.vstack([J_v[:3], Jl.dot(R_e.T).dot(J_v[3:])])
+    v = J.dot(kin.qdot)
+    g = np.concatenate([v[:3], Jl.dot(v[3:])])
     return Kx * x, Kx[:, None] * A, Kx * g, J
 
 
@@ -88,14 +88,14 @@ def static_wrench(robot: RobotModel, kin: Kinematics, frame: str, include_dampin
     Jc = J * robot.compliant_columns
     # J^{+T} = (Jc Jc^T + lambda^2 I)^{-1} Jc: symmetric positive definite, so LAPACK's
     # Cholesky solver (dposv; a third of np.linalg.solve's cost here)
-    _, P, info = _dposv(Jc @ Jc.T + _DAMPING_EYE, Jc)
+    _, P, info = _dposv(Jc.dot(Jc.T) + _DAMPING_EYE, Jc)
     if info != 0:  # not positive definite: only with non-finite measurements
         P = np.linalg.solve(Jc @ Jc.T + _DAMPING_EYE, Jc)
     PK = P * K
     tau = K * (kin.q_v - kin.q)
     if include_damping:
         tau = tau - robot.compliant_damping * kin.qdot
-    return P @ tau, PK, PK @ kin.qdot, R
+    return P.dot(tau), PK, PK.dot(kin.qdot), R
 
 
 def static_torque(robot: RobotModel, kin: Kinematics, include_damping: bool = False
@@ -111,7 +111,7 @@ def static_torque(robot: RobotModel, kin: Kinematics, include_damping: bool = Fa
     tau, A, g = np.zeros(n), np.zeros((n, n)), np.zeros(n)
     for frame in robot.admittance:
         h, Ah, gh, J = _admittance_wrench(robot, kin, frame)
-        tau += J.T @ h
-        A += J.T @ Ah
-        g += J.T @ gh
+        tau += J.T.dot(h)
+        A += J.T.dot(Ah)
+        g += J.T.dot(gh)
     return tau, A, g

@@ -63,8 +63,8 @@ def subspace_in_base(S: np.ndarray, frame: str, R: np.ndarray) -> np.ndarray:
     if frame == 'base':
         return S
     out = np.empty_like(S)
-    out[:3] = S[:3] if frame == 'ee_orientation' else R @ S[:3]
-    out[3:] = R @ S[3:]
+    out[:3] = S[:3] if frame == 'ee_orientation' else R.dot(S[:3])
+    out[3:] = R.dot(S[3:])
     return out
 
 

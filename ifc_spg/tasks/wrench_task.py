@@ -57,7 +57,7 @@ class WrenchTask(Task):
         if rows is not None:
             return h[rows], A[rows], g[rows]
         St = subspace_in_base(self.S, self.subspace_frame, R).T
-        return St @ h, St @ A, St @ g
+        return St.dot(h), St.dot(A), St.dot(g)
 
     def compute_value(self, kin: Kinematics) -> np.ndarray:
         """The static wrench in the subspace, S^T h_s, in [N] / [Nm]."""
