@@ -116,6 +116,9 @@ TABLE_5_1 = Experiment('table_5_1', 'Table 5.1', 'Constrained manipulation (vert
 #: v_th = 0.01 m/s, kappa = 9 N/s, nu = 0.05 m/s). Initial errors [deg]: the thesis shows
 #: "different initial errors" without values; a small one and the 45 deg of Sec. 5.3.4.
 F511_ERRORS = (10.0, 45.0)
+#: nu [m/s] of the two extra trajectory-following runs (45 deg) beside the thesis' 0.05: the
+#: claim that nu has no relation to the force slope (ours: the thesis runs 0.05 only)
+F511_NU = (0.025, 0.1)
 S543_STRATEGIES = (('joint_compliance', '(5.9)'), ('admittance', 'trajectory following'))
 #: Horizontal pull [m] of Fig. 5.12: from the LBR start pose A4 reaches its limit (-120 deg)
 #: after 0.268 m of the 0.3 m drawer (seen in a probe run before the claims were evaluated).
@@ -279,6 +282,11 @@ def _fig_5_11(out_dir, quick, figures=True):
             log = _s543_run(strategy, 'drawer_vertical', err, 0.29, duration=60.0)
             out[f'{strategy}_{err:g}'] = _lift_numbers(log)
             panels.append((log, f'{label}, initial error {err:g} deg'))
+    if not quick:  # Sec. 5.4.3: for trajectory following nu has no relation to the slope
+        for nu in F511_NU:
+            log = _s543_run('admittance', 'drawer_vertical', 45.0, 0.29, duration=60.0,
+                            params={'nu': nu})
+            out[f'admittance_45_nu{nu:g}'] = _lift_numbers(log)
     log0 = panels[0][0]
     out['misalignment'] = mis = _misalignment(None if log0.q is None else log0.q[0])
     if figures:
