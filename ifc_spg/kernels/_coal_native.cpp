@@ -267,6 +267,28 @@ const coal::DistanceResult &distance(PairsObject *self, long k) {
     return res;
 }
 
+// The narrowphase of the pairs idx[0..k): distance[p] for each; for those within the
+// influence distance (written to w, returned: their count) the witness points and, where
+// distance <= eps, coal's normal. Throws what coal throws.
+npy_intp narrow(PairsObject *self, const npy_intp *idx, npy_intp k, double influence, double eps,
+                double *d, double *pa, double *pb, double *nrm, npy_intp *w) {
+    npy_intp count = 0;
+    for (npy_intp t = 0; t < k; t++) {
+        npy_intp p = idx[t];
+        const coal::DistanceResult &res = distance(self, p);
+        d[p] = res.min_distance;
+        if (!(res.min_distance <= influence)) continue;
+        w[count++] = p;
+        for (int c = 0; c < 3; c++) {
+            pa[3 * p + c] = res.nearest_points[0][c];
+            pb[3 * p + c] = res.nearest_points[1][c];
+        }
+        if (res.min_distance <= eps)
+            for (int c = 0; c < 3; c++) nrm[3 * p + c] = res.normal[c];
+    }
+    return count;
+}
+
 #define COAL_TRY try {
 #define COAL_CATCH                                                  \
     }                                                               \
@@ -316,19 +338,7 @@ PyObject *pairs_narrowphase(PyObject *obj, PyObject *args) {
     }
     npy_intp *w = static_cast<npy_intp *>(PyArray_DATA(within)), count = 0;
     try {
-        for (npy_intp t = 0; t < k; t++) {
-            npy_intp p = idx[t];
-            const coal::DistanceResult &res = distance(self, p);
-            d[p] = res.min_distance;
-            if (!(res.min_distance <= influence)) continue;
-            w[count++] = p;
-            for (int c = 0; c < 3; c++) {
-                pa[3 * p + c] = res.nearest_points[0][c];
-                pb[3 * p + c] = res.nearest_points[1][c];
-            }
-            if (res.min_distance <= eps)
-                for (int c = 0; c < 3; c++) nrm[3 * p + c] = res.normal[c];
-        }
+        count = narrow(self, idx, k, influence, eps, d, pa, pb, nrm, w);
     } catch (const std::exception &e) {
         Py_DECREF(near);
         Py_DECREF(within);
@@ -451,18 +461,7 @@ PyObject *pairs_level(PyObject *obj, PyObject *args) {
     if (!out[5]) goto done;
     w = static_cast<npy_intp *>(PyArray_DATA(out[5]));
     try {
-        for (npy_intp p : near) {
-            const coal::DistanceResult &res = distance(self, p);
-            d[p] = res.min_distance;
-            if (!(res.min_distance <= influence)) continue;
-            w[count++] = p;
-            for (int c = 0; c < 3; c++) {
-                pa[3 * p + c] = res.nearest_points[0][c];
-                pb[3 * p + c] = res.nearest_points[1][c];
-            }
-            if (res.min_distance <= eps)
-                for (int c = 0; c < 3; c++) nrm[3 * p + c] = res.normal[c];
-        }
+        count = narrow(self, near.data(), near_count, influence, eps, d, pa, pb, nrm, w);
     } catch (const std::exception &e) {
         PyErr_Format(PyExc_RuntimeError, "coal: %s", e.what());
         goto done;
