@@ -67,6 +67,7 @@ after 5 cm out and back within 2 mm).
 
 from dataclasses import dataclass, field
 import inspect
+import math
 from typing import Any
 
 import mujoco
@@ -343,57 +344,92 @@ def _post(spec, anchor, position=(0.45, 0.3), radius=0.04, height=1.2, friction=
     return {}
 
 
+#: size fields [m] per obstacle shape, as in a task stack's ``obstacles:``
+_OBSTACLE_SIZES = {'box': ('size',), 'sphere': ('radius',), 'capsule': ('radius', 'length'),
+                   'cylinder': ('radius', 'length'), 'plane': ()}
+
+
 def _obstacles(spec, anchor, obstacles=(), friction=0.3, solref=(0.01, 1.0)):
     """The obstacles a task stack declares (its ``obstacles:`` list), fixed in the world.
 
-    Checked by the stack's own parser (the same errors, naming the field); obstacles fixed
-    to a chain of the robot are refused (the world holds base-frame ones). Each becomes a
-    geom named after it (box: ``size`` edge lengths; capsule and cylinder along their z,
-    ``length`` of the cylinder part; plane: the half-space below its xy plane) with a
-    contact pair against every robot geom, as the post's.
+    The stack's fields (name, shape, size / radius / length, position, rpy), checked here
+    (sim_bridge does not import the stack parser: ARCHITECTURE.md); obstacles fixed to a
+    chain of the robot are refused (the world holds base-frame ones). Each becomes a geom
+    named after it (box: ``size`` edge lengths; capsule and cylinder along their z,
+    ``length`` of the cylinder part; plane: the half-space below its xy plane) with a contact
+    pair against every robot geom, as the post's.
     """
-    from ifc_spg.errors import IfcSpgError
-    from ifc_spg.task_stack import TaskStack
-
     if not isinstance(obstacles, (list, tuple)) or not obstacles:
         raise ParameterError("scene 'obstacles': obstacles must be a non-empty list of the "
                              "stack's obstacles (name, shape, sizes, position, rpy)")
-    try:
-        stack = TaskStack.from_dict({
-            'version': 1, 'name': 'scene', 'robot': 'scene', 'obstacles': list(obstacles),
-            'tasks': [{'name': 'idle', 'type': 'joint_position', 'equal': 'init'}]})
-    except IfcSpgError as exc:
-        raise ParameterError(f"scene 'obstacles': {exc}") from exc
     robot_bodies = [b for top in spec.worldbody.bodies for b in _subtree(top)]
-    for o in stack.obstacles:
-        if o.frame != 'base':
-            raise ParameterError(f"scene 'obstacles': obstacle '{o.name}' is fixed to frame "
-                                 f"'{o.frame}'; the scene holds obstacles in the base frame")
-        body = spec.worldbody.add_body(name=f'obstacle_{o.name}', pos=list(o.position))
-        body.quat = _quat_of(o.rpy)
-        size = [float(v) for v in o.size]
-        if o.shape == 'box':
+    seen = set()
+    for i, o in enumerate(obstacles):
+        name, shape, size, position, rpy = _obstacle_fields(i, o)
+        if name in seen:
+            raise ParameterError(f"scene 'obstacles': obstacles[{i}].name '{name}' is used twice")
+        seen.add(name)
+        body = spec.worldbody.add_body(name=f'obstacle_{name}', pos=list(position))
+        quat = np.empty(4)
+        mujoco.mju_euler2Quat(quat, np.asarray(rpy, dtype=float), 'XYZ')  # Rz Ry Rx, as rpy
+        body.quat = quat
+        if shape == 'box':
             kind, size = mujoco.mjtGeom.mjGEOM_BOX, [v / 2 for v in size]
-        elif o.shape == 'sphere':
+        elif shape == 'sphere':
             kind, size = mujoco.mjtGeom.mjGEOM_SPHERE, [size[0], 0.0, 0.0]
-        elif o.shape == 'capsule':
+        elif shape == 'capsule':
             kind, size = mujoco.mjtGeom.mjGEOM_CAPSULE, [size[0], size[1] / 2, 0.0]
-        elif o.shape == 'cylinder':
+        elif shape == 'cylinder':
             kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [size[0], size[1] / 2, 0.0]
         else:
             kind, size = mujoco.mjtGeom.mjGEOM_PLANE, [0.0, 0.0, 0.05]
-        _scene_geom(body, name=o.name, type=kind, size=size, rgba=(0.8, 0.2, 0.2, 0.6))
-        _robot_pairs(spec, robot_bodies, o.name, friction, solref)
+        _scene_geom(body, name=name, type=kind, size=size, rgba=(0.8, 0.2, 0.2, 0.6))
+        _robot_pairs(spec, robot_bodies, name, friction, solref)
     return {}
 
 
-def _quat_of(rpy):
-    """MuJoCo's quaternion (w, x, y, z) of roll-pitch-yaw angles (the stack's ``rpy``)."""
-    from ifc_spg.geometry import rpy_matrix
+def _obstacle_fields(i, o):
+    """(name, shape, sizes, position, rpy) of ``obstacles[i]``, or ParameterError."""
+    where = f"scene 'obstacles': obstacles[{i}]"
+    if not isinstance(o, dict):
+        raise ParameterError(f'{where}: expected an obstacle (name, shape, sizes, position, rpy)')
+    allowed = ('name', 'shape', 'size', 'radius', 'length', 'frame', 'position', 'rpy')
+    for key in o:
+        if key not in allowed:
+            raise ParameterError(f'{where}.{key}: no such field{did_you_mean(key, allowed)}')
+    name, shape = o.get('name'), o.get('shape')
+    if not isinstance(name, str) or not name:
+        raise ParameterError(f'{where}.name: a non-empty string is required')
+    if shape not in _OBSTACLE_SIZES:
+        raise ParameterError(f'{where}.shape: one of {", ".join(_OBSTACLE_SIZES)}, got '
+                             f'{shape!r}{did_you_mean(str(shape), _OBSTACLE_SIZES)}')
+    if o.get('frame', 'base') != 'base':
+        raise ParameterError(f"{where}: obstacle '{name}' is fixed to frame '{o['frame']}'; "
+                             'the scene holds obstacles in the base frame')
+    need = _OBSTACLE_SIZES[shape]
+    for key in ('size', 'radius', 'length'):
+        if key in o and key not in need:
+            raise ParameterError(f"{where}.{key}: a {shape} has no {key}; give "
+                                 f"{', '.join(need) or 'no size'}")
+        if key in need and key not in o:
+            raise ParameterError(f'{where}: missing field {key} of the {shape}')
+    size = _numbers(where, o, 'size', 3, True) if shape == 'box' else \
+        [_numbers(where, o, k, 1, True)[0] for k in need]
+    position = _numbers(where, o, 'position', 3, False) if 'position' in o else [0.0] * 3
+    rpy = _numbers(where, o, 'rpy', 3, False) if 'rpy' in o else [0.0] * 3
+    return name, shape, size, position, rpy
 
-    q = np.empty(4)
-    mujoco.mju_mat2Quat(q, np.asarray(rpy_matrix(rpy), dtype=float).reshape(-1))
-    return q
+
+def _numbers(where, o, key, count, positive):
+    """``count`` finite numbers (> 0 where ``positive``) of field ``key``, or ParameterError."""
+    v = o[key] if count > 1 else [o[key]]
+    if not isinstance(v, (list, tuple)) or len(v) != count:
+        raise ParameterError(f'{where}.{key}: expected {count} numbers, got {o[key]!r}')
+    if not all(not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
+               and (x > 0 or not positive) for x in v):
+        raise ParameterError(f'{where}.{key}: ' + ('sizes must be finite and > 0 m' if positive
+                                                   else 'finite numbers') + f', got {o[key]!r}')
+    return [float(x) for x in v]
 
 
 def _robot_pairs(spec, robot_bodies, scene_geom, friction, solref):

@@ -253,7 +253,7 @@ def test_obstacles_scene_holds_the_stacks_obstacles_where_the_stack_has_them():
 
 
 def test_obstacles_scene_refuses_bad_obstacles_naming_the_field():
-    with pytest.raises(ParameterError, match=r"scene 'obstacles'.*obstacles\[0\]\.radius"):
+    with pytest.raises(ParameterError, match=r"scene 'obstacles': obstacles\[0\]\.radius: sizes"):
         Simulation(robot='lbr_iiwa14', scene='obstacles', scene_options={
             'obstacles': [{'name': 'ball', 'shape': 'sphere', 'radius': -0.1}]})
     with pytest.raises(ParameterError, match="fixed to frame 'tool'"):
@@ -261,3 +261,13 @@ def test_obstacles_scene_refuses_bad_obstacles_naming_the_field():
             'obstacles': [{'name': 'held', 'shape': 'sphere', 'radius': 0.02, 'frame': 'tool'}]})
     with pytest.raises(ParameterError, match='non-empty list'):
         Simulation(robot='lbr_iiwa14', scene='obstacles')
+    with pytest.raises(ParameterError, match=r"obstacles\[0\]\.shape: .*did you mean 'sphere'"):
+        Simulation(robot='lbr_iiwa14', scene='obstacles', scene_options={
+            'obstacles': [{'name': 'ball', 'shape': 'spher', 'radius': 0.02}]})
+    with pytest.raises(ParameterError, match=r'obstacles\[0\]\.length: a sphere has no length'):
+        Simulation(robot='lbr_iiwa14', scene='obstacles', scene_options={
+            'obstacles': [{'name': 'ball', 'shape': 'sphere', 'radius': 0.02, 'length': 1.0}]})
+    with pytest.raises(ParameterError, match=r'obstacles\[0\]\.position: finite'):
+        Simulation(robot='lbr_iiwa14', scene='obstacles', scene_options={
+            'obstacles': [{'name': 'ball', 'shape': 'sphere', 'radius': 0.02,
+                           'position': [0.0, float('nan'), 0.0]}]})
