@@ -158,7 +158,6 @@ class CollisionAvoidanceTask(Task):
         self._k = gain / (influence - margin)
         self._open = np.full(self.dim, np.inf)
         self._open.setflags(write=False)
-        self._n = robot.n
         self.last: Distances | None = None
         self.row_pairs = np.zeros(0, dtype=int)  # the pair of each row of the last level
         self.rows_dropped = 0  # pairs within d_i without a row in the last level
