@@ -6,6 +6,9 @@ import sys
 
 import pytest
 
+# as the executables run (ifc_spg.entry): one BLAS thread, for the test processes and the
+# processes they start (set before anything imports numpy)
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 sys.path.insert(0, os.path.dirname(__file__))
 sys.path.append(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
