@@ -127,6 +127,12 @@ F512_TARGET = 0.25
 #: R = 0.17 m (the thesis' radius); a quarter turn, ball grasp (``connect``), no orientation
 #: term (the force-follow of 5.4.2).
 F513_RUNS = ((0.10, 9.0), (0.17, 9.0), (0.25, 9.0), (0.17, 5.0), (0.17, 15.0))
+#: Fig. 5.2: the SMA window [s] of the figure and the white noise [m/s RMS] added to the
+#: clean simulated velocity (ours: the simulation has no sensor noise), its seed.
+F52_WINDOW_S, F52_NOISE, F52_SEED = 0.5, 0.01, 52
+#: Fig. 5.10d (ours): the push by hand, [f; tau] on the tool in the base frame [N, Nm] and
+#: its length [s], at half the undisturbed opening time; the microwave door's opening [rad].
+F510D_PUSH, F510D_PUSH_S, F510D_TARGET = (0.0, 0.0, -25.0, 0.0, 0.0, 0.0), 0.5, 0.6
 _S543_CACHE: dict[tuple, Any] = {}
 #: Sec. 5.4's misalignment of p_v - p and f on the LBR-IV: configurations drawn uniformly in
 #: the joint limits (seeded), those with manipulability above ``mu_min`` (the thesis' 0.1)
@@ -306,7 +312,58 @@ def _fig_5_11(out_dir, quick, figures=True):
                     f'{v["travel_m"] * 100:.0f} cm in {_fmt(v["time_to_open_s"])} s, force '
                     f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items()
                     if k != 'misalignment')
+    if not quick:  # Fig. 5.2 on the (5.9) run at 45 deg
+        out['fig_5_2'] = f52 = _fig_5_2(_s543_run('joint_compliance', 'drawer_vertical', 45.0,
+                                                  0.29, duration=60.0))
+        mtxt += (f'. Fig. 5.2 (the SMA of (5.4) over {F52_WINDOW_S:g} s on the tool z velocity '
+                 f'of (5.9) at 45 deg, white noise of {F52_NOISE:g} m/s RMS added, ours): '
+                 f'noise left {_fmt(f52["noise_ratio"])} of its RMS, lag '
+                 f'{_fmt(f52["lag_s"])} s')
     return Check(out, 'K = 40 Nm/rad, kappa = 9 N/s, nu = 0.05 m/s; ' + txt + mtxt)
+
+
+def _fig_5_2(log, robot='lbr4', frame='tool'):
+    """Fig. 5.2: the estimator's SMA (5.4) on a noisy velocity; its noise and its lag.
+
+    The tool's z velocity of ``log`` (finite differences of its forward kinematics) with white
+    noise added, through :class:`~ifc_spg.constrained.direction_estimator.DirectionEstimator`
+    (no dead band: every sample counts) over :data:`F52_WINDOW_S`; the first window (the
+    estimator's seed) is left out.
+    """
+    import pinocchio as pin
+
+    from ifc_spg.constrained.direction_estimator import DirectionEstimator
+    from ifc_spg.model import RobotModel
+
+    model = RobotModel.from_config(robot)
+    data, fid = model.create_data(), model.frame_id(frame)
+    z = np.empty(len(log.t))
+    for i, q in enumerate(log.q):
+        pin.framesForwardKinematics(model.model, data, np.asarray(q, dtype=float))
+        z[i] = data.oMf[fid].translation[2]
+    t = np.asarray(log.t, dtype=float)
+    dt = float(np.median(np.diff(t)))
+    v = np.gradient(z, t)
+    noisy = v + np.random.default_rng(F52_SEED).normal(0.0, F52_NOISE, v.size)
+    n = int(round(F52_WINDOW_S / dt))
+
+    def sma(signal):
+        est = DirectionEstimator(window=n, v_threshold=0.0, initial_direction=(0.0, 0.0, 1.0))
+        out = np.empty(signal.size)
+        for i, x in enumerate(signal):
+            est.update((0.0, 0.0, x))
+            out[i] = est.filtered_velocity[2]
+        return out
+
+    f_noisy, f_clean = sma(noisy), sma(v)
+    keep = np.arange(n, v.size)
+    noise_ratio = _rms(f_noisy[keep] - f_clean[keep]) / _rms(noisy - v)
+    lags = np.arange(0, int(round(1.0 / dt)) + 1)
+    keep = keep[keep >= lags[-1]]
+    cost = [_rms(f_noisy[keep] - v[keep - k]) for k in lags]
+    return {'window_s': F52_WINDOW_S, 'noise_m_s': F52_NOISE, 'samples': int(v.size),
+            'noise_ratio': float(noise_ratio), 'lag_s': float(lags[int(np.argmin(cost))] * dt),
+            'peak_velocity_m_s': float(np.max(np.abs(v)))}
 
 
 def _fig_5_12(out_dir, quick, figures=True):
@@ -378,6 +435,8 @@ def _fig_5_13(out_dir, quick, figures=True):
     if all(r[half] for r in rows):
         out['radius_error_ratio_second_half'] = get(0.10, 9.0, half) / get(0.25, 9.0, half)
         out['kappa_error_ratio_second_half'] = get(0.17, 15.0, half) / get(0.17, 5.0, half)
+    if not quick:
+        out['fig_5_10d'] = _fig_5_10d()
     if figures:
         _s543_figure(out_dir, 'fig_5_13', panels, 3)
     txt = '; '.join(f'R = {r["radius_m"] * 100:g} cm, kappa = {r["kappa_n_s"]:g} N/s: '
@@ -387,7 +446,46 @@ def _fig_5_13(out_dir, quick, figures=True):
                     f'RMS |f_perp| {r["rms_f_perp_n"]:.2f} N '
                     f'({_fmt(r["rms_f_perp_second_half_n"])} N over the second half)'
                     for r in rows)
+    if 'fig_5_10d' in out:
+        u, d = out['fig_5_10d']['undisturbed'], out['fig_5_10d']['disturbed']
+        txt += (f'. Fig. 5.10d, microwave door ({F510D_TARGET:g} rad, (5.9) on the LBR-IV, 45 '
+                f'deg): undisturbed opened in {_fmt(u["time_to_open_s"])} s (max |f| '
+                f'{u["max_force_n"]:.1f} N); pushed with {abs(F510D_PUSH[2]):g} N downwards '
+                f'for {F510D_PUSH_S:g} s at {d["push_at_s"]:.2f} s (ours): opened in '
+                f'{_fmt(d["time_to_open_s"])} s, max |f| {d["max_force_n"]:.1f} N, '
+                f'{_fmt(d["max_force_outside_push_n"])} N outside the push and 0.5 s after it, '
+                f'RMS |f_perp| {d["rms_f_perp_n"]:.2f} N (undisturbed {u["rms_f_perp_n"]:.2f})')
     return Check(out, 'quarter turns, (5.9), 45 deg initial error: ' + txt)
+
+
+def _fig_5_10d():
+    """Fig. 5.10d: (5.9) opens the microwave door undisturbed, then pushed by hand.
+
+    The push (:data:`F510D_PUSH`, ours) comes at half the undisturbed opening time (half the
+    run if that did not open); the force bound is checked outside the push and 0.5 s after.
+    """
+    duration = 30.0
+    kw: dict[str, Any] = {'duration': duration, 'scene_options': {'grasp': 'connect'}}
+    out: dict[str, dict[str, Any]] = {}
+    for name in ('undisturbed', 'disturbed'):
+        push_at = None
+        if name == 'disturbed':
+            t_open = out['undisturbed']['time_to_open_s']
+            push_at = round(0.5 * (t_open if t_open is not None else duration), 3)
+            kw['pushes'] = ((push_at, F510D_PUSH, F510D_PUSH_S),)
+        log = _s543_run('joint_compliance', 'microwave_door', 45.0, F510D_TARGET, **kw)
+        t = np.asarray(log.t, dtype=float)
+        f = np.linalg.norm(log.force, axis=1)
+        quiet = np.ones(t.size, dtype=bool)
+        if push_at is not None:
+            quiet = (t < push_at) | (t > push_at + F510D_PUSH_S + 0.5)
+        out[name] = {'opened': log.metrics.get('time_to_open') is not None,
+                     'time_to_open_s': log.metrics.get('time_to_open'), 'push_at_s': push_at,
+                     'max_force_n': float(np.max(f)),
+                     'max_force_outside_push_n': float(np.max(f[quiet])) if quiet.any()
+                     else None,
+                     'rms_f_perp_n': log.metrics['rms_f_perp']}
+    return out
 
 
 FIG_5_11 = Experiment('fig_5_11', 'Fig. 5.11', 'Vertical drawer (1.2 kg) with initial '

@@ -48,6 +48,19 @@ def test_ring_buffer_matches_slow_reference():
     np.testing.assert_allclose(got, ref, atol=1e-12)
 
 
+def test_filtered_velocity_is_the_mean_of_the_last_n_samples():
+    """(5.4) before its normalisation (Fig. 5.2's z_SMA); dead-band samples count as w0 d."""
+    rng = np.random.default_rng(5)
+    samples = rng.normal(scale=0.02, size=(300, 3)) + [0.0, 0.0, 0.01]
+    est = DirectionEstimator(window=25, v_threshold=0.0, w0=0.004,
+                             initial_direction=(0.0, 0.0, 1.0))
+    for i, v in enumerate(samples):
+        est.update(v)
+        window = [np.array([0.0, 0.0, 0.004])] * 25 + list(samples[:i + 1])
+        np.testing.assert_allclose(est.filtered_velocity, np.mean(window[-25:], axis=0),
+                                   atol=1e-15)
+
+
 def test_converges_from_45_degrees_on_a_noisy_straight_line():
     rng = np.random.default_rng(0)
     true = np.array([0.0, 0.0, 1.0])

@@ -157,6 +157,19 @@ def test_crank_quarter_turn(strategy):
     assert m['success'], m
 
 
+def test_a_push_by_hand_acts_at_its_time_and_for_its_length():
+    """Scenario.pushes (Fig. 5.10d's disturbance): the run equals the undisturbed one until
+    the push, the handle feels it while it lasts."""
+    quiet = _run('joint_compliance', duration=1.2)
+    pushed = _run('joint_compliance', duration=1.2,
+                  pushes=((0.6, (0.0, 0.0, -25.0, 0.0, 0.0, 0.0), 0.3),))
+    t = quiet.t
+    before, during = t < 0.6 - 1e-9, (t > 0.65) & (t < 0.9)
+    np.testing.assert_array_equal(pushed.force[before], quiet.force[before])
+    change = np.linalg.norm(pushed.force - quiet.force, axis=1)
+    assert change[during].max() >= 10.0, change[during].max()
+
+
 @pytest.mark.parametrize('strategy', ['joint_compliance', 'task_specification'])
 def test_microwave_door_opens(strategy):
     m = _run(strategy, scene='microwave_door', target=0.4).metrics

@@ -86,6 +86,14 @@ class DirectionEstimator:
         v.setflags(write=False)
         return v
 
+    @property
+    def filtered_velocity(self):
+        """The SMA of (5.4) before its normalisation in [m/s] (3,), a new array.
+
+        ``(1/N) sum_{j<N} pdot[i - j]``; dead-band samples (5.5) count as ``w0 d_hat``.
+        """
+        return self._sum / self.window
+
     def update(self, pdot, stamp=None):
         """Add one velocity sample and return the new estimate d_hat.
 

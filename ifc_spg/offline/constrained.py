@@ -160,6 +160,8 @@ class Scenario:
             robot and scene, or the robot's home pose. The scene is built at the tool pose
             of q0.
         strategy_options: Extra options of the strategy (see :func:`make_strategy`).
+        pushes: Disturbances by hand, ``(at [s], [f; tau] in the base frame [N, Nm],
+            duration [s])`` each, on the contact chain (its site origin).
     """
 
     strategy: str = 'task_specification'
@@ -177,6 +179,7 @@ class Scenario:
     sim: dict[str, Any] = field(default_factory=dict)
     q0_deg: tuple[float, ...] | None = None
     strategy_options: dict[str, Any] = field(default_factory=dict)
+    pushes: tuple[tuple[float, tuple[float, ...], float], ...] = ()
 
 
 #: Right arm of the ACCREA in its home pose [deg] (it only holds still).
@@ -352,8 +355,12 @@ def run(scenario):
         rows: dict[str, list[Any]] = {
             k: [] for k in ('t', 'env_q', 'force', 'fs', 'est', 'true', 'q', 'ik')}
         t_open = None
+        pushes = sorted(scenario.pushes, key=lambda push: push[0])
         for _ in range(ticks):
             s = sim.read_state()
+            while pushes and pushes[0][0] <= s.t + 1e-9:
+                _, wrench, seconds = pushes.pop(0)
+                sim.apply_wrench(frame, wrench, seconds)
             q_v = ctrl.step(s.q, s.qd, s.t)
             kin.update(s.q, s.qd, s.q_v)
             _record(rows, s, ctrl, static_wrench(robot, kin, frame)[0], handle(sim))
