@@ -378,6 +378,24 @@ def test_fig_5_13_crank_turned_and_faster_exploration_costs_force(tmp_path):
     assert n['radius_error_ratio_second_half'] > 0.0
 
 
+def test_fig_5_10d_pushes_at_half_the_opening_time_and_fig_5_2_filters_the_run():
+    """The numbers of the full-run claims of Figs. 5.10d and 5.2 (claims v8)."""
+    from experiments import ch5
+
+    n = ch5._fig_5_10d()
+    u, d = n['undisturbed'], n['disturbed']
+    assert u['push_at_s'] is None and u['time_to_open_s'] is not None
+    assert d['push_at_s'] == round(0.5 * u['time_to_open_s'], 3)
+    # the push reaches the handle, and the bound's window leaves it (and 0.5 s) out
+    assert d['max_force_n'] > u['max_force_n'] + 5.0
+    assert d['max_force_outside_push_n'] < d['max_force_n']
+    log = ch5._s543_run('joint_compliance', 'drawer_vertical', 45.0, 0.29, duration=60.0)
+    f52 = ch5._fig_5_2(log)
+    # white noise through a 250-sample mean: 1/sqrt(250) = 0.063 of its RMS (+-30 %)
+    assert 0.044 < f52['noise_ratio'] < 0.082, f52
+    assert 0.0 < f52['lag_s'] < 1.0 and f52['samples'] == len(log.t)
+
+
 def test_note_fields_come_from_the_run():
     """Every {field} of a note has a getter in NOTE_FIELDS (numbers come from the run)."""
     import string
