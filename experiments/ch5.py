@@ -134,6 +134,10 @@ F52_WINDOW_S, F52_NOISE, F52_SEED = 0.5, 0.01, 52
 #: its length [s], at half the undisturbed opening time; the microwave door's opening [rad].
 F510D_PUSH, F510D_PUSH_S, F510D_TARGET = (0.0, 0.0, -25.0, 0.0, 0.0, 0.0), 0.5, 0.6
 _S543_CACHE: dict[tuple, Any] = {}
+#: FRI loop delay [periods] of the Sec. 5.4.3 runs (set by ``reproduce --fri-delay``; 0: none)
+#: and the experiments it reaches.
+FRI_DELAY = 0
+FRI_DELAYED = ('fig_5_11', 'fig_5_12', 'fig_5_13')
 #: Sec. 5.4's misalignment of p_v - p and f on the LBR-IV: configurations drawn uniformly in
 #: the joint limits (seeded), those with manipulability above ``mu_min`` (the thesis' 0.1)
 #: counted, the misalignment bound the thesis names [deg].
@@ -203,6 +207,8 @@ def _s543_run(strategy, scene, err, target, **kw):
     from ifc_spg.constrained.params import StrategyParams
     from ifc_spg.offline.constrained import Scenario, run
 
+    if FRI_DELAY:
+        kw['sim'] = {**kw.get('sim', {}), 'fri_delay': FRI_DELAY}
     key = (strategy, scene, err, target, json.dumps(kw, sort_keys=True, default=str))
     if key not in _S543_CACHE:
         params = StrategyParams(**kw.pop('params', {}))

@@ -12,7 +12,16 @@ import time
 from experiments import claims
 from experiments.harness import _fmt
 
-__all__ = ['NOTE_FIELDS', 'NOTES', 'PREAMBLE', 'note_text', 'write_report']
+__all__ = ['FRI_PREAMBLE', 'NOTE_FIELDS', 'NOTES', 'PREAMBLE', 'note_text', 'write_report']
+
+#: The report's header with ``--fri-delay`` (issue 29 item 2: every verdict with the delay on).
+FRI_PREAMBLE = """\
+**This report ran with a delayed FRI**: `python -m experiments.reproduce --fri-delay {n}`,
+the LBR's FRI emulation applies each command {n} FRI period(s) ({ms} ms) after it was sent
+(`sim.fri_delay`, see `sim_bridge/simulation.py` for the source), where a scenario does not
+set its own delay. Ran delayed: {delayed}. Ran as in docs/REPRODUCTION.md (no FRI: the
+iCub, the ACCREA, Table 5.1's worker processes, report Ch. 6; or a delay of their own):
+{undelayed}. The figures are those of docs/REPRODUCTION.md and are not repeated."""
 
 PREAMBLE = """\
 Every experiment is one or more scenarios `config/scenarios/thesis_*.yaml` run with the

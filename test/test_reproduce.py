@@ -7,6 +7,7 @@ effect it names disappears (e.g. the K sweep with a flat position error, Table 4
 virtual tool leaving the box, Table 4.1 without the 1b torque band).
 """
 
+import io
 import json
 
 import numpy as np
@@ -81,6 +82,24 @@ def test_report_table(tmp_path):
     assert 'Failing: x.one.' in text and '1.5 min wall' in text
     assert '![x](figures/x.png)' in text
     json.dumps(rows)
+
+
+def test_fri_delay_reaches_the_lbr_runs_and_only_them(tmp_path):
+    """--fri-delay (issue 29 item 2): an LBR experiment's numbers change with the delay, the
+    iCub's (no FRI) do not; the rows and the report say which ran delayed."""
+    rows = {}
+    for delay in (0, 1):
+        out = tmp_path / f'd{delay}'
+        rows[delay] = {r['name']: r for r in reproduce.run_experiments(
+            out, quick=True, only=['table_4_2', 'table_3_6'], figures=False,
+            stream=io.StringIO(), fri_delay=delay)}
+    text = (tmp_path / 'd1' / 'REPORT.md').read_text()
+    assert 'Ran delayed: table_4_2.' in text and 'scenario does not' in text
+    assert rows[1]['table_4_2']['fri_delay'] == 1 and rows[1]['table_3_6']['fri_delay'] == 0
+    assert rows[1]['table_4_2']['numbers'] != rows[0]['table_4_2']['numbers']
+    assert rows[1]['table_3_6']['numbers'] == rows[0]['table_3_6']['numbers']
+    with pytest.raises(ParameterError, match='fri_delay'):
+        reproduce.run_experiments(tmp_path / 'bad', only=['table_4_2'], fri_delay=-1)
 
 
 def test_every_claim_names_an_experiment_source_and_rule():
