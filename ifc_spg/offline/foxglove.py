@@ -56,17 +56,21 @@ class FoxgloveTopics:
     Args:
         writer: The :class:`~ifc_spg.offline.bag.BagWriter`.
         robot: The :class:`~ifc_spg.model.RobotModel` whose joint states are recorded.
-        tf_period: Least stamp time [s] between two ``/tf`` (and marker) messages of a tree.
+        tf_period: Least stamp time [s] between two ``/tf`` messages of a tree.
         markers: Declare (and write) ``/spg/markers``; a live recording records the node's own
             ``spg/markers`` instead, if asked to.
+        markers_period: Least stamp time [s] between two ``/spg/markers`` messages (the live
+            node's ``1 / markers.rate``); None: ``tf_period``.
     """
 
-    def __init__(self, writer, robot, tf_period=0.01, markers=True):
+    def __init__(self, writer, robot, tf_period=0.01, markers=True, markers_period=None):
         from rosbags.typesys import Stores, get_typestore
 
         self.writer, self.robot = writer, robot
         self.tree = urdf_from_robot(robot)
         self.tf_period_ns = int(round(tf_period * 1e9))
+        self.markers_period_ns = self.tf_period_ns if markers_period is None else \
+            int(round(markers_period * 1e9))
         self._last = {}
         self._static_written = False
         store = get_typestore(Stores.ROS2_JAZZY)
@@ -115,9 +119,11 @@ class FoxgloveTopics:
         fixed.append((root, VIRTUAL_PREFIX + root, pin.SE3.Identity()))
         self._write('/tf_static', t_ns, self._tf_message(t_ns, fixed))
 
-    def _due(self, key, stamp_ns):
+    def _due(self, key, stamp_ns, period_ns=None):
         last = self._last.get(key)
-        if last is not None and stamp_ns - last < self.tf_period_ns:
+        if period_ns is None:
+            period_ns = self.tf_period_ns
+        if last is not None and stamp_ns - last < period_ns:
             return False
         self._last[key] = stamp_ns
         return True
@@ -134,7 +140,7 @@ class FoxgloveTopics:
 
     def markers_due(self, stamp_ns):
         """True if a ``/spg/markers`` message is due at ``stamp_ns`` (then write it)."""
-        return self._due('markers', stamp_ns)
+        return self._due('markers', stamp_ns, self.markers_period_ns)
 
     def markers(self, t_ns, stamp_ns, targets, forces=()):
         """Write ``/spg/markers``: ``targets`` (:func:`cartesian_targets`) and ``forces``."""

@@ -13,7 +13,8 @@ emulation's loop delay, :mod:`sim_bridge.simulation`) from n periods later. The 
 ``sim/env_joint_states`` (scenes with mechanisms) and ``sim/apply_wrench`` (the scenario's
 pushes), and what Foxglove draws the robot from:
 ``robot_description``, ``tf_static``, ``tf`` (measured q and, as ``virtual/...``, q_v, every
-10 ms) and ``spg/markers`` (the Cartesian task targets), see
+10 ms) and ``spg/markers`` (the Cartesian task targets and force arrows, at the SPG
+configuration's ``markers.rate`` as the live node publishes them, 30 Hz by default), see
 :mod:`ifc_spg.offline.foxglove`. Everything that sets the SPG's output besides
 the recorded joint states and task stacks is stored in the bag, each as JSON in the
 metadata's ``custom_data`` (``metadata.yaml``) and in the first ``spg/status`` message: the
@@ -551,7 +552,10 @@ class _LockstepRun:
             topics.append('sim/apply_wrench')
         for topic in topics:
             writer.add_topic('/' + topic, *TOPICS[topic])
-        self.foxglove = FoxgloveTopics(writer, sim.robot)
+        rate = self.config.markers_rate  # as the live node publishes them (0: none)
+        self.markers = rate > 0
+        self.foxglove = FoxgloveTopics(writer, sim.robot, markers=rate > 0,
+                                       markers_period=1.0 / rate if rate > 0 else None)
         self.foxglove.write_static(0)
         writer.write_msg('/spg/status', 0, m.String(data=status_json(
             {'event': {'type': 'started', 'message': f'offline run of {scenario.name}'},
@@ -601,7 +605,7 @@ class _LockstepRun:
         tasks = self.probe.evaluate(runner.spg.tasks, np.asarray(js.position),
                                     np.asarray(js.velocity), cmd.position, task_time,
                                     s.contact_wrench, self.contact_chain)
-        if self.foxglove.markers_due(t_ns):  # self.probe.kin_v is at this tick's q_v
+        if self.markers and self.foxglove.markers_due(t_ns):  # probe.kin_v: this tick's q_v
             force = -np.asarray(s.contact_wrench[:3], dtype=float)  # robot on environment
             self.foxglove.markers(t_ns, t_ns, cartesian_targets(
                 runner.spg.tasks, self.probe.kin_v, task_time), wrench_arrows(
