@@ -33,6 +33,7 @@ from ifc_spg.limits import JointVelocityLimits, VelocityBox, intersect_soft
 from ifc_spg.limits.torque_limits import TorqueLimitLevel
 from ifc_spg.model import JOINT_IMPEDANCE, RobotModel
 from ifc_spg.pspm import EnergyTanks, PspmConfig, StallMonitor, StallReport, stall_message
+from ifc_spg.tasks.static_interaction import load_lapack
 from ifc_spg.tasks.task import Level, Task
 
 if TYPE_CHECKING:  # task_stack builds on the SPG's tasks: no import at run time
@@ -42,6 +43,8 @@ if TYPE_CHECKING:  # task_stack builds on the SPG's tasks: no import at run time
 StackInput = Union['TaskStack', Sequence[Task]]
 
 __all__ = ['Activation', 'SetPointGenerator', 'SpgInfo', 'SpgState']
+
+load_lapack()  # the wrench tasks' solver: imported here, not at an SPG's first tick
 
 #: Ticks of the warm-up run (:meth:`SetPointGenerator._warm_up`).
 _WARM_UP_TICKS = 10

@@ -19,7 +19,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg.lapack import dposv as _dposv
 
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.model import JOINT_IMPEDANCE
@@ -28,7 +27,23 @@ if TYPE_CHECKING:
     from ifc_spg.kinematics import Kinematics
     from ifc_spg.model.robot_model import RobotModel
 
-__all__ = ['DAMPING', 'static_torque', 'static_wrench', 'check_admittance_chain']
+__all__ = ['DAMPING', 'load_lapack', 'static_torque', 'static_wrench', 'check_admittance_chain']
+
+#: LAPACK's Cholesky solver (scipy's dposv), loaded by :func:`load_lapack`.
+_LAPACK: dict = {}
+
+
+def load_lapack():
+    """Import scipy's LAPACK solver the static wrench uses; return it.
+
+    Importing ``scipy.linalg`` costs 0.16-0.18 s of CPU, so this module does not do it on
+    import: processes that parse task stacks but never compute a wrench (``task_publisher``)
+    skip it. :mod:`ifc_spg.spg` calls it on import, so an SPG's first tick does not pay it.
+    """
+    if not _LAPACK:
+        from scipy.linalg.lapack import dposv
+        _LAPACK['dposv'] = dposv
+    return _LAPACK['dposv']
 
 DAMPING = 1e-3  # lambda of the damped pseudo-inverse J^{+T} = (J J^T + lambda^2 I)^{-1} J
 
@@ -88,7 +103,7 @@ def static_wrench(robot: RobotModel, kin: Kinematics, frame: str, include_dampin
     Jc = J * robot.compliant_columns
     # J^{+T} = (Jc Jc^T + lambda^2 I)^{-1} Jc: symmetric positive definite, so LAPACK's
     # Cholesky solver (dposv; a third of np.linalg.solve's cost here)
-    _, P, info = _dposv(Jc.dot(Jc.T) + _DAMPING_EYE, Jc)
+    _, P, info = (_LAPACK.get('dposv') or load_lapack())(Jc.dot(Jc.T) + _DAMPING_EYE, Jc)
     if info != 0:  # not positive definite: only with non-finite measurements
         P = np.linalg.solve(Jc @ Jc.T + _DAMPING_EYE, Jc)
     PK = P * K
