@@ -179,6 +179,12 @@ def _summary(log, target, series=False):
     t, sel = _before_motion(log)
     out['slope_f_par_n_s'] = _slope(t, f_par, sel)
     out['slope_f_perp_n_s'] = _slope(t, f_perp, sel)
+    # the same fits over the second half of the time before the motion: clear of the grasp's
+    # start transient (claims v9)
+    late = sel & (t >= 0.5 * t[sel].max()) if sel.any() else sel
+    out['slope_f_par_late_n_s'] = _slope(t, f_par, late)
+    out['slope_f_perp_late_n_s'] = _slope(t, f_perp, late)
+    out['before_motion_s'] = float(t[sel].max()) if sel.any() else None
     if series:
         step = max(1, round(0.02 / DT))
         out['series'] = {'t': (log.t[::step] - log.t[0]).tolist(),
@@ -273,7 +279,10 @@ def _numbers(trials, res, brk, n_per_device, wall, windows=()):
     breakaway = {mode: {key: brk[i][key] for key in ('final_f_perp_n', 'final_error_deg',
                                                      'success', 'time_to_open', 'max_force',
                                                      'initial_error_deg',
-                                                     'slope_f_par_n_s', 'slope_f_perp_n_s')}
+                                                     'slope_f_par_n_s', 'slope_f_perp_n_s',
+                                                     'slope_f_par_late_n_s',
+                                                     'slope_f_perp_late_n_s',
+                                                     'before_motion_s')}
                  for i, mode in enumerate(_MODES)}
     fig_5_5 = {f'w{w["window_s"]:.1f}': {key: w[key] for key in (
         'window_s', 'mean_error_second_half_deg', 'rms_second_difference',
@@ -303,10 +312,14 @@ def _text(num):
             f"{b['no_projection']['final_error_deg']:.1f} deg), "
             f"{b['projection']['final_f_perp_n']:.2f} N with it (error "
             f"{b['projection']['final_error_deg']:.1f} deg); before the break-away (no "
-            f"projection) |f_par| rises at {b['no_projection']['slope_f_par_n_s']:.2f} N/s, "
-            f"|f_perp| at {b['no_projection']['slope_f_perp_n_s']:.2f} N/s (the force "
-            f"{math.degrees(math.atan2(nb['slope_f_perp_n_s'], nb['slope_f_par_n_s'])):.1f} deg "
-            f"off the drawer axis; d_p0 is {num['breakaway_setup']['error_deg']:g} deg off)."
+            f"projection; the drawer moves 1 mm at {_f(nb['before_motion_s'], '.2f')} s) over "
+            f"the second half of that time |f_par| rises at "
+            f"{_f(nb['slope_f_par_late_n_s'])} N/s, |f_perp| at "
+            f"{_f(nb['slope_f_perp_late_n_s'])} N/s (the force "
+            f"{_f(_angle(nb['slope_f_perp_late_n_s'], nb['slope_f_par_late_n_s']), '.1f')} deg "
+            f"off the drawer axis; d_p0 is {num['breakaway_setup']['error_deg']:g} deg off); "
+            f"fitted from 0.1 s, which holds the grasp's start transient, "
+            f"{_f(nb['slope_f_par_n_s'])} and {_f(nb['slope_f_perp_n_s'])} N/s."
             + (' SMA window (Fig. 5.5, cupboard door, second half of the opening): ' + '; '.join(
                 f"{w['window_s']:g} s: mean estimate error {_f(w['mean_error_second_half_deg'])}"
                 f" deg, RMS second difference of the estimate "
@@ -317,6 +330,11 @@ def _text(num):
 
 def _f(v, fmt='.2f'):
     return 'n/a' if v is None else format(v, fmt)
+
+
+def _angle(perp, par):
+    """The angle [deg] of a force whose components rise at ``perp`` and ``par``."""
+    return None if perp is None or par is None else math.degrees(math.atan2(perp, par))
 
 
 def _plt():
