@@ -8,7 +8,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from experiments.sec_5_3 import DT, QUICK_TRIALS, _window_numbers, run_sec_5_3
+from experiments.sec_5_3 import (
+    DT,
+    QUICK_TRIALS,
+    _before_breakaway,
+    _before_motion,
+    _window_numbers,
+    run_sec_5_3,
+)
 
 
 def test_sec_5_3_quick(tmp_path):
@@ -45,8 +52,11 @@ def test_sec_5_3_quick(tmp_path):
         num['breakaway']['projection']['final_f_perp_n']
     # Fig. 5.6's slopes before the break-away (the claim's numbers; its verdict is the
     # claim's); Fig. 5.5's two windows run in the full run only
-    for key in ('slope_f_par_n_s', 'slope_f_perp_n_s'):
-        assert math.isfinite(num['breakaway']['no_projection'][key])
+    nb = num['breakaway']['no_projection']
+    for key in ('slope_f_par_n_s', 'slope_f_perp_n_s', 'slope_f_par_breakaway_n_s',
+                'slope_f_perp_breakaway_n_s'):
+        assert math.isfinite(nb[key])
+    assert 0.1 < nb['breakaway_s'] < nb['time_to_open']  # the latch releases on the way
     assert num['fig_5_5'] == {}
 
 
@@ -70,3 +80,18 @@ def test_fig_5_5_window_numbers_see_lag_and_jitter():
     assert steady['rms_second_difference'] == pytest.approx((0.15 * DT) ** 2, rel=1e-2)
     assert wobbly['rms_second_difference'] > 10 * steady['rms_second_difference']
     assert steady['samples_second_half'] == np.count_nonzero(angle >= 0.3)
+
+
+def test_the_break_away_window_ends_where_the_drawer_starts_to_move():
+    """A drawer that creeps (0.02 mm/s) until its latch releases at 1.4 s, then moves at 50
+    mm/s: the v9 window ends at the release, the v6-v8 one (1 mm moved) 20 ms later."""
+    t = np.arange(0.0, 2.0, DT)
+    x = np.where(t < 1.4, 2e-5 * t, 2e-5 * 1.4 + 0.05 * (t - 1.4))
+    log = SimpleNamespace(t=t + 7.0, env_q=x)
+    tt, sel, t_break = _before_breakaway(log)
+    assert t_break == pytest.approx(1.4, abs=1.5 * DT)
+    assert tt[sel].min() == pytest.approx(0.1, abs=1.5 * DT) and tt[sel].max() < t_break
+    _, old = _before_motion(log)
+    assert tt[old].max() == pytest.approx(1.42, abs=1.5 * DT)  # 1 mm at 50 mm/s: 20 ms on
+    _, still, never = _before_breakaway(SimpleNamespace(t=t, env_q=2e-5 * t))
+    assert never is None and still[-1]
