@@ -10,19 +10,11 @@ from ros_testing import ProcessGroup, stamp_ns
 
 from ifc_spg import ros
 from ifc_spg.model import RobotModel
-from ifc_spg.ros import messages
-from ifc_spg.ros.stamps import stamp_to_ns
-from sim_bridge.node import _stamp
 
 pytestmark = [pytest.mark.dds, pytest.mark.ros]
 
 SIM_SECONDS = 3.0
 STACK = reach_stack('lbr_iiwa14')
-
-
-def _grid(n):
-    """The first ``n`` lockstep state stamps [ns] of a 2 ms bridge, stamped as the bridge does."""
-    return [stamp_to_ns(_stamp(messages.Time, k * 0.002)) for k in range(n)]
 
 
 def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypatch):
@@ -72,7 +64,7 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
     # command stamps are the bridge's state stamps, the 2 ms grid from t = 0 without a gap,
     # and each state this listener saw is one of them.
     command_stamps = sorted({stamp_ns(m) for m in commands})
-    grid = _grid(len(command_stamps))
+    grid = [round(k * 0.002 * 1e9) for k in range(len(command_stamps))]  # the bridge's stamps
     assert command_stamps == grid and len(command_stamps) >= ticks
     state_stamps = {stamp_ns(m) for m in states}
     assert state_stamps <= set(grid) | {grid[-1] + 2_000_000}  # a last state may go unanswered

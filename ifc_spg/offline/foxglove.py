@@ -57,19 +57,18 @@ class FoxgloveTopics:
         writer: The :class:`~ifc_spg.offline.bag.BagWriter`.
         robot: The :class:`~ifc_spg.model.RobotModel` whose joint states are recorded.
         tf_period: Least stamp time [s] between two ``/tf`` messages of a tree.
-        markers: Declare (and write) ``/spg/markers``; a live recording records the node's own
-            ``spg/markers`` instead, if asked to.
         markers_period: Least stamp time [s] between two ``/spg/markers`` messages (the live
-            node's ``1 / markers.rate``); None: ``tf_period``.
+            node's ``1 / markers.rate``); None: no ``/spg/markers`` (a live recording records
+            the node's own ``spg/markers`` instead, if asked to).
     """
 
-    def __init__(self, writer, robot, tf_period=0.01, markers=True, markers_period=None):
+    def __init__(self, writer, robot, tf_period=0.01, markers_period=None):
         from rosbags.typesys import Stores, get_typestore
 
         self.writer, self.robot = writer, robot
         self.tree = urdf_from_robot(robot)
         self.tf_period_ns = int(round(tf_period * 1e9))
-        self.markers_period_ns = self.tf_period_ns if markers_period is None else \
+        self.markers_period_ns = None if markers_period is None else \
             int(round(markers_period * 1e9))
         self._last = {}
         self._static_written = False
@@ -78,7 +77,7 @@ class FoxgloveTopics:
         self._T = store.types
         topics = [('/robot_description', _STRING, latched(1)), ('/tf_static', _TF, latched(1)),
                   ('/tf', _TF, QoSProfile(depth=100))]
-        if markers:
+        if markers_period is not None:
             topics.append(('/spg/markers', _MARKERS, QoSProfile(depth=10)))
         for topic, msgtype, qos in topics:
             writer.add_topic(topic, msgtype, qos)
@@ -119,10 +118,8 @@ class FoxgloveTopics:
         fixed.append((root, VIRTUAL_PREFIX + root, pin.SE3.Identity()))
         self._write('/tf_static', t_ns, self._tf_message(t_ns, fixed))
 
-    def _due(self, key, stamp_ns, period_ns=None):
+    def _due(self, key, stamp_ns, period_ns):
         last = self._last.get(key)
-        if period_ns is None:
-            period_ns = self.tf_period_ns
         if last is not None and stamp_ns - last < period_ns:
             return False
         self._last[key] = stamp_ns
@@ -131,7 +128,7 @@ class FoxgloveTopics:
     def joint_state(self, t_ns, stamp_ns, names, positions, virtual=False):
         """``/tf`` of one joint state (``virtual``: the q_v tree), if due; True if written."""
         prefix = VIRTUAL_PREFIX if virtual else ''
-        if not self._due(prefix, stamp_ns):
+        if not self._due(prefix, stamp_ns, self.tf_period_ns):
             return False
         q = dict(zip(names, (float(x) for x in positions)))
         self._write('/tf', t_ns, self._tf_message(stamp_ns, tf_transforms(self.tree, q,
@@ -139,8 +136,9 @@ class FoxgloveTopics:
         return True
 
     def markers_due(self, stamp_ns):
-        """True if a ``/spg/markers`` message is due at ``stamp_ns`` (then write it)."""
-        return self._due('markers', stamp_ns, self.markers_period_ns)
+        """True if a ``/spg/markers`` message is due at ``stamp_ns`` (never without markers)."""
+        return self.markers_period_ns is not None and \
+            self._due('markers', stamp_ns, self.markers_period_ns)
 
     def markers(self, t_ns, stamp_ns, targets, forces=()):
         """Write ``/spg/markers``: ``targets`` (:func:`cartesian_targets`) and ``forces``."""
@@ -181,7 +179,7 @@ class RecordingObserver:
 
         try:
             self.topics = FoxgloveTopics(self.writer, RobotModel.from_config(name),
-                                         self.tf_period, markers=False)
+                                         self.tf_period)
         except IfcSpgError as exc:
             if t_ns is None:  # --robot given: the caller's error
                 raise

@@ -553,8 +553,7 @@ class _LockstepRun:
         for topic in topics:
             writer.add_topic('/' + topic, *TOPICS[topic])
         rate = self.config.markers_rate  # as the live node publishes them (0: none)
-        self.markers = rate > 0
-        self.foxglove = FoxgloveTopics(writer, sim.robot, markers=rate > 0,
+        self.foxglove = FoxgloveTopics(writer, sim.robot,
                                        markers_period=1.0 / rate if rate > 0 else None)
         self.foxglove.write_static(0)
         writer.write_msg('/spg/status', 0, m.String(data=status_json(
@@ -605,7 +604,7 @@ class _LockstepRun:
         tasks = self.probe.evaluate(runner.spg.tasks, np.asarray(js.position),
                                     np.asarray(js.velocity), cmd.position, task_time,
                                     s.contact_wrench, self.contact_chain)
-        if self.markers and self.foxglove.markers_due(t_ns):  # probe.kin_v: this tick's q_v
+        if self.foxglove.markers_due(t_ns):  # self.probe.kin_v is at this tick's q_v
             force = -np.asarray(s.contact_wrench[:3], dtype=float)  # robot on environment
             self.foxglove.markers(t_ns, t_ns, cartesian_targets(
                 runner.spg.tasks, self.probe.kin_v, task_time), wrench_arrows(
