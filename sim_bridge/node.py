@@ -214,7 +214,8 @@ class SimBridge:
 
     Args:
         node: A node of the active ROS backend (``ifc_spg.ros.Node``).
-        spin: ``spin(timeout_s)`` processing incoming messages (default: spin ``node``).
+        spin: ``spin(timeout_s)`` processing incoming messages (default: the commands on an
+            :class:`ifc_spg.ros.HotPath`, the rest of ``node`` on its executor).
     """
 
     def __init__(self, node: RosNode, spin: Callable[[float], object] | None = None) -> None:
@@ -228,7 +229,6 @@ class SimBridge:
             stiffness=list(p.stiffness) or None, damping=list(p.damping) or None,
             fri_delay=p.fri_delay))
         self.steps_per_tick = round(1.0 / p.rate / p.timestep)
-        self._spin = spin or (lambda t: ros.spin_once(node, timeout_sec=t))
         self.pub_joints = node.create_publisher(msg.JointState, 'joint_states', 10)
         self.pub_ft = node.create_publisher(msg.WrenchStamped, 'ft_sensor/wrench',
                                             ros.qos_profile_sensor_data)
@@ -246,8 +246,16 @@ class SimBridge:
                     f'command_joints must name each joint once ({", ".join(self.sim.joint_names)}'
                     f'); got {list(p.command_joints)}')
             self._array_order = [list(p.command_joints).index(n) for n in self.sim.joint_names]
-        node.create_subscription(command_type, p.command_topic, self._on_command, 10)
+        sub_command = node.create_subscription(command_type, p.command_topic, self._on_command,
+                                               10)
         node.create_subscription(msg.WrenchStamped, 'sim/apply_wrench', self._on_push, 10)
+        # the commands without rclpy's executor (the rest of the node still on one): waiting
+        # for each command through it cost the bridge more CPU than its simulation
+        self._hot: ros.HotPath | None = None
+        if spin is None:
+            self._hot = ros.HotPath(node, sub_command)
+            spin = self._hot.spin_once
+        self._spin = spin
         self._names = list(self.sim.joint_names)
         self._index = {n: i for i, n in enumerate(self._names)}
         self._command: tuple[np.ndarray, Any] | None = None  # (q_v, stamp of either backend)
@@ -477,7 +485,9 @@ class SimBridge:
                 f'{latency}')
 
     def close(self):
-        """Close the simulation."""
+        """Close the simulation; the command subscription goes back to the executors."""
+        if self._hot is not None:
+            self._hot.close()
         self.sim.close()
 
 

@@ -17,9 +17,10 @@ carries it ('rmw_fastrtps_cpp' from the Jazzy wheels, or whatever ``RMW_IMPLEMEN
 backend even where rclpy is installed, ``rclpy`` requires rclpy (an ImportError names the wheels
 otherwise), unset or ``auto`` takes rclpy where it imports. Beyond rclpy's own names the module
 offers the few helpers both backends need to behave alike in tools and tests: ``new_context``
-(a second, independent context in one process), ``spin_hot`` (one subscription served
-ahead of the executor: rclpy's hot path), ``executor`` (one reusable single-threaded
-executor over a set of nodes), ``spin_until`` and ``describe`` (the start-up log line).
+(a second, independent context in one process), ``spin_hot`` and ``HotPath`` (one
+subscription served ahead of the executor, in a loop or one wait at a time: rclpy's hot
+path), ``executor`` (one reusable single-threaded executor over a set of nodes),
+``spin_until`` and ``describe`` (the start-up log line).
 ``parse_ros_args`` is the same pure parser in both cases. The two flavours live in
 ``rclpy_backend.py`` and ``builtin_backend.py``; this module only picks one, on first use of
 one of its names: importing a submodule (``ifc_spg.ros.stamps``, ``.cdr``, ``.messages``) loads
@@ -33,7 +34,7 @@ from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
 __all__ = [
     'BACKEND', 'RMW', 'init', 'shutdown', 'ok', 'Node', 'spin', 'spin_hot', 'spin_once',
-    'spin_until',
+    'spin_until', 'HotPath',
     'executor', 'new_context', 'describe', 'wait_for_acks', 'QoSProfile', 'ReliabilityPolicy',
     'DurabilityPolicy', 'HistoryPolicy', 'qos_profile_sensor_data', 'latched',
     'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange', 'Parameter',
@@ -77,6 +78,7 @@ if TYPE_CHECKING:
         DurabilityPolicy,
         FloatingPointRange,
         HistoryPolicy,
+        HotPath,
         IntegerRange,
         Node,
         Parameter,

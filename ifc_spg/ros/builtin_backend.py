@@ -30,6 +30,7 @@ __all__ = [
     'DurabilityPolicy',
     'FloatingPointRange',
     'HistoryPolicy',
+    'HotPath',
     'IntegerRange',
     'Node',
     'Parameter',
@@ -81,6 +82,23 @@ def spin_hot(node, subscription, timeout_sec=0.1, until=None):
     ex = executor((node,))
     while node.context.ok() and not until():
         ex.spin_once(timeout_sec)
+
+class HotPath:
+    """``subscription`` of ``node`` served by :meth:`spin_once`, as rclpy's :class:`HotPath`.
+
+    The built-in executor already serves a subscription without overhead: its reader's
+    callback runs from the same wait as everything else, so this is the node's executor.
+    """
+
+    def __init__(self, node, subscription):
+        self._executor = executor((node,))
+
+    def spin_once(self, timeout_sec=None):
+        """Wait up to ``timeout_sec`` [s] for one round of callbacks."""
+        self._executor.spin_once(timeout_sec)
+
+    def close(self):
+        """Nothing to give back."""
 
 def wait_for_acks(publisher, timeout_sec=1.0):
     """Wait until every matched reliable reader acknowledged what ``publisher`` sent.

@@ -42,6 +42,7 @@ __all__ = [
     'DurabilityPolicy',
     'FloatingPointRange',
     'HistoryPolicy',
+    'HotPath',
     'IntegerRange',
     'Node',
     'Parameter',
@@ -191,13 +192,8 @@ class _Claimed(_CallbackGroup):
 def spin_hot(node, subscription, timeout_sec=0.1, until=None):
     """Run callbacks of ``node`` until its context shuts down, ``subscription`` first.
 
-    The hot path without the executor: one loop waits on a wait set of the node's
-    subscriptions, timers, services, clients and guard conditions (rebuilt only when they
-    change), takes a message of ``subscription`` itself and calls its callback. Anything else
-    ready — and whatever a wait that timed out may have missed (the QoS event handlers,
-    which are not in the wait set) — is left to a SingleThreadedExecutor spun without
-    waiting. While it runs no executor serves ``subscription``; a signal ends it quietly, as
-    :func:`spin`.
+    The hot path without the executor (:class:`HotPath`), in a loop. While it runs no
+    executor serves ``subscription``; a signal ends it quietly, as :func:`spin`.
 
     Args:
         node: The node.
@@ -206,30 +202,63 @@ def spin_hot(node, subscription, timeout_sec=0.1, until=None):
         until: Optional ``until()``: end the loop (checked after each wait) when True, e.g.
             before shutting the context down from another thread.
     """
-    rest = _Executor(context=node.context)
-    rest.add_node(node)
-    group, subscription.callback_group = subscription.callback_group, _Claimed()
-    handle, msg_type, raw = subscription.handle, subscription.msg_type, subscription.raw
-    callback, timeout_ns = subscription.callback, round(timeout_sec * 1e9)
-    context = node.context
-    entities = _entities(node)
-    wait_set = _WaitSet(context, entities)
+    hot = HotPath(node, subscription)
     try:
-        while context.ok() and not (until is not None and until()):
-            now = _entities(node)
-            if now != entities:
-                entities, wait_set = now, _WaitSet(context, now)
-            ready = wait_set.wait(timeout_ns)
-            hot = handle.pointer in ready
-            if hot:
-                taken = handle.take_message(msg_type, raw)
-                if taken is not None:
-                    callback(taken[0])
-            if not hot or len(ready) > 1 or wait_set.others_ready():
-                _spin_rest(rest, context)
+        while node.context.ok() and not (until is not None and until()):
+            hot.spin_once(timeout_sec)
     finally:
-        subscription.callback_group = group
-        rest.shutdown(timeout_sec=0)
+        hot.close()
+
+class HotPath:
+    """``subscription`` of ``node`` served without the executor, one wait at a time.
+
+    :meth:`spin_once` waits on a wait set of the node's subscriptions, timers, services,
+    clients and guard conditions (rebuilt only when they change), takes a message of
+    ``subscription`` itself and calls its callback, and calls the timers that are due.
+    Anything else ready — and, at least every :attr:`REST_PERIOD`, what the wait set leaves
+    out (the QoS event handlers) — is left to a SingleThreadedExecutor spun without waiting.
+    rclpy's executor fills a new wait set on every spin (each publisher's and subscription's
+    QoS event handlers included): a bridge waiting for its command through it spent more CPU
+    there than on its simulation, and an idle ``spg_node`` spun it for each of its
+    watchdog's and markers' timer events. Until :meth:`close` no executor serves ``subscription``.
+    """
+
+    #: [s] longest time between two spins of the executor of the rest of the node
+    REST_PERIOD = 0.1
+
+    def __init__(self, node, subscription):
+        self.node, self.subscription, self.context = node, subscription, node.context
+        self.rest = _Executor(context=node.context)
+        self.rest.add_node(node)
+        self._group, subscription.callback_group = subscription.callback_group, _Claimed()
+        self.entities = _entities(node)
+        self.wait_set = _WaitSet(self.context, self.entities)
+        self._rest_at = 0.0
+
+    def spin_once(self, timeout_sec=None):
+        """Wait up to ``timeout_sec`` [s] (None: 0.1 s) for one round of callbacks."""
+        context, sub = self.context, self.subscription
+        if not context.ok():
+            return
+        now = _entities(self.node)
+        if now != self.entities:
+            self.entities, self.wait_set = now, _WaitSet(context, now)
+        ready = self.wait_set.wait(round((0.1 if timeout_sec is None else timeout_sec) * 1e9))
+        hot = sub.handle.pointer in ready
+        if hot:
+            taken = sub.handle.take_message(sub.msg_type, sub.raw)
+            if taken is not None:
+                sub.callback(taken[0])
+        self.wait_set.run_timers()
+        now_s = _time.monotonic()
+        if len(ready) > hot or self.wait_set.others_ready() or now_s >= self._rest_at:
+            self._rest_at = now_s + self.REST_PERIOD
+            _spin_rest(self.rest, context)
+
+    def close(self):
+        """Give ``subscription`` back to the executors."""
+        self.subscription.callback_group = self._group
+        self.rest.shutdown(timeout_sec=0)
 
 def _spin_rest(rest, context):
     """Run what is ready on the rest of the node without waiting (quiet at shutdown)."""
@@ -255,6 +284,7 @@ class _WaitSet:
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
         subs, timers, services, clients, guards = entities
+        self.timers = timers
         self.wait_set = ws = _rclpy.WaitSet(len(subs), len(guards), len(timers), len(clients),
                                             len(services), 0, context.handle)
         self.adds = [(ws.add_subscription, [s.handle for s in subs]),
@@ -273,11 +303,23 @@ class _WaitSet:
         ws.wait(timeout_ns)
         return ws.get_ready_entities('subscription')
 
+    def run_timers(self):
+        """Call the timers the last wait found due, as rclpy's executor does."""
+        ready = self.wait_set.get_ready_entities('timer')
+        if not ready:
+            return
+        for timer in self.timers:
+            if timer.handle.pointer in ready:
+                with timer.handle:
+                    if not timer.handle.is_timer_ready():  # cancelled since
+                        continue
+                    timer.handle.call_timer()
+                timer.callback()
+
     def others_ready(self):
-        """Anything but subscriptions ready: timers, services, clients, guard conditions."""
+        """Services, clients or guard conditions ready (left to the executor)."""
         ws = self.wait_set
-        return any(ws.get_ready_entities(k) for k in ('timer', 'service', 'client',
-                                                      'guard_condition'))
+        return any(ws.get_ready_entities(k) for k in ('service', 'client', 'guard_condition'))
 
 def executor(nodes):
     """The (cached) executor of ``nodes``: ``executor(nodes).spin_once(timeout_sec)``."""
