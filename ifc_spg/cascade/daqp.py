@@ -160,9 +160,12 @@ class DaqpCascade(CascadeSolver):
         stack with these level sizes and kinds will solve (normal-form models of equality
         levels, warm-started slack models of inequality levels), so that its first tick
         does no setup (issue: a first or stack-switch tick of 1-1.8 ms against a 0.1 ms
-        median).
+        median), and the per-level views of its layout (:meth:`_plan`).
         """
         self._warm_sets(dims, equalities)
+        layout = tuple([(int(m), bool(e)) for m, e in zip(dims, equalities)])
+        if layout and sum(dims) and layout not in self._plans:
+            self._plan_layout(layout)
 
     def _warm_sets(self, dims: Sequence[int], equalities: Sequence[bool]) -> list:
         """The working sets (sense arrays) of a stack's level models, built if new."""
@@ -280,7 +283,10 @@ class DaqpCascade(CascadeSolver):
         Built once per layout (level sizes and kinds), so that a tick slices no arrays and
         looks up no models.
         """
-        layout = tuple([(lev.A.shape[0], lev.equality) for lev in levels])
+        return self._plan_layout(tuple([(lev.A.shape[0], lev.equality) for lev in levels]))
+
+    def _plan_layout(self, layout: tuple) -> list['_LevelPlan']:
+        """:meth:`_plan` of a layout: ``((rows, equality), ...)`` per level."""
         ws = self._workspace(sum(m for m, _ in layout))
         plan, start = [], 0
         for i, (m, equality) in enumerate(layout):
