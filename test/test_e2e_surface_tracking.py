@@ -364,12 +364,12 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
 
     def drained():
         # once the killed process's last commands are in: under load this listener lags
-        # the SPG by up to a second, and a session cut at len(commands) too early held the
-        # next session's first second (stamps 2.07-3.10 s, then 0 from the new bridge)
+        # the SPG by up to a second (a 0.5 s quiet spell once ended a session before its
+        # last command, stamp 1.21 s, came in), so 3 s without one
         n = -1
         while n != len(commands):
             n = len(commands)
-            spin_until(lambda: False, 0.5)
+            spin_until(lambda: False, 3.0)
         return n
 
     spg_args = ['--ros-args', '--params-file', str(CONFIG / 'lbr_iiwa14.yaml'),
@@ -398,7 +398,9 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
                              '-p', 'wait_for_subscribers:=2', exe='sim_bridge')
         assert spin_until(lambda: events('resumed') >= 1 or bridge.poll() is not None, 60.0), \
             procs.log('spg_node')
-        assert spin_until(lambda: (len(commands) > n_before and stamp_ns(commands[-1]) >= 0.8e9)
+        # 0.8 s of the restarted session (its stamps start from 0 again)
+        assert spin_until(lambda: (any(stamp_ns(c) < 0.5e9 for c in commands[n_before:]) and
+                                   stamp_ns(commands[-1]) >= 0.8e9)
                           or bridge.poll() is not None, 60.0), procs.log('bridge2')
         assert procs.stop('spg_node', signal.SIGKILL) == -signal.SIGKILL  # SPG dies mid-run
         n_spg1 = drained()  # the lockstep bridge waits for the next SPG meanwhile
@@ -418,8 +420,12 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
     q_meas = {}  # the second bridge's states (the first one used the same stamps)
     for s in states[n_states:]:
         q_meas.setdefault(stamp_ns(s), []).append(np.array(s.position))
-    # sessions: bridge1 + spg1, bridge2 + spg1 (restart: stamps from 0), bridge2 + spg2
-    sessions = [commands[:n_before], commands[n_before:n_spg1], commands[n_spg1:]]
+    # sessions: bridge1 + spg1, bridge2 + spg1 (restart: stamps from 0, so the first two are
+    # split where the stamps go back, whenever the first session's last command came in),
+    # bridge2 + spg2
+    stamps_in = [stamp_ns(c) for c in commands[:n_spg1]]
+    restart = next((i for i in range(1, n_spg1) if stamps_in[i] < stamps_in[i - 1]), n_before)
+    sessions = [commands[:restart], commands[restart:n_spg1], commands[n_spg1:]]
     assert all(len(c) > 50 for c in sessions), [len(c) for c in sessions]
     jumps = []
     for k, cmds in enumerate(sessions):
