@@ -150,7 +150,7 @@ def baseline(rate=500.0, seconds=10.0, clock=time.perf_counter):
 
 
 def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, rate=500.0,
-        spg_path='wait_set'):
+        spg_path='wait_set', bridge_path='wait_set'):
     """Run the bridge and the SPG for ``seconds`` [s] of realtime; return the results dict.
 
     Args:
@@ -162,12 +162,15 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, 
         rate: The bridge's rate [Hz] (the SPG's dt is 1 / rate).
         spg_path: How an SPG on rclpy serves its joint states, a key of :data:`SPG_PATHS`
             (ignored on the built-in backend).
+        bridge_path: How a bridge on rclpy serves its commands: its ``hot_path`` parameter,
+            'wait_set' or 'executor' (ignored on the built-in backend).
     """
     bridge_backend = bridge_backend or ros.BACKEND
     spg_backend = spg_backend or ros.BACKEND
     domain = random_domain_id()
     envs = {b: loopback_env(domain, backend=b) for b in {bridge_backend, spg_backend}}
     hot_path, extra = SPG_PATHS[spg_path] if spg_backend == 'rclpy' else ('wait_set', {})
+    bridge_path = bridge_path if bridge_backend == 'rclpy' else 'wait_set'
     spg_env = {**envs[spg_backend], **extra}
     saved = {k: os.environ.get(k) for k in envs[spg_backend] if k not in os.environ or
              os.environ[k] != envs[spg_backend][k]}
@@ -177,7 +180,7 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, 
     listener = _Listener(spg_backend)
     try:
         _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend,
-                       spg_backend, rate, hot_path)
+                       spg_backend, rate, hot_path, bridge_path)
     finally:
         listener.close()
         for key, value in saved.items():
@@ -187,11 +190,12 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, 
                 os.environ[key] = value
     res = _results(listener, tmp, seconds, bridge_backend, spg_backend, rate)
     res['spg_path'] = spg_path if spg_backend == 'rclpy' else 'built-in'
+    res['bridge_path'] = bridge_path if bridge_backend == 'rclpy' else 'built-in'
     return res
 
 
 def _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend, spg_backend,
-                   rate, hot_path):
+                   rate, hot_path, bridge_path):
     """Start the SPG, then the bridge for ``seconds``; listen until the bridge ends."""
     bindir = Path(sys.executable).parent
     procs, logs = [], []
@@ -214,9 +218,11 @@ def _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend
         listener.spin(0.5)
         bridge = start('sim_bridge', envs[bridge_backend], '--ros-args', '-p',
                        'robot:=lbr_iiwa14', '-p', 'scene:=free', '-p', 'mode:=realtime', '-p',
-                       f'rate:={float(rate)!r}', '-p', f'duration:={seconds}')
+                       f'rate:={float(rate)!r}', '-p', f'duration:={seconds}', '-p',
+                       f'hot_path:={bridge_path}')
         print(f'latency_bench: realtime run of {seconds:g} s at {rate:g} Hz, bridge on '
-              f'{bridge_backend}, SPG on {spg_backend} (hot_path {hot_path}'
+              f'{bridge_backend} (hot_path {bridge_path}), SPG on {spg_backend} (hot_path '
+              f'{hot_path}'
               f"{', EventsExecutor' if 'IFC_SPG_RCLPY_EXECUTOR' in spg_env else ''}; logs in "
               f'{tmp})', file=stream, flush=True)
         cpu0 = _cpu_seconds(spg.pid)
@@ -326,6 +332,10 @@ def main(argv=None):
                         help='with the SPG on rclpy, one run per way of serving its joint '
                              f"states, a list of {', '.join(SPG_PATHS)} (default wait_set, "
                              "the node's default)")
+    parser.add_argument('--bridge-paths', default='wait_set',
+                        help='with the bridge on rclpy, one run per way of serving its commands, '
+                             "a list of wait_set, executor (its hot_path parameter; default "
+                             "wait_set, the node's default)")
     parser.add_argument('--baseline-seconds', type=float, default=None,
                         help='length of the machine baseline per rate [s] (default --seconds; '
                              '0: none)')
@@ -339,6 +349,7 @@ def main(argv=None):
         os.setpriority(os.PRIO_PROCESS, 0, opts.nice)  # inherited by the bridge and the SPG
     rates = _list(opts.rate, '--rate', kind=float)
     paths = _list(opts.spg_paths, '--spg-paths', SPG_PATHS)
+    bridge_paths = _list(opts.bridge_paths, '--bridge-paths', ('wait_set', 'executor'))
     try:
         import rclpy  # noqa: F401 -- optional: is it installed?
         have_rclpy = True
@@ -352,9 +363,10 @@ def main(argv=None):
                   f'{base_seconds:g} s', file=sys.stderr, flush=True)
             baselines[rate] = baseline(rate, base_seconds)
         for b, s in _pairs(opts.pairs, have_rclpy):
-            for path in (paths if s == 'rclpy' else ['wait_set']):
-                results.append(run(opts.seconds, bridge_backend=b, spg_backend=s, rate=rate,
-                                   spg_path=path))
+            for bridge_path in (bridge_paths if b == 'rclpy' else ['wait_set']):
+                for path in (paths if s == 'rclpy' else ['wait_set']):
+                    results.append(run(opts.seconds, bridge_backend=b, spg_backend=s,
+                                       rate=rate, spg_path=path, bridge_path=bridge_path))
     if opts.json:
         print(json.dumps({'load_average': os.getloadavg(), 'nice': os.getpriority(
             os.PRIO_PROCESS, 0), 'baselines': list(baselines.values()), 'runs': results},
@@ -370,11 +382,11 @@ def _print_table(results, baselines):
     load = os.getloadavg()
     print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, nice '
           f'{os.getpriority(os.PRIO_PROCESS, 0)}')
-    print('rate  bridge      spg         path       states  p50 ms  p99 ms  max ms  missed  '
-          'missed %  x base  p99 x base  SPG CPU us/tick')
+    print('rate  bridge      path       spg         path       states  p50 ms  p99 ms  max ms  '
+          'missed  missed %  x base  p99 x base  SPG CPU us/tick')
     for rate, base in baselines.items():
         over = base['overshoot_us']
-        print(f"{rate:>4g}  baseline: sleep loop               {base['periods']:>6} "
+        print(f"{rate:>4g}  baseline: sleep loop                          {base['periods']:>6} "
               f"{over['p50'] / 1e3:>7.3f} {over['p99'] / 1e3:>7.3f} {over['max'] / 1e3:>7.3f} "
               f"{base['missed']:>7} {base['missed_pct']:>9.3f}")
     for res in results:
@@ -384,7 +396,8 @@ def _print_table(results, baselines):
         base = baselines.get(res['rate'])
         ratios = (_ratio(share, base['missed_pct']) + '  ' +
                   _ratio(lat['p99'] * 1e3, base['overshoot_us']['p99'])) if base else ''
-        print(f"{res['rate']:>4g}  {res['bridge_backend']:<11} {res['spg_backend']:<11} "
+        print(f"{res['rate']:>4g}  {res['bridge_backend']:<11} {res['bridge_path']:<10} "
+              f"{res['spg_backend']:<11} "
               f"{res['spg_path']:<9} {res['states']:>7} {lat['p50']:>7.3f} {lat['p99']:>7.3f} "
               f"{lat['max']:>7.3f} {missed if missed is not None else '?':>7} {share:>9.3f} "
               f"{ratios or ' ' * 17}  {res['spg_cpu_us_per_tick'] or nan:>10.0f}")

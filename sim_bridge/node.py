@@ -78,9 +78,11 @@ class BridgeParams:
     command_joints: tuple[str, ...] = ()
     state_rate: float = 0.0
     fri_delay: int = 0
+    hot_path: str = 'wait_set'
 
 
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
+HOT_PATHS = ('wait_set', 'executor')
 
 _DESCRIPTIONS = {
     'state_rate': 'joint_states rate in [Hz] in realtime mode (0: the command rate); rate / '
@@ -113,6 +115,9 @@ _DESCRIPTIONS = {
                  'impedance.stiffness alike)',
     'damping': 'Joint impedance damping D in [Nms/rad], per joint or one for all (default: '
                "the robot configuration's)",
+    'hot_path': "How the commands are served on rclpy: wait_set (taken by the bridge's own wait, "
+                "the rest of the node on an executor) or executor (rclpy's "
+                'SingleThreadedExecutor for everything); the built-in backend serves both alike',
     'fri_delay': 'FRI loop delay in whole command periods (lbr_fri only): a command acts this '
                  'many periods after the period it answers (0: in that period; 1: a client '
                  'answering at the end of the period)',
@@ -156,6 +161,9 @@ def validate(p):
     if p.state_rate and p.state_rate != p.rate and p.mode == 'lockstep':
         raise ParameterError('state_rate other than rate needs mode realtime (lockstep answers '
                              'each state with one command)')
+    if p.hot_path not in HOT_PATHS:
+        raise ParameterError(f"hot_path '{p.hot_path}' is not one of {', '.join(HOT_PATHS)}"
+                             f'{did_you_mean(p.hot_path, HOT_PATHS)}')
     if p.mode not in MODES:
         raise ParameterError(f"mode '{p.mode}' is not one of {', '.join(MODES)}"
                              f'{did_you_mean(p.mode, MODES)}')
@@ -214,8 +222,9 @@ class SimBridge:
 
     Args:
         node: A node of the active ROS backend (``ifc_spg.ros.Node``).
-        spin: ``spin(timeout_s)`` processing incoming messages (default: the commands on an
-            :class:`ifc_spg.ros.HotPath`, the rest of ``node`` on its executor).
+        spin: ``spin(timeout_s)`` processing incoming messages (default: as the parameter
+            ``hot_path`` says: the commands on an :class:`ifc_spg.ros.HotPath` and the rest
+            of ``node`` on its executor, or all of it on the executor).
     """
 
     def __init__(self, node: RosNode, spin: Callable[[float], object] | None = None) -> None:
@@ -252,10 +261,10 @@ class SimBridge:
         # the commands without rclpy's executor (the rest of the node still on one): waiting
         # for each command through it cost the bridge more CPU than its simulation
         self._hot: ros.HotPath | None = None
-        if spin is None:
+        if spin is None and p.hot_path == 'wait_set':
             self._hot = ros.HotPath(node, sub_command)
             spin = self._hot.spin_once
-        self._spin = spin
+        self._spin = spin or (lambda t: ros.spin_once(node, timeout_sec=t))
         self._names = list(self.sim.joint_names)
         self._index = {n: i for i, n in enumerate(self._names)}
         self._command: tuple[np.ndarray, Any] | None = None  # (q_v, stamp of either backend)

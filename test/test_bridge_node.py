@@ -155,6 +155,12 @@ def test_push_frame_and_parameter_errors(domain):
         _bridge(['mode:=fast'])
 
 
+def test_a_bad_hot_path_is_named_with_the_fix(domain):
+    with pytest.raises(ParameterError, match="hot_path 'wait-set' is not one of wait_set, "
+                                             "executor; did you mean 'wait_set'"):
+        _bridge(['hot_path:=wait-set'])
+
+
 def test_main_help_and_bad_parameter_exit_code(domain, capsys):
     assert main(['sim_bridge', '--help']) == 0
     assert 'lockstep' in capsys.readouterr().out
