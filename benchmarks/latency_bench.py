@@ -349,7 +349,7 @@ def main(argv=None):
         os.setpriority(os.PRIO_PROCESS, 0, opts.nice)  # inherited by the bridge and the SPG
     rates = _list(opts.rate, '--rate', kind=float)
     paths = _list(opts.spg_paths, '--spg-paths', SPG_PATHS)
-    bridge_paths = _list(opts.bridge_paths, '--bridge-paths', ('wait_set', 'executor'))
+    bridge_paths = _list(opts.bridge_paths, '--bridge-paths', ros.HOT_PATHS)
     try:
         import rclpy  # noqa: F401 -- optional: is it installed?
         have_rclpy = True

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
 from ifc_spg.pspm import PspmConfig
+from ifc_spg.ros import HOT_PATHS
 from ifc_spg.ros.protocols import Node as RosNode
 
 __all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
@@ -244,7 +245,6 @@ PARAMETERS = (
 )
 COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 TICKS = ('joint_states', 'timer')
-HOT_PATHS = ('wait_set', 'executor')
 
 _DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(SpgConfig)}  # field -> default
 _BY_NAME = {p.name: p for p in PARAMETERS}

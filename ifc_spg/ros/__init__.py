@@ -34,7 +34,7 @@ from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
 __all__ = [
     'BACKEND', 'RMW', 'init', 'shutdown', 'ok', 'Node', 'spin', 'spin_hot', 'spin_once',
-    'spin_until', 'HotPath',
+    'spin_until', 'HotPath', 'HOT_PATHS',
     'executor', 'new_context', 'describe', 'wait_for_acks', 'QoSProfile', 'ReliabilityPolicy',
     'DurabilityPolicy', 'HistoryPolicy', 'qos_profile_sensor_data', 'latched',
     'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange', 'Parameter',
@@ -43,6 +43,11 @@ __all__ = [
 
 ROSPY_WHEELS = ('ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-sensor-msgs '
                 'ros-jazzy-std-msgs ros-jazzy-geometry-msgs ros-jazzy-diagnostic-msgs')
+
+
+#: How a node serves its hot subscription on rclpy (the ``hot_path`` parameter of spg_node and
+#: sim_bridge): its own wait (:class:`HotPath`) or rclpy's executor
+HOT_PATHS = ('wait_set', 'executor')
 
 
 def _choice() -> str:
@@ -100,7 +105,7 @@ if TYPE_CHECKING:
         wait_for_acks,
     )
 
-_OWN = frozenset(('describe', 'parse_ros_args', 'remove_ros_args', 'RosArgs'))
+_OWN = frozenset(('describe', 'parse_ros_args', 'remove_ros_args', 'RosArgs', 'HOT_PATHS'))
 _BACKEND_NAMES = tuple(name for name in __all__ if name not in _OWN)
 
 
