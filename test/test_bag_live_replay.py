@@ -72,7 +72,7 @@ def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsy
             procs.log('spg_node')
         bridge = procs.start('sim_bridge', '--ros-args', '-p', 'robot:=lbr_iiwa14', '-p',
                              'interface:=lbr_fri', '-p', 'scene:=table', '-p',
-                             'mode:=lockstep', '-p', 'duration:=30.0', '-p',
+                             'mode:=lockstep', '-p', 'duration:=60.0', '-p',
                              'wait_for_subscribers:=2')
         assert spin_until(lambda: sim_t[0] >= 1.0 or bridge.poll() is not None, 120.0), \
             procs.log('sim_bridge')
