@@ -1,9 +1,11 @@
 """What ``config/fastdds_loopback.xml`` does to an rclpy participant under the loopback
 settings the tests, ``scripts/lib.sh`` and the README use (``ROS_AUTOMATIC_DISCOVERY_RANGE=
 LOCALHOST``): the domain's well-known ports (discovery and user traffic) listen on 127.0.0.1
-only — without the profile they listen on every interface — and, as the README says,
-rmw_fastrtps_cpp's LOCALHOST setting adds Fast DDS' shared-memory transport whatever the
-profile says (its segments are mapped from /dev/shm). Linux /proc only."""
+only — without the profile they listen on every interface — and user data goes over UDP on
+127.0.0.1, not through a shared-memory port: rmw_fastrtps_cpp's LOCALHOST setting adds Fast
+DDS' shared-memory transport whatever the profile says, and without the profile the
+participant opens a shared-memory port (a segment ``/dev/shm/fastrtps_port<N>``) for its
+data. Linux /proc only."""
 
 import os
 from pathlib import Path
@@ -77,7 +79,7 @@ def _probe(env):
 
 
 @pytest.mark.skipif(not sys.platform.startswith('linux'), reason='reads Linux /proc')
-def test_profile_keeps_the_domain_ports_on_loopback_and_rmw_adds_shared_memory():
+def test_profile_keeps_the_domain_ports_on_loopback_and_data_off_shared_memory():
     pytest.importorskip('rclpy', reason='rclpy (the ros-jazzy wheels) is not installed')
     assert FASTDDS_PROFILE, 'config/fastdds_loopback.xml not found'
     env = loopback_env(backend='rclpy')
@@ -92,10 +94,12 @@ def test_profile_keeps_the_domain_ports_on_loopback_and_rmw_adds_shared_memory()
     ports = on_domain_ports(sockets)
     assert ports, sockets  # the participant listens on its domain's ports
     assert {ip for ip, _ in ports} == {'127.0.0.1'}, ports
-    assert maps, 'no Fast DDS shared-memory segment mapped (the README says rmw adds SHM)'
-    # without the profile the same ports listen on every interface: the profile is what
-    # keeps them on loopback
+    assert not [m for m in maps if '/fastrtps_port' in m], maps  # no shared-memory port
+    # without the profile the same ports listen on every interface and the data port is a
+    # shared-memory one too: the profile is what keeps them on loopback and off SHM
     bare = {k: v for k, v in env.items()
             if k not in ('FASTDDS_DEFAULT_PROFILES_FILE', 'FASTRTPS_DEFAULT_PROFILES_FILE')}
-    bare_ports = on_domain_ports(_probe(bare)[0])
+    bare_sockets, bare_maps = _probe(bare)
+    bare_ports = on_domain_ports(bare_sockets)
     assert '0.0.0.0' in {ip for ip, _ in bare_ports}, bare_ports
+    assert [m for m in bare_maps if '/fastrtps_port' in m], bare_maps
