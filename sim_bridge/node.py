@@ -272,6 +272,7 @@ class SimBridge:
         # stamp -> monotonic time the state was first published
         self._sent_at: dict[tuple[int, int], float] = {}
         self.latencies: list[float] = []  # [s] state published -> its command received, here
+        self.commands_received = 0  # valid commands, answering a state or not
         self.ticks = 0
         self._reported_missed = 0
         node.get_logger().info(
@@ -288,6 +289,7 @@ class SimBridge:
             self.node.get_logger().error(f'{self.params.command_topic} rejected: {exc}')
             return
         self._command = (q_v, stamp)
+        self.commands_received += 1
         sent = self._sent_at.pop(stamp, None)
         if sent is not None:  # the first command answering a state we published
             self.latencies.append(time.monotonic() - sent)
@@ -482,15 +484,23 @@ class SimBridge:
             self.run_lockstep(max_ticks, ok=ok)
         else:
             stats = self.run_realtime(max_ticks, ok=ok)
-            lat = np.sort(np.array(self.latencies)) * 1e3
-            latency = (f'; command latency p50 {np.percentile(lat, 50):.3f} ms, p99 '
-                       f'{np.percentile(lat, 99):.3f} ms, max {lat[-1]:.3f} ms over '
-                       f'{lat.size} commands' if lat.size else '; no command received')
             self.node.get_logger().info(
                 f"realtime pacing: p50 lateness {stats['p50'] * 1e6:.0f} us, p99 "
                 f"{stats['p99'] * 1e6:.0f} us, {stats['overruns']} overrun(s), "
-                f'{self.sim.missed_commands} missed command(s) of {self.ticks} periods'
-                f'{latency}')
+                f'{self.sim.missed_commands} missed command(s) of {self.ticks} periods; '
+                f'{self.latency_summary()}')
+
+    def latency_summary(self):
+        """The commands' latency (state published -> the command with its stamp), in words."""
+        lat = np.sort(np.array(self.latencies)) * 1e3
+        if lat.size:
+            return (f'command latency p50 {np.percentile(lat, 50):.3f} ms, p99 '
+                    f'{np.percentile(lat, 99):.3f} ms, max {lat[-1]:.3f} ms over {lat.size} '
+                    'commands')
+        if self.commands_received:  # e.g. from an SPG ticking on its timer: its own stamps
+            return (f'{self.commands_received} commands received, none with the stamp of a '
+                    'state published here (no latency)')
+        return 'no command received'
 
     def close(self):
         """Close the simulation; the command subscription goes back to the executors."""

@@ -128,6 +128,22 @@ def test_realtime_holds_q_v_and_counts_missing_commands(domain):
     bridge.close()
 
 
+def test_latency_summary_tells_no_command_from_unanswered_states(domain):
+    bridge, _, _ = _bridge(['robot:=lbr4', 'mode:=realtime'])
+    assert bridge.latency_summary() == 'no command received'
+    stamp = bridge.publish_state()
+    command = ros_msg.JointState(name=list(bridge.sim.joint_names),
+                                 position=[float(x) for x in bridge.sim.q0])
+    command.header.stamp.sec, command.header.stamp.nanosec = stamp[0], stamp[1] + 1
+    bridge._on_command(command)  # not the stamp of a published state (a timer-tick SPG's)
+    assert bridge.latency_summary().startswith('1 commands received, none with the stamp')
+    command.header.stamp.nanosec = stamp[1]
+    bridge._on_command(command)  # the answer to the state
+    assert bridge.latency_summary().startswith('command latency p50')
+    assert bridge.latency_summary().endswith('over 1 commands')
+    bridge.close()
+
+
 def test_push_topic_moves_the_tool(domain):
     bridge, spg_node, _spin = _bridge(['robot:=lbr4', 'mode:=lockstep'])
     pub = spg_node.create_publisher(ros_msg.WrenchStamped, 'sim/apply_wrench', 10)
