@@ -43,3 +43,14 @@ def impl(request, monkeypatch):
     if request.param == 'numpy':
         monkeypatch.setattr(kernels, 'active', kernels.reference)
     return request.param
+
+
+def pytest_collection_modifyitems(config, items):
+    """The ``slow`` tests first, in their collected order, then the rest as collected.
+
+    pytest-xdist's worksteal scheduler hands each worker a contiguous share of this order and
+    lets an idle worker take pending tests from the end of another's queue: with the long
+    tests at the front, the pass ends on short ones instead of one worker finishing a minute
+    of lockstep DDS while the other waits.
+    """
+    items.sort(key=lambda item: item.get_closest_marker('slow') is None)

@@ -50,6 +50,7 @@ def _listener():
 
     return node, status, sim_t, spin_until, accepted
 
+@pytest.mark.slow
 def test_bag_recorded_mid_run_replays_without_flags(tmp_path, monkeypatch, capsys):
     from ifc_spg.offline.replay import replay
 

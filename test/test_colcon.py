@@ -5,9 +5,12 @@ import shutil
 import subprocess
 import sys
 
+import pytest
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+@pytest.mark.slow
 def test_colcon_build_installs_executables_and_ament_marker(tmp_path):
     colcon = os.path.join(os.path.dirname(sys.executable), 'colcon')
     assert os.path.exists(colcon), 'colcon-core is pinned in requirements.txt'

@@ -2,9 +2,12 @@
 
 import json
 
+import pytest
+
 from ifc_spg.cli.demo import main
 
 
+@pytest.mark.slow
 def test_demo_short(tmp_path, capsys):
     out = tmp_path / 'demo'
     assert main(['--duration', '4.0', '-o', str(out), '-q']) == 0

@@ -196,6 +196,7 @@ def _since(statuses):
     return out
 
 
+@pytest.mark.slow
 def test_bag_has_every_topic_with_its_type_and_one_command_per_tick(live_run, recorded):
     types, msgs = recorded
     assert types == TYPES
@@ -343,6 +344,7 @@ def test_replay_of_the_live_bag_reproduces_q_v(live_run, capsys, monkeypatch):
 REACH = reach_stack('lbr_iiwa14')
 
 
+@pytest.mark.slow
 def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypatch):
     """SIGKILL the lockstep bridge mid-run and start a new one where the robot stood (q0 =
     the last measured q; its clock starts at 0 again), then SIGKILL the SPG mid-run and

@@ -36,6 +36,7 @@ def _tanks(stack_file):
 WITH_TANKS = [s for s in STACKS if _tanks(s)]
 
 
+@pytest.mark.slow
 def test_table_3_2_as_shipped_circles_at_8_n(tmp_path):
     seconds = bench.SURFACE_SETTLE_S + 2 * 6.25
     scenario = load_scenario(CONFIG / 'scenarios' / 'table_3_2_as_shipped.yaml',

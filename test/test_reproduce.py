@@ -84,6 +84,7 @@ def test_report_table(tmp_path):
     json.dumps(rows)
 
 
+@pytest.mark.slow
 def test_fri_delay_reaches_the_lbr_runs_and_only_them(tmp_path):
     """--fri-delay (issue 29 item 2): an LBR experiment's numbers change with the delay, the
     iCub's (no FRI) do not; the rows and the report say which ran delayed."""
@@ -307,6 +308,7 @@ def test_table_4_5_pspm_bounds_the_injected_energy(quick):
     assert got['table_4_5.bounded']
 
 
+@pytest.mark.slow
 def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
     """Table 5.1 (5.5.3), quick: one (K, kappa) pair of the grid, the full 0.29 m lift;
     the task-specification strategy has less than 30 % of the joint-compliance strategy's

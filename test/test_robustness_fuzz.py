@@ -151,6 +151,7 @@ def _mutate_text(rng, text):
     return text
 
 
+@pytest.mark.slow
 def test_fuzz_task_stacks(robot):
     """10 000 mutated task stacks; each accepted one runs 3 ticks, every command checked."""
     sources = list(STACKS) + [p.read_text() for p in sorted(TASKS.glob('*.yaml'))]

@@ -18,6 +18,7 @@ from experiments.sec_5_3 import (
 )
 
 
+@pytest.mark.slow
 def test_sec_5_3_quick(tmp_path):
     # one process: the suite already runs tests in parallel worker processes
     num, text = run_sec_5_3(tmp_path, quick=True, figures=False, workers=1)

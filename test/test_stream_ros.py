@@ -30,6 +30,7 @@ DT = 0.002                   # [s] the SPG's period (config/lbr_iiwa14.yaml)
 STACK = CONFIG / 'examples' / 'teleop_pose_stream.yaml'  # the README's example stack
 
 
+@pytest.mark.slow
 def test_pose_stream_over_dds_is_followed_counted_and_held(tmp_path, monkeypatch):
     env = use_loopback(monkeypatch)
     stack = STACK
