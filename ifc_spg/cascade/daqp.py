@@ -165,7 +165,7 @@ class DaqpCascade(CascadeSolver):
         self._warm_sets(dims, equalities)
         layout = tuple([(int(m), bool(e)) for m, e in zip(dims, equalities)])
         if layout and sum(dims) and layout not in self._plans:
-            self._plan_layout(layout)
+            self._plan(layout)
 
     def _warm_sets(self, dims: Sequence[int], equalities: Sequence[bool]) -> list:
         """The working sets (sense arrays) of a stack's level models, built if new."""
@@ -235,9 +235,10 @@ class DaqpCascade(CascadeSolver):
         """
         if not levels:
             return super().solve(levels, box)
-        plan = self._plans.get(tuple([(lev.A.shape[0], lev.equality) for lev in levels]))
+        layout = tuple([(lev.A.shape[0], lev.equality) for lev in levels])
+        plan = self._plans.get(layout)
         if plan is None:
-            plan = self._plan(levels)
+            plan = self._plan(layout)
         ws = plan[0].ws
         # The models see the rows scaled to unit norm (the same constraints; DAQP's
         # tolerances are absolute, and a wrench row of norm ~400 next to pose rows of
@@ -277,16 +278,12 @@ class DaqpCascade(CascadeSolver):
         zeros = self._zeros_n  # (the integrate kernel from zero: ~1.3 us less than numpy's)
         return self._kernels.integrate(zeros, 0.0, zeros, ws.bl_box, ws.bu_box)
 
-    def _plan(self, levels: Sequence[Level]) -> list['_LevelPlan']:
-        """The per-level views and models of a stack with these level sizes and kinds.
+    def _plan(self, layout: tuple) -> list['_LevelPlan']:
+        """The per-level views and models of a stack with this layout.
 
-        Built once per layout (level sizes and kinds), so that a tick slices no arrays and
-        looks up no models.
+        ``layout`` is ``((rows, equality), ...)`` per level. Built once per layout (level
+        sizes and kinds), so that a tick slices no arrays and looks up no models.
         """
-        return self._plan_layout(tuple([(lev.A.shape[0], lev.equality) for lev in levels]))
-
-    def _plan_layout(self, layout: tuple) -> list['_LevelPlan']:
-        """:meth:`_plan` of a layout: ``((rows, equality), ...)`` per level."""
         ws = self._workspace(sum(m for m, _ in layout))
         plan, start = [], 0
         for i, (m, equality) in enumerate(layout):
