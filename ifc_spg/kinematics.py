@@ -14,7 +14,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from ifc_spg import kernels as _kernels
+
 if TYPE_CHECKING:
+    from types import ModuleType
+
     from ifc_spg.model.robot_model import RobotModel
 
 #: A frame's ``(position (3,), rotation (3, 3), jacobian (6, n))``.
@@ -30,10 +34,14 @@ class Kinematics:
 
     Args:
         robot: The :class:`~ifc_spg.model.RobotModel`.
+        kernels: The kernels of the tasks' arithmetic on these quantities (default
+            :data:`ifc_spg.kernels.active`; the SPG passes its own).
     """
 
-    def __init__(self, robot: RobotModel) -> None:
+    def __init__(self, robot: RobotModel, kernels: ModuleType | None = None) -> None:
         self.robot = robot
+        #: the kernels the tasks use on this tick's quantities (e.g. ``pose_error``)
+        self.kernels = _kernels.resolve(kernels)
         self._model = robot.model
         self._data_v = robot.create_data()
         self._data_m = robot.create_data()

@@ -298,7 +298,7 @@ class SetPointGenerator:
             self._torque_limit = TorqueLimitLevel(
                 np.where(robot.stiff_mask, 0.0, robot.stiffness), robot.tau_max, dt, rho,
                 self._solver.lock_tolerance, kernels=kernels)
-        self.kin = Kinematics(robot)
+        self.kin = Kinematics(robot, kernels)
         self._limits = JointVelocityLimits(robot.q_min, robot.q_max, robot.v_max, robot.a_max,
                                            dt, kernels=kernels)
         # Without the velocity box no acceleration limit either (the soft box is unbounded).

@@ -505,6 +505,53 @@ def test_task_bounds_equal_the_numpy_code_bit_for_bit():
                 assert got[1] is got[0]
 
 
+def test_pose_error_matches_pinocchio():
+    """The pose task's error and Jacobian in C against pinocchio's log3 and Jlog3 (the
+    reference): rotation errors from 1e-9 rad to pi, both of log3's series branches and its
+    branch at pi, J in either memory layout, the full pose and the rotation only.
+
+    Away from pi the two agree to round-off. Near pi the log is ill-conditioned (theta / sin
+    theta amplifies the round-off of R_e, computed by BLAS in the one and by a loop in the
+    other), and at pi exactly its sign is a choice: there both must give an angle of pi
+    about the same axis, up to its sign."""
+    import pinocchio as pin
+    rng = np.random.default_rng(44)
+    angles = [1e-9, 1e-6, 5e-5, 1.2e-4, 1.3e-4, 1e-3, 0.1, 1.0, 2.5, np.pi - 0.1,
+              np.pi - 1e-2, np.pi - 1e-5, np.pi]
+    for k in range(3000):
+        angle = angles[k % len(angles)]
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        R_ref = pin.exp3(rng.normal(size=3))
+        R = pin.exp3(axis * angle) @ R_ref
+        J = rng.normal(size=(6, int(rng.integers(1, 18))))
+        if k % 2:
+            J = np.asfortranarray(J)  # pinocchio's own Jacobians are column-major
+        p, p_ref = rng.normal(size=(2, 3))
+        for args in ((p, p_ref, R, R_ref, J), (None, None, R, R_ref, J)):
+            (x, Jx), (x_ref, Jx_ref) = nat.pose_error(*args), ref.pose_error(*args)
+            rows = 6 if args[0] is not None else 3
+            assert x.shape == (rows,) and Jx.shape == (rows, J.shape[1])
+            if rows == 6:
+                np.testing.assert_array_equal(x[:3], p - p_ref)
+                np.testing.assert_array_equal(Jx[:3], J[:3])
+            e, e_ref = x[-3:], x_ref[-3:]
+            if angle == np.pi:
+                assert abs(np.linalg.norm(e) - np.pi) < 1e-9
+                assert min(np.abs(e - e_ref).max(), np.abs(e + e_ref).max()) < 1e-9
+                continue
+            tol = 1e-13 if angle < 3.0 else 1e-9
+            np.testing.assert_allclose(e, e_ref, rtol=0, atol=tol)
+            np.testing.assert_allclose(Jx, Jx_ref, rtol=0, atol=tol * (1 + np.abs(J).max()))
+            np.testing.assert_allclose(np.linalg.norm(e), angle, rtol=1e-9, atol=1e-15)
+    with pytest.raises(ValueError, match='3 x 3'):
+        nat.pose_error(None, None, np.eye(2), np.eye(3), np.zeros((6, 7)))
+    with pytest.raises(ValueError, match='J 6 x n'):
+        nat.pose_error(None, None, np.eye(3), np.eye(3), np.zeros((3, 7)))
+    with pytest.raises(TypeError, match='both'):
+        nat.pose_error(np.zeros(3), None, np.eye(3), np.eye(3), np.zeros((6, 7)))
+
+
 def test_a_stale_build_without_a_newer_kernel_is_not_used(monkeypatch):
     """A _native.so built from an older _native.c lacks newer kernels: it must not be chosen
     (every tick would fail at the first call and the SPG hold), and describe() says why."""

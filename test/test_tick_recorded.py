@@ -2,8 +2,17 @@
 
 Closed loops of the LBR Table 4.1 stacks, the iiwa bench stack switched to collision
 avoidance and the iCub Table 3.7 stack (a stack switch at tick 150 in each, see
-``tick_recording.py``), with the C kernels and with their numpy reference: q_v, qdot_v and
-the tank energies equal the recording of the same kernels to 1e-12.
+``tick_recording.py``), with the C kernels and with their numpy reference.
+
+The numpy reference's q_v, qdot_v and tank energies equal the recording of the same kernels
+to 1e-12. The C kernels compute the pose tasks' rotation error and its Jacobian (log3 and
+Jlog3, ``pose_error``) themselves since issue 32: the round-off differs from pinocchio's and
+BLAS's by a few 1e-16, and the cascade's levels that are solved to DAQP's tolerance by many
+velocities (tanks empty) turn that into other points of the same optimal set. Measured on the
+LBR Table 4.1 loop after its stack switch: q_v 1.4e-9 rad, qdot_v 1.1e-7 rad/s, tank
+energies 2.2e-9 J from the numpy loop (the iiwa and iCub loops: under 3.1e-11). So the C
+kernels are held to the recorded numpy loop within ten times that; any change of what the
+tick computes moves these loops by orders of magnitude more.
 """
 
 import numpy as np
@@ -11,6 +20,9 @@ import pytest
 from tick_recording import DATA, RUNS, platform, run
 
 from ifc_spg import kernels
+
+#: |C loop - recorded numpy loop| allowed: q_v [rad], qdot_v [rad/s], tank energy [J]
+NATIVE_ATOL = (2e-8, 2e-6, 2e-8)
 
 
 @pytest.mark.parametrize('impl', ['native', 'numpy'])
@@ -22,6 +34,12 @@ def test_closed_loop_equals_the_recording(name, impl):
     if str(data['platform']) != platform():
         pytest.skip(f"recorded on {data['platform']}, this is {platform()}: round-off differs "
                     '(tick_recording.py says how to record here)')
-    recorded = data[f'{name}-{impl}']
+    recorded = data[f'{name}-numpy']
     log = run(name, kernels.native if impl == 'native' else kernels.reference)
-    np.testing.assert_allclose(log, recorded, rtol=0, atol=1e-12)
+    if impl == 'numpy':
+        np.testing.assert_allclose(log, recorded, rtol=0, atol=1e-12)
+        return
+    n = log.shape[1] // 3
+    for k, (what, atol) in enumerate(zip(('q_v', 'qdot_v', 'tank energy'), NATIVE_ATOL)):
+        np.testing.assert_allclose(log[:, k * n:(k + 1) * n], recorded[:, k * n:(k + 1) * n],
+                                   rtol=0, atol=atol, err_msg=what)

@@ -887,6 +887,177 @@ done:
     return ret;
 }
 
+
+/* ---- the Cartesian pose task (ifc_spg.tasks.CartesianPoseTask) ------------------------ */
+
+/* pinocchio's TaylorSeriesExpansion<double>::precision<degree>(): eps^(1 / (degree + 1)) */
+static double taylor_precision(int degree) {
+    return pow(2.220446049250313e-16, 1.0 / (double)(degree + 1));
+}
+
+/* pinocchio::internal::compute_theta_axis<i0> (log.hxx), R row-major */
+static void theta_axis(int i0, double val, const double *R, double *angle, double axis[3]) {
+    const double eps = 2.220446049250313e-16;
+    int i1 = (i0 + 1) % 3, i2 = (i0 + 2) % 3;
+#define RC(i, j) R[3 * (i) + (j)]
+    double s = sqrt(val + eps + eps * eps) * (RC(i2, i1) >= RC(i1, i2) ? 1.0 : -1.0);
+    axis[i0] = s / 2.0;
+    axis[i1] = 1.0 / (2.0 * s) * (RC(i1, i0) + RC(i0, i1));
+    axis[i2] = 1.0 / (2.0 * s) * (RC(i2, i0) + RC(i0, i2));
+    double w = 1.0 / (2.0 * s) * (RC(i2, i1) - RC(i1, i2));
+#undef RC
+    double norm = sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+    *angle = 2.0 * atan2(norm, w);
+    axis[0] /= norm;
+    axis[1] /= norm;
+    axis[2] /= norm;
+}
+
+/* pinocchio::log3 (log3_impl::run, log.hxx) of the row-major rotation R: theta and w. */
+static void log3_c(const double *Rin, double *theta, double w[3]) {
+    const double eps = 2.220446049250313e-16;
+    double c0[3], c1[3], c2[3], Rn[9];
+    /* renormalize_rotation_matrix: columns 0 and 1 normalized, 2 = 0 x 1, 0 = 1 x 2 */
+    double n0 = sqrt(Rin[0] * Rin[0] + Rin[3] * Rin[3] + Rin[6] * Rin[6]);
+    double n1 = sqrt(Rin[1] * Rin[1] + Rin[4] * Rin[4] + Rin[7] * Rin[7]);
+    for (int i = 0; i < 3; i++) {
+        c0[i] = Rin[3 * i] / n0;
+        c1[i] = Rin[3 * i + 1] / n1;
+    }
+    c2[0] = c0[1] * c1[2] - c0[2] * c1[1];
+    c2[1] = c0[2] * c1[0] - c0[0] * c1[2];
+    c2[2] = c0[0] * c1[1] - c0[1] * c1[0];
+    c0[0] = c1[1] * c2[2] - c1[2] * c2[1];
+    c0[1] = c1[2] * c2[0] - c1[0] * c2[2];
+    c0[2] = c1[0] * c2[1] - c1[1] * c2[0];
+    for (int i = 0; i < 3; i++) {
+        Rn[3 * i] = c0[i];
+        Rn[3 * i + 1] = c1[i];
+        Rn[3 * i + 2] = c2[i];
+    }
+    const double tr = Rn[0] + Rn[4] + Rn[8];
+    const double cos_value = (tr - 1.0) / 2.0;
+    const double prec = taylor_precision(2);
+    double val[3], ax[3][3], th[3];
+    for (int k = 0; k < 3; k++) val[k] = 2.0 * Rn[4 * k] - tr + 1.0;
+    for (int k = 0; k < 3; k++) theta_axis(k, val[k], Rn, &th[k], ax[k]);
+    int pick = val[0] >= val[1] ? (val[0] >= val[2] ? 0 : 2) : (val[1] >= val[2] ? 1 : 2);
+    const double theta_singular = th[pick];
+    const double acos_expansion = sqrt(2.0 * (1.0 - cos_value) + eps * eps);
+    const double theta_nominal = tr <= 3.0 - prec
+        ? (tr >= -1.0 + prec ? acos(cos_value) : M_PI - acos_expansion)
+        : acos_expansion;
+    double a[3] = {0.5 * (Rn[7] - Rn[5]), 0.5 * (Rn[2] - Rn[6]), 0.5 * (Rn[3] - Rn[1])};
+    const double a2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+    const double t = theta_nominal >= prec ? theta_nominal / sin(theta_nominal)
+                                           : 1.0 + a2 / 6.0 + a2 * a2 * 3.0 / 40.0;
+    int nominal = cos_value >= -1.0 + prec;
+    *theta = nominal ? theta_nominal : theta_singular;
+    for (int k = 0; k < 3; k++) w[k] = nominal ? t * a[k] : theta_singular * ax[pick][k];
+}
+
+/* pinocchio::Jlog3 (Jlog3_impl::run, log.hxx): the 3 x 3 row-major Jlog at theta, w. */
+static void jlog3_c(double theta, const double w[3], double *Jl) {
+    const double st = sin(theta), ct = cos(theta);
+    const double st_1mct = st / (1.0 - ct);
+    const double prec = taylor_precision(3);
+    const double alpha = theta < prec ? 1.0 / 12.0 + theta * theta / 720.0
+                                      : 1.0 / (theta * theta) - st_1mct / (2.0 * theta);
+    const double diag = theta < prec ? 0.5 * (2.0 - theta * theta / 6.0)
+                                     : 0.5 * (theta * st_1mct);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) Jl[3 * i + j] = alpha * w[i] * w[j] + (i == j ? diag : 0.0);
+    Jl[1] -= 0.5 * w[2];
+    Jl[2] += 0.5 * w[1];
+    Jl[3] += 0.5 * w[2];
+    Jl[5] -= 0.5 * w[0];
+    Jl[6] -= 0.5 * w[1];
+    Jl[7] += 0.5 * w[0];
+}
+
+PyDoc_STRVAR(pose_error_doc,
+"pose_error(p, p_ref, R, R_ref, J) -> (x, Jx)\n\n"
+"A pose task's error and Jacobian (4.19): with R_e = R R_ref^T, e = log3(R_e) and\n"
+"J_rot = Jlog3(R_e) R_e^T J[3:] (pinocchio's log3 and Jlog3), x = (p - p_ref, e) (6,) and\n"
+"Jx = (J[:3]; J_rot) (6, n); p and p_ref None: the rotation only, (e (3,), J_rot (3, n)).\n"
+"R, R_ref (3, 3); J (6, n), any layout. Returns new arrays.");
+
+static PyObject *pose_error(PyObject *self, PyObject *args) {
+    PyObject *p_o, *pr_o, *R_o, *Rr_o, *J_o;
+    if (!PyArg_ParseTuple(args, "OOOOO", &p_o, &pr_o, &R_o, &Rr_o, &J_o)) return NULL;
+    int rot_only = p_o == Py_None;
+    if (rot_only != (pr_o == Py_None)) {
+        PyErr_SetString(PyExc_TypeError, "p and p_ref must both be arrays or both None");
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    PyArrayObject *pa = NULL, *pra = NULL, *Ra = NULL, *Rra = NULL, *Ja = NULL;
+    Ra = in_array(R_o, 2, "R");
+    Rra = in_array(Rr_o, 2, "R_ref");
+    Ja = (PyArrayObject *)PyArray_FROMANY(J_o, NPY_DOUBLE, 2, 2, NPY_ARRAY_ALIGNED);
+    if (!Ra || !Rra || !Ja) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "J must be a 2-D float array");
+        goto done;
+    }
+    if (PyArray_SIZE(Ra) != 9 || PyArray_SIZE(Rra) != 9 || PyArray_DIM(Ja, 0) != 6) {
+        PyErr_SetString(PyExc_ValueError, "R and R_ref must be 3 x 3 and J 6 x n");
+        goto done;
+    }
+    if (!rot_only) {
+        pa = in_vector(p_o, 3, "p");
+        pra = pa ? in_vector(pr_o, 3, "p_ref") : NULL;
+        if (!pa || !pra) goto done;
+    }
+    const double *R = data_of(Ra), *Rr = data_of(Rra);
+    double Re[9], Jl[9], M[9], theta, w[3];
+    for (int i = 0; i < 3; i++)  /* R_e = R R_ref^T */
+        for (int j = 0; j < 3; j++)
+            Re[3 * i + j] = R[3 * i] * Rr[3 * j] + R[3 * i + 1] * Rr[3 * j + 1] +
+                            R[3 * i + 2] * Rr[3 * j + 2];
+    log3_c(Re, &theta, w);
+    jlog3_c(theta, w, Jl);
+    for (int i = 0; i < 3; i++)  /* M = Jlog3(R_e) R_e^T */
+        for (int j = 0; j < 3; j++)
+            M[3 * i + j] = Jl[3 * i] * Re[3 * j] + Jl[3 * i + 1] * Re[3 * j + 1] +
+                           Jl[3 * i + 2] * Re[3 * j + 2];
+    npy_intp n = PyArray_DIM(Ja, 1), rows = rot_only ? 3 : 6;
+    npy_intp xdim = rows, Jdims[2] = {rows, n};
+    PyArrayObject *x = (PyArrayObject *)PyArray_SimpleNew(1, &xdim, NPY_DOUBLE);
+    PyArrayObject *Jx = x ? (PyArrayObject *)PyArray_SimpleNew(2, Jdims, NPY_DOUBLE) : NULL;
+    if (!Jx) {
+        Py_XDECREF(x);
+        goto done;
+    }
+    const char *Jd = (const char *)PyArray_DATA(Ja);
+    const npy_intp s0 = PyArray_STRIDE(Ja, 0), s1 = PyArray_STRIDE(Ja, 1);
+#define JE(i, j) (*(const double *)(Jd + (i) * s0 + (j) * s1))
+    double *xo = data_of(x), *Jo = data_of(Jx);
+    npy_intp off = 0;
+    if (!rot_only) {
+        const double *p = data_of(pa), *pr = data_of(pra);
+        for (int i = 0; i < 3; i++) {
+            xo[i] = p[i] - pr[i];
+            for (npy_intp j = 0; j < n; j++) Jo[i * n + j] = JE(i, j);
+        }
+        off = 3;
+    }
+    for (int i = 0; i < 3; i++) {
+        xo[off + i] = w[i];
+        for (npy_intp j = 0; j < n; j++)
+            Jo[(off + i) * n + j] = M[3 * i] * JE(3, j) + M[3 * i + 1] * JE(4, j) +
+                                    M[3 * i + 2] * JE(5, j);
+    }
+#undef JE
+    ret = Py_BuildValue("(NN)", x, Jx);
+done:
+    Py_XDECREF(pa);
+    Py_XDECREF(pra);
+    Py_XDECREF(Ra);
+    Py_XDECREF(Rra);
+    Py_XDECREF(Ja);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"stack_rows", stack_rows, METH_VARARGS, stack_rows_doc},
     {"normal_form", normal_form, METH_VARARGS, normal_form_doc},
@@ -904,6 +1075,7 @@ static PyMethodDef methods[] = {
     {"collision_rows", collision_rows, METH_VARARGS, collision_rows_doc},
     {"collision_cull", collision_cull, METH_VARARGS, collision_cull_doc},
     {"collision_level", collision_level, METH_VARARGS, collision_level_doc},
+    {"pose_error", pose_error, METH_VARARGS, pose_error_doc},
     {NULL, NULL, 0, NULL},
 };
 

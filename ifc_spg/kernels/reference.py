@@ -12,11 +12,12 @@ argument is only read.
 import math
 
 import numpy as np
+import pinocchio as pin
 
 __all__ = ['accept', 'accept_slack', 'collision_cull', 'collision_level', 'collision_rows',
-           'integrate', 'limits_box', 'lock_if_satisfied', 'normal_form', 'pspm_bounds',
-           'pspm_update', 'slack_setup', 'stack_rows', 'task_bounds', 'torque_limit',
-           'velocity_box']
+           'integrate', 'limits_box', 'lock_if_satisfied', 'normal_form', 'pose_error',
+           'pspm_bounds', 'pspm_update', 'slack_setup', 'stack_rows', 'task_bounds',
+           'torque_limit', 'velocity_box']
 
 _TINY = 1e-300  # floor of a row norm (an all-zero row stays zero when scaled)
 
@@ -331,6 +332,21 @@ def task_bounds(gain: Array, alpha: Array, lower: Array, lower_ff: Array, upper:
     if upper is None or upper_ff is None:
         return beta_lo, beta_lo
     return beta_lo, side(upper, upper_ff, np.inf)
+
+def pose_error(p: Array | None, p_ref: Array | None, R: Array, R_ref: Array,
+               J: Array) -> tuple[Array, Array]:
+    """A pose task's error and Jacobian (4.19); return ``(x, Jx)``.
+
+    With R_e = R R_ref^T: e = log3(R_e), J_rot = Jlog3(R_e) R_e^T J[3:] (pinocchio's log3 and
+    Jlog3); x = (p - p_ref, e) (6,), Jx = (J[:3]; J_rot) (6, n). p and p_ref None: the
+    rotation only, ``(e (3,), J_rot (3, n))``.
+    """
+    # (ndarray.dot: half the overhead of @ on 3 x 3 operands, ~0.8 against ~1.7 us)
+    R_e = R.dot(R_ref.T)
+    e, J_rot = pin.log3(R_e), pin.Jlog3(R_e).dot(R_e.T).dot(J[3:])
+    if p is None or p_ref is None:
+        return e, J_rot
+    return np.concatenate((p - p_ref, e)), np.concatenate((J[:3], J_rot))
 
 # ---- collision avoidance (ifc_spg.geometry.PairQuery) ----------------------------------
 
