@@ -133,6 +133,7 @@ class DaqpCascade(CascadeSolver):
         self._settings = {'primal_tol': float(primal_tol)}
         self._ws: dict = {}
         self._plans: dict = {}  # level layout -> [_LevelPlan] (see _plan)
+        self._cold = True  # every working set is empty (no solve since forget_warm_start)
         self._normal_form = self.rho >= 1e-6
         #: Level solves retried cold (a warm start ended in a false 'infeasible').
         self.cold_retries = 0
@@ -212,13 +213,17 @@ class DaqpCascade(CascadeSolver):
         for s in sets:
             s[:] = values[start:start + s.size]
             start += s.size
+        self._cold = False
         return True
 
     def forget_warm_start(self) -> None:
         """Start every level model cold at its next solve (a new stack, a restart)."""
+        if self._cold:  # (a new stack's first tick after a reset asks twice)
+            return
         for ws in self._ws.values():
             for warm in ws.warm.values():
                 warm[:] = 0
+        self._cold = True
 
     def _workspace(self, R: int) -> '_Workspace':
         ws = self._ws.get(R)
@@ -235,6 +240,7 @@ class DaqpCascade(CascadeSolver):
         """
         if not levels:
             return super().solve(levels, box)
+        self._cold = False  # the solves below keep working sets
         layout = tuple([(lev.A.shape[0], lev.equality) for lev in levels])
         plan = self._plans.get(layout)
         if plan is None:

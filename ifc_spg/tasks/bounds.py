@@ -45,7 +45,7 @@ class Constant(Bound):
 
     def __init__(self, value: Any) -> None:
         v = np.array(value, dtype=float).reshape(-1)
-        if np.any(np.isnan(v)):
+        if np.isnan(v).any():
             raise IfcSpgError(f'bound values must not be NaN, got {v.tolist()}')
         v.setflags(write=False)
         self.value = v

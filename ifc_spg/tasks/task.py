@@ -167,15 +167,15 @@ class Task(abc.ABC):
         """Capture ``init`` bounds from the current value; called when the stack starts."""
         init = None
         bounds: list[Bound] = []
-        for b in (self._lower, self._upper):
+        # an equality's upper bound is its lower one (activated once)
+        for b in (self._lower,) if self.equality else (self._lower, self._upper):
             if b is INIT or type(b).activate is not Bound.activate:
                 if init is None:
                     init = np.array(self.compute_value(kin), dtype=float)
                 b = b.activate(init)
             bounds.append(b)
-        self._active_lower, self._active_upper = bounds
-        if self.equality:
-            self._active_upper = self._active_lower
+        self._active_lower = bounds[0]
+        self._active_upper = bounds[-1]
 
     def _active_bounds(self) -> tuple[Bound, Bound]:
         lower, upper = self._active_lower, self._active_upper
