@@ -125,7 +125,9 @@ class EnergyTanks:
 
     def reset(self, q: np.ndarray) -> None:
         """Restart the tanks at ``E_r,init`` with ``q`` as the last measurement."""
-        self.energy = np.full(self.K.size, self.config.initial_energy)
+        initial = self.config.initial_energy  # (finite: PspmConfig checks it)
+        self._energy = np.full(self.K.size, initial)
+        self._min_energy = initial if self.K.size else math.inf  # (the setter's, known here)
         self.shuffled = np.zeros(self.K.size)
         self.refilled = np.zeros(self.K.size)
         self._q_prev = np.array(q, dtype=float)
@@ -163,7 +165,7 @@ class EnergyTanks:
             ParameterError: ``power`` is negative, not finite or above ``max_power``.
         """
         power = float(power)
-        if not (np.isfinite(power) and power >= 0.0):
+        if not (math.isfinite(power) and power >= 0.0):
             raise ParameterError(f'power_budget must be a finite number >= 0 [W], got {power!r}')
         message = self.power_error(power)
         if message:
@@ -388,14 +390,18 @@ class StallMonitor:
         self._window = self.probe_every * dt
         self._alpha_drain = min(1.0, self._window / float(drain_time))
         self.min_power = float(min_power)
+        # the averages, written in place (reset() zeroes them: a first tick resets twice)
+        self._empty = np.zeros(self.n)
+        self._power = np.zeros(self.n)
+        self._drain = np.zeros(self.n)
         self.reset()
 
     def reset(self) -> None:
         """A new episode: forget the averages; the next stall is reported again."""
-        self._empty = np.zeros(self.n)
+        self._empty.fill(0.0)
         self._active = False            # some joint's empty average is not (yet) zero
-        self._power = np.zeros(self.n)
-        self._drain = np.zeros(self.n)
+        self._power.fill(0.0)
+        self._drain.fill(0.0)
         self._mark: tuple | None = None  # (tank energy, refilled + shuffled) of the last sample
         self._ticks = 0
         self.report: StallReport | None = None

@@ -571,7 +571,7 @@ class SetPointGenerator:
         q, qdot = self._measurement(q, qdot)
         events: list[str] = []
         if self.q_v is None:
-            if not np.all(np.isfinite(q)):
+            if not math.isfinite(q @ self._zeros):  # (as below)
                 raise ParameterError('the first measurement must be finite to start from it')
             self.reset(q)
         # x @ 0 is 0 for every finite x (no overflow, unlike a sum) and NaN for inf / NaN

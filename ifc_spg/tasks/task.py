@@ -120,6 +120,9 @@ class Task(abc.ABC):
         self.compensate_velocity = bool(compensate_velocity)
         self._active_lower: Bound | None = None
         self._active_upper: Bound | None = None
+        # the bounds that take a value at activation (init, or a bound with its own activate)
+        self._to_activate = [b is INIT or type(b).activate is not Bound.activate for b in
+                             ((self._lower,) if self.equality else (self._lower, self._upper))]
         #: The kernels of :meth:`level` (task_bounds: C and numpy give the same bits)
         self._kernels = _kernels.active
 
@@ -165,11 +168,14 @@ class Task(abc.ABC):
 
     def activate(self, kin: Kinematics) -> None:
         """Capture ``init`` bounds from the current value; called when the stack starts."""
+        if True not in self._to_activate:  # (the bounds as given)
+            self._active_lower, self._active_upper = self._lower, self._upper
+            return
         init = None
         bounds: list[Bound] = []
         # an equality's upper bound is its lower one (activated once)
-        for b in (self._lower,) if self.equality else (self._lower, self._upper):
-            if b is INIT or type(b).activate is not Bound.activate:
+        for b, to_activate in zip((self._lower, self._upper), self._to_activate):
+            if to_activate:
                 if init is None:
                     init = np.array(self.compute_value(kin), dtype=float)
                 b = b.activate(init)
