@@ -334,10 +334,12 @@ class SetPointGenerator:
         The first tick of a process took 3x a median tick (620-890 against 220 us, LBR
         Table 4.1 stack, 2 cores): Python specializes a function's bytecode only after it
         ran a few times, and pinocchio, DAQP and numpy have first-call costs. Ten ticks of a
-        small stack (a Cartesian inequality and pose on the first chain, a posture) on a
-        separate SPG of the same robot and parameters take them here (about 10 ms, at most
-        0.1 s), once per process and configuration (solver, kernels, PSPM, torque limits,
-        IFC; DAQP and the nullspace baseline, not proxsuite, whose ticks can stall). That SPG
+        small stack (a Cartesian inequality and pose on the first chain, a joint-torque
+        inequality on a joint-impedance robot, a posture), then a switch to a second stack
+        (an orientation, a posture) and three more ticks, on a separate SPG of the same robot
+        and parameters take them here (about 10 ms, at most 0.1 s), once per process and
+        configuration (solver, kernels, PSPM, torque limits, IFC; DAQP and the nullspace
+        baseline, not proxsuite, whose ticks can stall). That SPG
         shares no state with this one, whose results do not change; a failure in it is
         ignored (it only costs the first tick its speed).
         """
@@ -348,23 +350,33 @@ class SetPointGenerator:
         if name not in _WARM_UP_SOLVERS or key in _WARMED_UP:  # proxsuite can stall a tick
             return
         _WARMED_UP.add(key)
-        from ifc_spg.tasks import CartesianPoseTask, JointPositionTask
+        from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask
         try:
             tasks: list[Task] = []
+            second: list[Task] = []
+            inequalities = self._solver.supports_inequalities
             if robot.chains:
                 chain = robot.chains[0]
-                if self._solver.supports_inequalities:  # violated: its slack QP runs
+                if inequalities:  # violated: its slack QP runs
                     tasks.append(CartesianPoseTask(robot, frame=chain, axes=['z'], lower=[1e3],
                                                    name='warm_up_height'))
                 tasks.append(CartesianPoseTask(robot, frame=chain, equal='init',
                                                name='warm_up_pose'))
+                second.append(CartesianPoseTask(robot, frame=chain, axes=['rx', 'ry', 'rz'],
+                                                equal='init', name='warm_up_orientation'))
+            if inequalities and robot.ifc == JOINT_IMPEDANCE and not robot.stiff_mask.all():
+                tasks.append(JointTorqueTask(robot, lower=-1e4, upper=1e4,
+                                             name='warm_up_torque'))
             tasks.append(JointPositionTask(robot, equal='init', name='warm_up_posture'))
+            second.append(JointPositionTask(robot, equal='init', name='warm_up_posture'))
             shadow = SetPointGenerator(robot, tasks, dt=self.dt, pspm=pspm, solver=name,
                                        rho=rho, torque_limits=torque_limits,
                                        kernels=self._kernels, warm_up=False)
             q, zeros = np.array(robot.q_home, dtype=float), np.zeros(self.n)
             deadline = time.perf_counter() + 0.1
-            for k in range(_WARM_UP_TICKS):
+            for k in range(_WARM_UP_TICKS + 3):
+                if k == _WARM_UP_TICKS:
+                    shadow.set_stack(second)
                 q = shadow.step(q, zeros, k * self.dt)
                 if time.perf_counter() > deadline:
                     break
