@@ -464,7 +464,11 @@ def run_benchmarks(ticks=20000, solvers=('daqp', 'proxsuite'), progress=True,
     return out
 
 
-TARGETS = {'lbr_table_4_1': (300.0, 1000.0), 'icub_table_3_7': (600.0, None)}
+#: issue 32's targets [us] on a quiet 2-core machine (and no LBR tick over 1 ms)
+TARGETS = {'lbr_table_4_1': {'p50': 55.0, 'p99': 100.0, 'max': 1000.0},
+           'icub_table_3_7': {'p50': 120.0, 'p99': 200.0}}
+#: issue 32's target of ours / pink's weighted solve (p50)
+PINK_TARGET = 0.5
 
 
 def _format_first_ticks(res):
@@ -507,14 +511,14 @@ def format_report(res):
     lines = [f"SPG full tick, closed loop (plant not timed); tick arithmetic: "
              f"{res.get('implementation', '?')}",
              f"{'stack':<16}{'solver':<11}{'levels':>6}{'ticks':>7}{'p50 us':>10} {'p99 us':>10}"
-             f" {'max us':>10}  {'target':<19}status"]
+             f" {'max us':>10}  {'target':<27}status"]
     for r in res['stacks']:
-        p99t, maxt = TARGETS.get(r['stack'], (None, None))
-        ok = (p99t is None or r['p99_us'] <= p99t) and (maxt is None or r['max_us'] <= maxt)
-        target = f'p99<={p99t:.0f}' + (f',max<={maxt:.0f}' if maxt else '')
+        goals = TARGETS.get(r['stack'], {})
+        ok = all(r[f'{key}_us'] <= bound for key, bound in goals.items())
+        target = ','.join(f'{key}<={bound:.0f}' for key, bound in goals.items()) or '-'
         lines.append(f"{r['stack']:<16}{r['solver']:<11}{r['levels']:>6}{r['ticks']:>7}"
                      f"{r['p50_us']:>10.1f} {r['p99_us']:>10.1f} {r['max_us']:>10.1f}  "
-                     f"{target:<19}{'met' if ok else 'MISSED'} {r['status']}")
+                     f"{target:<27}{'met' if ok else 'MISSED'} {r['status']}")
     for r in res['stacks']:
         if 'baseline' in r:
             b = r['baseline']
@@ -547,7 +551,8 @@ def format_report(res):
               f"  pink p50 {p['pink']['p50_us']:.1f} us  p99 {p['pink']['p99_us']:.1f} us  "
               f"max {p['pink']['max_us']:.1f} us",
               f"  ratio ours/pink: p50 {p['ratio_p50']:.2f}  p99 {p['ratio_p99']:.2f}  "
-              f"(target <= 1.0: {'met' if p['ratio_p50'] <= 1.0 else 'MISSED'})",
+              f"(target <= {PINK_TARGET:g}: "
+              f"{'met' if p['ratio_p50'] <= PINK_TARGET else 'MISSED'})",
               f"  ours without PSPM (pink has no passivity layer): p50 "
               f"{p['ours_no_pspm']['p50_us']:.1f} us  p99 {p['ours_no_pspm']['p99_us']:.1f} us; "
               f"ratio p50 {p['ratio_no_pspm_p50']:.2f}  p99 {p['ratio_no_pspm_p99']:.2f}"]
