@@ -705,6 +705,28 @@ def _no_clamp_overrides():
     return {'stacks': [{'at': 0.0, 'stack': doc}]}
 
 
+def _clamp_windows(r, t, after=0.5):
+    """Where Alg. C.2's clamps act: the onsets and a mask of ``t`` within ``after`` [s].
+
+    An onset is a command sample at which a joint's q_v comes within dl_crit of a position
+    limit (it was not at the one before); the mask marks the samples of ``t`` within ``after``
+    seconds after an onset. Returns ``(onsets [(t [s], joint)], mask)``.
+    """
+    from ifc_spg.cascade.nullspace import CRITICAL_DISTANCE
+
+    q_v = np.asarray(r.s.q_v)
+    t_v = np.asarray(r.s.t_cmd[:len(q_v)])
+    lo, hi = np.asarray(r.robot.q_min), np.asarray(r.robot.q_max)
+    near = (q_v - lo < CRITICAL_DISTANCE + 1e-9) | (hi - q_v < CRITICAL_DISTANCE + 1e-9)
+    onset = near & ~np.vstack([np.zeros((1, near.shape[1]), dtype=bool), near[:-1]])
+    names = list(r.s.joint_names)
+    onsets = sorted({(float(t_v[k]), names[j]) for k, j in zip(*np.nonzero(onset))})
+    mask = np.zeros(len(t), dtype=bool)
+    for tc, _ in onsets:
+        mask |= (t >= tc) & (t <= tc + after)
+    return onsets, mask
+
+
 def _numbers_3_7(r):
     t0 = 1.0
     f = r.contact_force()[:, 2][r.after(t0, r.s.t_cw)]
@@ -714,6 +736,28 @@ def _numbers_3_7(r):
     pos, rot = r.tool_positions('r_palm')
     ang = np.rad2deg(_rot_angle(rot[0], rot))
     lpos, _ = r.tool_positions('l_palm')
+    # the right hand's errors before the first clamp of Alg. C.2, within 0.5 s after a clamp
+    # and elsewhere (the report's explanation of the cup claims)
+    t_js = np.asarray(r.s.t_js[:len(ang)])
+    onsets, window = _clamp_windows(r, t_js)
+    first = onsets[0][0] if onsets else math.inf
+    disp = np.linalg.norm(pos - pos[0], axis=1)
+    before = t_js < first
+
+    def part(x, m):
+        return float(x[m].max()) if m.any() else None
+    clamps = {'onsets': len(onsets), 'first_s': None if not onsets else first,
+              'first_joint': None if not onsets else onsets[0][1],
+              'peak_s': float(t_js[np.argmax(ang)]),
+              # the last clamp onset at or before the orientation peak: (s before it, joint)
+              'peak_onset': next(((float(t_js[np.argmax(ang)]) - tc, j) for tc, j in
+                                  reversed(onsets) if tc <= t_js[np.argmax(ang)]), None),
+              'orientation_before_first_deg': part(ang, before),
+              'orientation_within_deg': part(ang, window),
+              'orientation_outside_deg': part(ang, ~window),
+              'displacement_before_first_m': part(disp, before),
+              'displacement_within_m': part(disp, window),
+              'displacement_outside_m': part(disp, ~window)}
     names = list(r.s.joint_names)
     drift = {j: float(np.rad2deg(np.max(np.abs(r.s.q[:, names.index(j)] -
                                                r.s.q[0, names.index(j)]))))
@@ -726,7 +770,8 @@ def _numbers_3_7(r):
             'right_hand_orientation_error_max_deg': float(ang.max()),
             'right_hand_displacement_max_m': float(np.max(np.linalg.norm(pos - pos[0],
                                                                          axis=1))),
-            'torso_yaw_excursion_max_deg': drift['torso_yaw'], 'torso_drift_max_deg': drift}
+            'torso_yaw_excursion_max_deg': drift['torso_yaw'], 'torso_drift_max_deg': drift,
+            'clamps': clamps}
 
 
 def _text_3_7(o):

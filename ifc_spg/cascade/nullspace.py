@@ -40,7 +40,11 @@ from ifc_spg.errors import SolverError
 from ifc_spg.limits.joint_limits import VelocityBox
 from ifc_spg.tasks.task import Level
 
-__all__ = ['NullspaceCascade']
+__all__ = ['CRITICAL_DISTANCE', 'NullspaceCascade']
+
+#: dl_crit [rad] of checklimits (Alg. C.2): a joint this close to a limit, moving towards it,
+#: is clamped (the default of :class:`NullspaceCascade`)
+CRITICAL_DISTANCE = 0.02
 
 
 def _svd_cut(M: np.ndarray, cutoff: float
@@ -127,7 +131,7 @@ class NullspaceCascade:
 
     def __init__(self, n: int, rho: float = 0.01, *, q_min: np.ndarray | None = None,
                  q_max: np.ndarray | None = None, damping: float = 1e-3,
-                 critical_distance: float = 0.02, rcond: float = 1e-10):
+                 critical_distance: float = CRITICAL_DISTANCE, rcond: float = 1e-10):
         self.n = int(n)
         self.q_min = np.full(self.n, -np.inf) if q_min is None else np.asarray(q_min, float)
         self.q_max = np.full(self.n, np.inf) if q_max is None else np.asarray(q_max, float)
