@@ -385,6 +385,12 @@ def _fig_5_12(out_dir, quick, figures=True):
                        ('drawer_vertical', 'vertical_ratio')):
         out[key] = (out[f'{scene}/joint_compliance']['rms_f_perp_n'] /
                     out[f'{scene}/admittance']['rms_f_perp_n'])
+        # the same on the static part K (q_v - q) through J^-T alone (no claim: the part
+        # (5.9) sees, without the joint damping force of the motion)
+        static = [out[f'{scene}/{s}'].get('rms_fs_perp_n') for s in ('joint_compliance',
+                                                                        'admittance')]
+        out[f'{key}_static'] = None if None in static or not static[1] else \
+            static[0] / static[1]
     if figures:
         _s543_figure(out_dir, 'fig_5_12', panels, 2)
     h = {s: out[f'drawer_horizontal/{s}'] for s, _ in S543_STRATEGIES}

@@ -199,7 +199,12 @@ NOTES = {
                 "drawer's end; at the end of this pull A4 is at {a4} deg ((5.9) / trajectory "
                 'following; the claim rows name no travel). (5.9) has {h_ratio} of the RMS '
                 '|f_perp| of trajectory following here and {v_ratio} on the vertical drawer, '
-                'where its measured force carries the damping term of Fig. 5.11.',
+                'where its measured force carries the damping term of Fig. 5.11. On the '
+                'static part of the erroneous force alone (K (q_v - q) through J^-T, without '
+                'the joint damping force of the motion, which (5.9) does not see; no claim) '
+                'the ratios are {h_static} (horizontal) and {v_static} (vertical): '
+                '{hv_static} times as large on the horizontal drawer, the "not as clearly" of '
+                'the thesis, where the measured forces give {hv_measured}.',
     'fig_5_13': 'Quarter turns with a ball grasp (connect) and no orientation term, 45 deg '
                 'initial error, the thesis estimator (N = 500, v_th = 0.01 m/s; the '
                 "mechanisms evaluation's reduced crank dead band is not used). The radii "
@@ -406,7 +411,13 @@ NOTE_FIELDS = {
         'a4': lambda n: f"{n[_HJ]['a4_start_end_deg'][1]:.0f} / "
                         f"{n[_HA]['a4_start_end_deg'][1]:.0f}",
         'h_ratio': lambda n: _fmt(n['horizontal_ratio'], digits=2),
-        'v_ratio': lambda n: _fmt(n['vertical_ratio'], digits=2)},
+        'v_ratio': lambda n: _fmt(n['vertical_ratio'], digits=2),
+        'h_static': lambda n: _fmt(n['horizontal_ratio_static'], digits=2),
+        'v_static': lambda n: _fmt(n['vertical_ratio_static'], digits=2),
+        'hv_static': lambda n: _fmt(n['horizontal_ratio_static'] / n['vertical_ratio_static'],
+                                    digits=2),
+        'hv_measured': lambda n: _fmt(n['horizontal_ratio'] / n['vertical_ratio'],
+                                      digits=2)},
     'fig_5_13': {
         'err_at_half': lambda n: ', '.join(
             f"{r['error_angle_at_half_turn_deg']:.1f}" for r in n['runs']),
