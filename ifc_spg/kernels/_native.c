@@ -977,8 +977,9 @@ static void jlog3_c(double theta, const double w[3], double *Jl) {
 
 PyDoc_STRVAR(pose_error_doc,
 "pose_error(p, p_ref, R, R_ref, J) -> (x, Jx)\n\n"
-"A pose task's error and Jacobian (4.19): with R_e = R R_ref^T, e = log3(R_e) and\n"
-"J_rot = Jlog3(R_e) R_e^T J[3:] (pinocchio's log3 and Jlog3), x = (p - p_ref, e) (6,) and\n"
+"A pose task's error and Jacobian (docs/SPEC.md, Orientation): with R_e = R R_ref^T,\n"
+"e = log3(R_e) and J_rot = Jlog3(R_e) R_e^T J[3:] (pinocchio's log3 and Jlog3),\n"
+"x = (p - p_ref, e) (6,) and\n"
 "Jx = (J[:3]; J_rot) (6, n); p and p_ref None: the rotation only, (e (3,), J_rot (3, n)).\n"
 "R, R_ref (3, 3); J (6, n), any layout. Returns new arrays.");
 

@@ -335,7 +335,7 @@ def task_bounds(gain: Array, alpha: Array, lower: Array, lower_ff: Array, upper:
 
 def pose_error(p: Array | None, p_ref: Array | None, R: Array, R_ref: Array,
                J: Array) -> tuple[Array, Array]:
-    """A pose task's error and Jacobian (4.19); return ``(x, Jx)``.
+    """A pose task's error and Jacobian (docs/SPEC.md, Orientation); return ``(x, Jx)``.
 
     With R_e = R R_ref^T: e = log3(R_e), J_rot = Jlog3(R_e) R_e^T J[3:] (pinocchio's log3 and
     Jlog3); x = (p - p_ref, e) (6,), Jx = (J[:3]; J_rot) (6, n). p and p_ref None: the
