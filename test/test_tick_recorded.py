@@ -10,9 +10,13 @@ Jlog3, ``pose_error``) themselves since issue 32: the round-off differs from pin
 BLAS's by a few 1e-16, and the cascade's levels that are solved to DAQP's tolerance by many
 velocities (tanks empty) turn that into other points of the same optimal set. Measured on the
 LBR Table 4.1 loop after its stack switch: q_v 1.4e-9 rad, qdot_v 1.1e-7 rad/s, tank
-energies 2.2e-9 J from the numpy loop (the iiwa and iCub loops: under 3.1e-11). So the C
-kernels are held to the recorded numpy loop within ten times that; any change of what the
-tick computes moves these loops by orders of magnitude more.
+energies 2.2e-9 J from the numpy loop (the iiwa and iCub loops: under 3.1e-11). What bounds
+such a difference is DAQP's tolerance (primal_tol 1e-6), not the round-off, and this test
+runs only on the recording's platform, whose round-off differs from the machine that
+measured the numbers above. So the C kernels are held to the recorded numpy loop within ten
+times DAQP's tolerance in qdot_v and 1e-6 in q_v [rad] and the tank energies [J]. That still
+catches small changes: scaling the pose tasks' error by 1.001 moved q_v by 2.4e-5, 3.7e-3
+and 1.1e-3 rad in the three loops (measured here), 24 to 3700 times the bound.
 """
 
 import numpy as np
@@ -22,7 +26,7 @@ from tick_recording import DATA, RUNS, platform, run
 from ifc_spg import kernels
 
 #: |C loop - recorded numpy loop| allowed: q_v [rad], qdot_v [rad/s], tank energy [J]
-NATIVE_ATOL = (2e-8, 2e-6, 2e-8)
+NATIVE_ATOL = (1e-6, 1e-5, 1e-6)
 
 
 @pytest.mark.parametrize('impl', ['native', 'numpy'])
