@@ -793,15 +793,16 @@ def _numbers_3_7(r):
     first = onsets[0][0] if onsets else math.inf
     disp = np.linalg.norm(pos - pos[0], axis=1)
     before = t_js < first
+    peak = float(t_js[np.argmax(ang)])
 
     def part(x, m):
         return float(x[m].max()) if m.any() else None
     clamps = {'onsets': len(onsets), 'first_s': None if not onsets else first,
               'first_joint': None if not onsets else onsets[0][1],
-              'peak_s': float(t_js[np.argmax(ang)]),
+              'peak_s': peak,
               # the last clamp onset at or before the orientation peak: (s before it, joint)
-              'peak_onset': next(((float(t_js[np.argmax(ang)]) - tc, j) for tc, j in
-                                  reversed(onsets) if tc <= t_js[np.argmax(ang)]), None),
+              'peak_onset': next(((peak - tc, j) for tc, j in reversed(onsets) if tc <= peak),
+                                 None),
               'orientation_before_first_deg': part(ang, before),
               'orientation_within_deg': part(ang, window),
               'orientation_outside_deg': part(ang, ~window),
@@ -818,8 +819,7 @@ def _numbers_3_7(r):
             'left_hand_wipe_virtual_error_rms_m': _rms(ev[m]),
             'left_hand_y_range_m': float(np.ptp(lpos[:, 1])),
             'right_hand_orientation_error_max_deg': float(ang.max()),
-            'right_hand_displacement_max_m': float(np.max(np.linalg.norm(pos - pos[0],
-                                                                         axis=1))),
+            'right_hand_displacement_max_m': float(disp.max()),
             'torso_yaw_excursion_max_deg': drift['torso_yaw'], 'torso_drift_max_deg': drift,
             'clamps': clamps}
 

@@ -84,15 +84,14 @@ def _friction_spec(variant):
                    full_only=True)
 
 
-def _longest_stall(run, face, window=0.5, still=1e-3):
+def _longest_stall(run, pos, pos_v, face, window=0.5, still=1e-3):
     """The longest stall [s] of a run.
 
     A stall is a stretch of command samples at which the physical and the virtual tool each
     moved less than ``still`` [m] in the last ``window`` [s] while the virtual tool is beyond
-    the obstacle face (``face`` [m] along y from the start).
+    the obstacle face (``face`` [m] along y from the start). ``pos`` and ``pos_v``: the tool
+    positions of the run at q and q_v (:meth:`~experiments.harness.Run.tool_positions`).
     """
-    pos, _ = run.tool_positions()
-    pos_v, _ = run.tool_positions(virtual=True)
     t = np.asarray(run.s.t_js[:len(pos)], dtype=float)
     t_v = np.asarray(run.s.t_cmd[:len(pos_v)], dtype=float)
     p = pos[np.clip(np.searchsorted(t, t_v, side='right') - 1, 0, len(t) - 1)]
@@ -140,6 +139,7 @@ def _check_4_1(runs, quick):
         pos, _ = r.tool_positions()
         y_phys = float(np.max(pos[:, 1] - pos[0, 1]))
         pos_v, _ = r.tool_positions(virtual=True)
+        face = _obstacle_face(r)
         hit = r.s.t_cw[mf][np.argmax(f_y > 3.0)] if np.any(f_y > 3.0) else None
         tr = r.task('trajectory')
         ev, ep = _band_err(tr, comps=(0, 1))
@@ -151,11 +151,11 @@ def _check_4_1(runs, quick):
                   'max_obstacle_force_n': float(np.max(f_y)),
                   'obstacle_hit_s': None if hit is None else float(hit),
                   'max_virtual_y_m': float(np.max(pos_v[:, 1] - pos[0, 1])),
-                  'max_virtual_penetration_m': None if _obstacle_face(r) is None else
-                  max(0.0, float(np.max(pos_v[:, 1] - pos[0, 1])) - _obstacle_face(r)),
+                  'max_virtual_penetration_m': None if face is None else
+                  max(0.0, float(np.max(pos_v[:, 1] - pos[0, 1])) - face),
                   'virtual_y_travel_last_1s_m': _last_second_travel(r, pos_v[:, 1]),
-                  'longest_stall_s': None if _obstacle_face(r) is None else
-                  _longest_stall(r, _obstacle_face(r)),
+                  'longest_stall_s': None if face is None else
+                  _longest_stall(r, pos, pos_v, face),
                   'max_physical_y_m': y_phys,
                   'trajectory_error_rms_m': _rms(ep[m])}
         pen = out[v]['max_virtual_penetration_m']

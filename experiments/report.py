@@ -261,6 +261,15 @@ def _lift_span(n, keys):
     return f'{min(times):.1f}-{max(times):.1f}' if times else 'n/a'
 
 
+def _per_push(numbers, key, spec=None):
+    """``key`` of each push's return (:func:`experiments.ch3._check_cup`), ' / '-joined.
+
+    Formatted with ``spec``, or with :func:`_fmt` to 2 digits (None: 'n/a').
+    """
+    return ' / '.join(_fmt(x[key], digits=2) if spec is None else format(x[key], spec)
+                      for x in numbers['returns'])
+
+
 def _closest(o):
     return f"{o['closest_limit_deg']:.1f} deg from the limit of A{o['closest_limit_joint']}"
 
@@ -328,20 +337,15 @@ NOTE_FIELDS = {
                                      n['relaxed']['max_qdot_v_jump_rad_s'])},
     'table_3_5': {'virtual': lambda n: _fmt(n['max_virtual_orientation_error_deg'], digits=2)},
     'table_3_6': {'settle': lambda n: f"{n['settle_s']:g}",
-                  'r_end': lambda n: ' / '.join(f"{x['error_at_end_deg']:.1f}"
-                                                for x in n['returns']),
-                  'r_tau': lambda n: ' / '.join(_fmt(x['tau_s'], digits=2)
-                                                for x in n['returns']),
-                  'r_t3': lambda n: ' / '.join(f"{x['under_3deg_after_s']:.2f}"
-                                               for x in n['returns']),
+                  'r_end': lambda n: _per_push(n, 'error_at_end_deg', '.1f'),
+                  'r_tau': lambda n: _per_push(n, 'tau_s'),
+                  'r_t3': lambda n: _per_push(n, 'under_3deg_after_s', '.2f'),
                   'virtual': lambda n: _fmt(n['max_virtual_orientation_error_deg'], digits=2),
                   'h_pushed': lambda n: f"{n['half_push']['max_orientation_error_deg']:.1f}",
                   'h_settled': lambda n:
                       f"{n['half_push']['max_orientation_error_settled_deg']:.2f}",
-                  'h_end': lambda n: ' / '.join(f"{x['error_at_end_deg']:.1f}"
-                                                for x in n['half_push']['returns']),
-                  'h_t3': lambda n: ' / '.join(f"{x['under_3deg_after_s']:.2f}"
-                                               for x in n['half_push']['returns']),
+                  'h_end': lambda n: _per_push(n['half_push'], 'error_at_end_deg', '.1f'),
+                  'h_t3': lambda n: _per_push(n['half_push'], 'under_3deg_after_s', '.2f'),
                   'settled': lambda n: _fmt(n['max_orientation_error_settled_deg'])},
     'table_3_7': {
         'disp': lambda n: f"{n['right_hand_displacement_max_m'] * 1e3:.1f}",

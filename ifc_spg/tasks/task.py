@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from ifc_spg import kernels as _kernels
 from ifc_spg.errors import IfcSpgError
 from ifc_spg.tasks.bounds import INIT, Bound, as_bound
 
@@ -123,8 +122,6 @@ class Task(abc.ABC):
         # the bounds that take a value at activation (init, or a bound with its own activate)
         self._to_activate = [b is INIT or type(b).activate is not Bound.activate for b in
                              ((self._lower,) if self.equality else (self._lower, self._upper))]
-        #: The kernels of :meth:`level` (task_bounds: C and numpy give the same bits)
-        self._kernels = _kernels.active
 
     # -- to implement: compute_value and compute_jacobian ---------------------------------
     @abc.abstractmethod
@@ -219,7 +216,7 @@ class Task(abc.ABC):
         kd = None
         if self.velocity_gain:
             kd = self.velocity_gain * self.compute_measured_rate(kin)
-        beta_lo, beta_hi = self._kernels.task_bounds(
+        beta_lo, beta_hi = kin.kernels.task_bounds(
             self.gain, alpha, lo, lo_rate if ff is None else ff, hi, hi_ff,
             gamma if self.compensate_velocity and self.has_gamma else None, kd,
             self._zero_gain)
