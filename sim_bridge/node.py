@@ -482,6 +482,10 @@ class SimBridge:
             return
         if self.params.mode == 'lockstep':
             self.run_lockstep(max_ticks, ok=ok)
+            # (a lockstep tick steps only on the command answering its state)
+            self.node.get_logger().info(
+                f'lockstep: {self.ticks} tick(s), each on the command answering its state '
+                f'({self.commands_received} command(s) received)')
         else:
             stats = self.run_realtime(max_ticks, ok=ok)
             self.node.get_logger().info(

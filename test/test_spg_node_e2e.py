@@ -48,32 +48,39 @@ def test_bridge_spg_and_publisher_processes_reach_the_target(tmp_path, monkeypat
             ros.spin_until(lambda: False, 0.2, nodes=node)
         assert bridge.returncode == 0, log('sim_bridge')
         ticks = round(SIM_SECONDS / 0.002)
-        # every command (the states are the bridge's to deliver to the SPG; this listener is
-        # an observer: beside a CPU hog it lost 4 of 1500 states, a KEEP_LAST(10) writer's
-        # samples that an observer does not take in time, while the SPG answered all 1500)
-        assert ros.spin_until(lambda: len(commands) >= ticks, 10.0, nodes=node), \
-            (len(commands), len(states), log('spg_node'))
-        ros.spin_until(lambda: len(states) >= ticks, 2.0, nodes=node)
+        # One command per tick, answering each state by its stamp: the bridge says so, the
+        # robot's side (a lockstep tick steps only on the command answering its state). This
+        # listener is an observer of KEEP_LAST(10) writers and can miss samples it does not
+        # take in time: beside a CPU hog it lost 4 of 1500 states, and once on a quiet machine
+        # (a 59 ms stall) 8 of 1500 commands, while the bridge got all 1500.
+        assert f'lockstep: {ticks} tick(s), each on the command answering its state' in \
+            log('sim_bridge'), log('sim_bridge')
+        ros.spin_until(lambda: len(commands) >= ticks and len(states) >= ticks, 10.0,
+                       nodes=node)
     finally:
         procs.close()
         ros.shutdown()
     assert spg.returncode == 0  # a clean exit on SIGTERM
 
-    # One command per tick, answering each state by its stamp (the lockstep bridge re-sends a
-    # state it got no answer for; a repeated stamp is answered with the same command): the
-    # command stamps are the bridge's state stamps, the 2 ms grid from t = 0 without a gap,
-    # and each state this listener saw is one of them.
+    # The commands this listener saw carry the bridge's state stamps (the 2 ms grid from t = 0;
+    # the lockstep bridge re-sends a state it got no answer for, and a repeated stamp is
+    # answered with the same command), and each state it saw is one of them.
     command_stamps = sorted({stamp_ns(m) for m in commands})
-    grid = [round(k * 0.002 * 1e9) for k in range(len(command_stamps))]  # the bridge's stamps
-    assert command_stamps == grid and len(command_stamps) >= ticks
+    grid = [round(k * 0.002 * 1e9) for k in range(ticks)]  # the bridge's stamps
+    assert command_stamps and set(command_stamps) <= set(grid)
     state_stamps = {stamp_ns(m) for m in states}
     assert state_stamps <= set(grid) | {grid[-1] + 2_000_000}  # a last state may go unanswered
     q_v = np.array([m.position for m in commands])
     assert all(list(m.name) == list(robot.joint_names) for m in commands)
     assert np.all(np.isfinite(q_v)) and np.all(np.isfinite([m.velocity for m in commands]))
     assert np.all(q_v >= robot.q_min) and np.all(q_v <= robot.q_max)
-    steps = np.abs(np.diff(q_v, axis=0))
-    assert np.all(steps <= robot.v_max * 0.002 + 1e-12)  # never faster than v_max
+    # never faster than v_max: consecutive commands (stamps 2 ms apart) of those seen
+    by_stamp = {stamp_ns(m): np.array(m.position) for m in commands}
+    pairs = [(by_stamp[s], by_stamp[s + 2_000_000]) for s in by_stamp
+             if s + 2_000_000 in by_stamp]
+    assert len(pairs) >= ticks // 2
+    steps = np.abs(np.array([b - a for a, b in pairs]))
+    assert np.all(steps <= robot.v_max * 0.002 + 1e-12)
     # The simulated robot (not just q_v) reached the stack's target.
     q_final = np.array(max(states, key=stamp_ns).position)
     np.testing.assert_allclose(q_final, TARGET, atol=0.01)
