@@ -274,3 +274,70 @@ def test_every_product_topic_is_written_with_rosidls_type_hash(tmp_path):
     for t in topics:
         meta = t['topic_metadata']
         assert meta['type_description_hash'] == REGISTRY[meta['type']]._HASH, meta['name']
+
+
+class _SlowRecorder:
+    """A recorder that fell behind: ``backlog`` messages received before the stop, handed
+    over one per ``spin_once`` of ``per_message`` [s] (rclpy's executor on a busy machine),
+    then a live stream received after the stop."""
+
+    def __init__(self, backlog, per_message):
+        from types import SimpleNamespace
+
+        self.node = SimpleNamespace(get_logger=lambda: SimpleNamespace(warning=print))
+        self.before = [time.time_ns() - 1_000_000_000] * backlog
+        self.per_message, self.written, self.live = per_message, [], 0
+        self.newest_received_ns = 0
+
+    def spin_once(self, timeout_s):
+        time.sleep(self.per_message)
+        if self.before:
+            t = self.before.pop()
+        else:
+            self.live += 1
+            t = time.time_ns()
+        self.written.append(t)
+        self.newest_received_ns = max(self.newest_received_ns, t)
+        return 1
+
+    def drain(self):
+        return 0
+
+
+def test_stop_writes_the_whole_backlog_received_before_it():
+    """The recorder's stop writes every message received before it, however long the
+    backlog takes to spin out (it took > 1 s, the old cap, in a CI run), and ends on the
+    first message of a live stream received after it."""
+    from ifc_spg.live.bag import _flush
+
+    rec = _SlowRecorder(backlog=40, per_message=0.04)  # 1.6 s of backlog
+    _flush(rec)
+    assert len(rec.written) == 41 and rec.live == 1
+
+
+def test_play_keeps_what_a_slow_reader_has_not_acknowledged(tmp_path, monkeypatch):
+    """Volatile topics are played with a writer history of PLAY_DEPTH (a recorded depth of 10
+    lost 7-20 messages of a 1 kHz stream to a recorder starved for CPU); latched topics keep
+    their recorded depth (what a late subscriber gets)."""
+    from helpers import use_loopback
+
+    from ifc_spg import ros
+    from ifc_spg.live.bag import PLAY_DEPTH, _publishers
+
+    use_loopback(monkeypatch)
+    src = tmp_path / 'src'
+    _write_sample(src, n=2)
+    ros.init(['test'])
+    try:
+        node = ros.Node('player')
+        with BagReader(src) as bag:
+            pubs = _publishers(node, bag, None)
+        qos = {t: (p.qos if ros.BACKEND == 'cyclonedds' else p.qos_profile)
+               for t, p in pubs.items()}
+        assert qos['/joint_states'].depth == PLAY_DEPTH >= 1000
+        assert int(qos['/joint_states'].reliability) == int(TOPICS['joint_states'][1].reliability)
+        assert qos['/spg/task_stack'].depth == TOPICS['spg/task_stack'][1].depth
+        assert qos['/spg/task_stack'].durability.name == 'TRANSIENT_LOCAL'
+        node.destroy_node()
+    finally:
+        ros.shutdown()

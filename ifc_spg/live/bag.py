@@ -21,6 +21,7 @@ already received are written, then the MCAP index and ``metadata.yaml``. It also
 """
 
 from collections.abc import Collection
+import functools
 import importlib
 import signal
 import time
@@ -80,6 +81,8 @@ class _Recording:
     """
 
     _last_discovery = 0.0
+    #: Receive time [ns, system clock] of the newest message written (0: none yet).
+    newest_received_ns = 0
     # set by the recorders: the node (of either backend), the subscriptions (None: a topic
     # that cannot be recorded), the topics asked for, whether to record every topic
     node: Any
@@ -187,6 +190,8 @@ class Recorder(_Recording):
                 for data in samples:
                     self.writer.write(topic, t, data)
                 n += len(samples)
+                # one take holds every sample the reader had: all received by now
+                self.newest_received_ns = t
         return n
 
     def spin_once(self, timeout_s=0.1):
@@ -194,6 +199,12 @@ class Recorder(_Recording):
         self._waitset.wait(int(timeout_s * 1e9))
         self.node.context.guard.take()
         return self._write_and_discover()
+
+
+def _received(pending, topic, data, info):
+    """Keep ``(topic, receive time [ns], bytes)`` of an rclpy raw callback for drain()."""
+    t = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
+    pending.append((topic, t if t > 0 else time.time_ns(), data))
 
 
 def _rclpy_message_class(msgtype):
@@ -251,10 +262,11 @@ class RclpyRecorder(_Recording):
         reader_qos = ros.QoSProfile(depth=1000,
                                     reliability=ros.ReliabilityPolicy(int(qos.reliability)),
                                     durability=ros.DurabilityPolicy(int(qos.durability)))
-        pending = self._pending
+        # two parameters: rclpy passes the message info, with the time the DDS layer received
+        # the message (not the later time the executor ran the callback)
         self._subs[topic] = self.node.create_subscription(
-            cls, topic, lambda data, t=topic: pending.append((t, time.time_ns(), data)),
-            reader_qos, raw=True)
+            cls, topic, functools.partial(_received, self._pending, topic), reader_qos,
+            raw=True)
         self.writer.add_topic(topic, msgtype, qos)
 
 
@@ -273,6 +285,7 @@ class RclpyRecorder(_Recording):
         n = len(self._pending)
         for topic, t, data in self._pending:
             self.writer.write(topic, t, data)
+            self.newest_received_ns = max(self.newest_received_ns, t)
         self._pending.clear()
         return n
 
@@ -356,19 +369,35 @@ def record(path, topics=None, discover_all=False, duration=None, args=None, quie
     return dict(writer.counts)
 
 
-def _flush(rec, timeout_s=1.0):
-    """Write what already arrived: spin until 50 ms pass without a message (at most 1 s).
+#: At most this long [s] for writing, after a stop, what was received before it.
+FLUSH_TIMEOUT = 30.0
+
+
+def _flush(rec, timeout_s=FLUSH_TIMEOUT):
+    """Write every message received before the stop.
 
     Samples a reliable writer saw acknowledged sit in the reader; rclpy hands them over only
-    in callbacks, so a stop right after the last publish still spins them out.
+    in callbacks, one executor turn each, so a recorder that fell behind (a busy machine)
+    still holds a backlog at the stop. Spin until 50 ms pass without a message or a message
+    received after the stop is written (a live stream: the backlog is done); at most
+    ``timeout_s`` [s], with a warning.
     """
+    stop_ns = time.time_ns()
     deadline = time.monotonic() + timeout_s
-    while rec.spin_once(0.05) and time.monotonic() < deadline:
-        pass
+    while rec.spin_once(0.05) and rec.newest_received_ns <= stop_ns:
+        if time.monotonic() > deadline:
+            rec.node.get_logger().warning(
+                f'still writing messages received before the stop after {timeout_s} s; '
+                'closing the bag without the rest')
+            break
     rec.drain()
 
 
 # -- play ---------------------------------------------------------------------------------
+
+#: History depth of ``play``'s volatile publishers (latched topics keep their recorded depth,
+#: which is what a late subscriber receives): 2 s of a 500 Hz topic played at rate 2.
+PLAY_DEPTH = 2000
 
 def play(path, rate=1.0, delay=0.5, topics=None, args=None, wait_s=2.0, wait_subscribers=0,
          wait_timeout=30.0):
@@ -433,6 +462,12 @@ def _publishers(node, bag, topics):
             cls = _rclpy_message_class(msgtype)
         default = TOPICS.get(topic.lstrip('/'), (None, QoSProfile(depth=10)))[1]
         qos = from_rosbags_qos(profiles, default)
+        if qos.durability != DurabilityPolicy.TRANSIENT_LOCAL:
+            # the writer keeps what a reliable reader has not acknowledged yet: depth is no
+            # part of QoS matching, and a recorded depth of 10 at 1 kHz lets a reader that
+            # falls 10 ms behind (its UDP socket full) lose samples the writer dropped
+            qos = QoSProfile(depth=max(qos.depth, PLAY_DEPTH), reliability=qos.reliability,
+                             durability=qos.durability)
         if ros.BACKEND != 'cyclonedds':
             qos = ros.QoSProfile(depth=qos.depth,
                                  reliability=ros.ReliabilityPolicy(int(qos.reliability)),
