@@ -47,29 +47,21 @@ from plants import JointImpedancePlant
 from ifc_spg import RobotModel, SetPointGenerator, TaskStack, kernels
 from ifc_spg.cascade import daqp as daqp_cascade
 from ifc_spg.offline.runner import find_config_dir
+from ifc_spg.task_stack.trajectories import Anchor, Circle
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
-from ifc_spg.tasks.bounds import Bound
 
 __all__ = ['main', 'run_benchmarks']
 
 
 def _circle(center, radius, freq, plane=(1, 2), select=(0, 1, 2)):
-    """A circle in ``plane`` around ``center`` (3D); outputs the components ``select``."""
+    """A circle in ``plane`` around ``center`` (3D) on the task components ``select``.
+
+    The library's generator, which a YAML stack's ``{trajectory: circle}`` builds.
+    """
     select = list(select)
-
-    class Circle(Bound):
-        dim = len(select)
-
-        def evaluate(self, t):
-            w = 2 * np.pi * freq
-            v = np.array(center, dtype=float)
-            r = np.zeros(3)
-            v[plane[0]] += radius * np.cos(w * t)
-            v[plane[1]] += radius * np.sin(w * t)
-            r[plane[0]] = -radius * w * np.sin(w * t)
-            r[plane[1]] = radius * w * np.cos(w * t)
-            return v[select], r[select]
-    return Circle()
+    return Circle(len(select), plane=(select.index(plane[0]), select.index(plane[1])),
+                  radius=radius, frequency=freq,
+                  center=Anchor(np.asarray(center, dtype=float)[list(plane)]))
 
 
 def _tool_pose(robot, q, frame):
