@@ -218,6 +218,7 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
     bags = tmp_path / 'stall', tmp_path / 'switch'
     procs = ProcessGroup(tmp_path, env)
     node, status, sim_t, spin_until, accepted = _listener()
+    node.create_publisher(ros_msg.Float64MultiArray, 'spg/state', ros.latched(1))  # as the SPG's
 
     def stalled():
         return any((s.get('pspm') or {}).get('stall') for s in status[-5:])
@@ -226,6 +227,13 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
         rec = procs.start(bag.name, 'bag', 'record', '-o', str(bag), exe='ifc-spg')
         assert spin_until(lambda: 'recording' in procs.log(bag.name) or
                           rec.poll() is not None, 60.0) and rec.poll() is None, \
+            procs.log(bag.name)
+        # and its reader of spg/state is on the graph (the replay starts from the first
+        # recorded SPG state: seen on a loaded machine, a recorder whose spg/state reader the
+        # SPG found 0.7 s after its joint_states one, 88 commands left in the window)
+        # (this node's publisher on spg/state, which never publishes, sees the readers on
+        # both backends; the built-in one counts the readers its own writers matched)
+        assert spin_until(lambda: node.count_subscribers('spg/state') >= 1, 30.0), \
             procs.log(bag.name)
 
     def run_for(seconds):

@@ -241,6 +241,7 @@ class RclpyRecorder(_Recording):
         self.node, self.writer, self.discover_all = node, writer, discover_all
         self._executor = ros.executor((node,))
         self._subs, self._wanted, self._pending = {}, set(), []
+        self._last_ns: dict[str, int] = {}  # the last log time written per topic
         if topics is None:
             self._references = _absolute(node, 'spg/reference').rstrip('/') + '/'
         for topic in (TOPICS if topics is None else topics):
@@ -283,7 +284,11 @@ class RclpyRecorder(_Recording):
     def drain(self):
         """Write what arrived; the number of messages written."""
         n = len(self._pending)
+        last = self._last_ns
         for topic, t, data in self._pending:
+            # a sample a reliable writer sent again arrives after the ones behind it but is
+            # handed over in order: its topic's log times stay in order
+            t = last[topic] = max(t, last.get(topic, 0))
             self.writer.write(topic, t, data)
             self.newest_received_ns = max(self.newest_received_ns, t)
         self._pending.clear()
