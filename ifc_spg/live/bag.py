@@ -6,15 +6,19 @@
 
 The bags are :mod:`ifc_spg.offline.bag`'s (its :class:`~ifc_spg.offline.bag.BagWriter` and
 :class:`~ifc_spg.offline.bag.BagReader`); this module is the live side, over either ROS
-backend (:mod:`ifc_spg.ros`). ``play`` republishes each topic with the QoS its publishers
-offered when it was recorded (the latched ``spg/task_stack`` stays latched).
+backend (:mod:`ifc_spg.ros`). ``play`` republishes each topic with the reliability and
+durability its publishers offered when it was recorded (the latched ``spg/task_stack`` stays
+latched, with its recorded depth); volatile topics keep :data:`PLAY_DEPTH` samples for
+readers that fell behind, so a reliable reader on a busy machine loses none.
 
 ``record`` with no topics records the topics of ARCHITECTURE.md "Topics" (relative names,
 resolved in the node's namespace) and every streamed task reference under
 ``spg/reference/``; types of known topics are fixed, other topics are discovered on the DDS
 graph. It writes every message it receives with its receive time and
 closes the bag cleanly on SIGINT/SIGTERM (and after ``--duration`` seconds): messages
-already received are written, then the MCAP index and ``metadata.yaml``. It also writes
+received before the stop are written, however far behind the recorder was (at most
+:data:`FLUSH_TIMEOUT` s), then the MCAP index and ``metadata.yaml``. A message's log time is
+the time the DDS layer received it (rclpy; the built-in backend: when it was taken). It also writes
 ``/robot_description``, ``/tf_static`` and ``/tf`` computed from the recorded
 ``joint_states`` (and ``command/joint_position`` as the ``virtual/`` tree) of the robot
 ``--robot`` or ``spg/config`` names (:mod:`ifc_spg.offline.foxglove`; ``--no-tf``: not).
