@@ -69,11 +69,13 @@ class _Listener:
 
     Args:
         backend: 'rclpy' or 'cyclonedds'.
+        subscribe: Subscribe to the states and commands (a third reader of each, as a
+            recorder would be); False: a node that only spins (the run unobserved).
     """
 
-    def __init__(self, backend):
+    def __init__(self, backend, subscribe=True):
         self.states, self.commands = set(), set()
-        self.backend = backend
+        self.backend, self.subscribed = backend, subscribe
         if backend == 'rclpy':  # optional: only where the Jazzy wheels are installed
             import rclpy
             from rclpy.context import Context
@@ -90,7 +92,7 @@ class _Listener:
             self.context = dds.Context(['latency_bench'])
             self.node = dds.Node('latency_bench', context=self.context)
             self.executor = self.context.executor((self.node,))
-        self.subs = [
+        self.subs = [] if not subscribe else [
             self.node.create_subscription(
                 JointState, 'joint_states',
                 lambda m: self.states.add(_stamp(m)), 100),
@@ -150,7 +152,7 @@ def baseline(rate=500.0, seconds=10.0, clock=time.perf_counter):
 
 
 def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, rate=500.0,
-        spg_path='wait_set', bridge_path='wait_set'):
+        spg_path='wait_set', bridge_path='wait_set', listen=False):
     """Run the bridge and the SPG for ``seconds`` [s] of realtime; return the results dict.
 
     Args:
@@ -164,6 +166,9 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, 
             (ignored on the built-in backend).
         bridge_path: How a bridge on rclpy serves its commands: its ``hot_path`` parameter,
             'wait_set' or 'executor' (ignored on the built-in backend).
+        listen: This process subscribes to the states and commands too (a third process
+            reading both topics, as a recorder; it costs the SPG a second command reader and
+            the machine the listener's CPU).
     """
     bridge_backend = bridge_backend or ros.BACKEND
     spg_backend = spg_backend or ros.BACKEND
@@ -177,7 +182,7 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, 
     os.environ.update(envs[spg_backend])  # the listener's domain and loopback settings
     tmp = Path(tempfile.mkdtemp(prefix='latency_bench.'))
     (tmp / 'reach.yaml').write_text(STACK)
-    listener = _Listener(spg_backend)
+    listener = _Listener(spg_backend, subscribe=listen)
     try:
         _run_processes(listener, tmp, envs, spg_env, seconds, stream, bridge_backend,
                        spg_backend, rate, hot_path, bridge_path)
@@ -191,6 +196,7 @@ def run(seconds=60.0, stream=sys.stderr, bridge_backend=None, spg_backend=None, 
     res = _results(listener, tmp, seconds, bridge_backend, spg_backend, rate)
     res['spg_path'] = spg_path if spg_backend == 'rclpy' else 'built-in'
     res['bridge_path'] = bridge_path if bridge_backend == 'rclpy' else 'built-in'
+    res['listener'] = listen
     return res
 
 
@@ -265,10 +271,11 @@ def _results(listener, tmp, seconds, bridge_backend, spg_backend, rate):
         'spg_backend': spg_backend,
         'seconds': seconds,
         'rate': rate,
-        'states': len(listener.states),
-        'commands': len(listener.commands),
+        'states': len(listener.states) if listener.subscribed else None,
+        'commands': len(listener.commands) if listener.subscribed else None,
         'expected_ticks': round(seconds * rate),
-        'missed_here': len(listener.states - listener.commands),
+        'missed_here': len(listener.states - listener.commands) if listener.subscribed
+        else None,
         # the bridge's own clock: its state published -> the command answering it received
         'latency_ms': dict(zip(('p50', 'p99', 'max'), map(float, measured.groups())))
         if measured else None,
@@ -343,6 +350,10 @@ def main(argv=None):
                         help='run this process (the baseline, the listener) and the bridge and '
                              'SPG at this nice value, e.g. -10 as the tests and a robot PC do '
                              '(needs root or CAP_SYS_NICE; default: as started)')
+    parser.add_argument('--listener', default='off',
+                        help="'off' (default: bridge and SPG alone), 'on' (this process also "
+                             "subscribes to the states and commands, as a recorder would) or "
+                             "'both' (each run twice, without and with)")
     parser.add_argument('--json', action='store_true', help='print the results as JSON')
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if opts.nice is not None:
@@ -350,6 +361,9 @@ def main(argv=None):
     rates = _list(opts.rate, '--rate', kind=float)
     paths = _list(opts.spg_paths, '--spg-paths', SPG_PATHS)
     bridge_paths = _list(opts.bridge_paths, '--bridge-paths', ros.HOT_PATHS)
+    listens = {'off': [False], 'on': [True], 'both': [False, True]}.get(opts.listener)
+    if listens is None:
+        parser.error(f"--listener: '{opts.listener}' is not off, on or both")
     try:
         import rclpy  # noqa: F401 -- optional: is it installed?
         have_rclpy = True
@@ -362,11 +376,10 @@ def main(argv=None):
             print(f'latency_bench: machine baseline, a sleep loop at {rate:g} Hz for '
                   f'{base_seconds:g} s', file=sys.stderr, flush=True)
             baselines[rate] = baseline(rate, base_seconds)
-        for b, s in _pairs(opts.pairs, have_rclpy):
-            for bridge_path in (bridge_paths if b == 'rclpy' else ['wait_set']):
-                for path in (paths if s == 'rclpy' else ['wait_set']):
-                    results.append(run(opts.seconds, bridge_backend=b, spg_backend=s,
-                                       rate=rate, spg_path=path, bridge_path=bridge_path))
+        results += [run(opts.seconds, bridge_backend=b, spg_backend=s, rate=rate, spg_path=path,
+                        bridge_path=bridge_path, listen=listen)
+                    for b, s, bridge_path, path, listen in _runs(
+                        _pairs(opts.pairs, have_rclpy), bridge_paths, paths, listens)]
     if opts.json:
         print(json.dumps({'load_average': os.getloadavg(), 'nice': os.getpriority(
             os.PRIO_PROCESS, 0), 'baselines': list(baselines.values()), 'runs': results},
@@ -376,17 +389,26 @@ def main(argv=None):
     return 0 if all(res['latency_ms'] for res in results) else 1
 
 
+def _runs(pairs, bridge_paths, spg_paths, listens):
+    """(bridge backend, SPG backend, bridge path, SPG path, listen) of each run, in order."""
+    return [(b, s, bridge_path, path, listen) for b, s in pairs
+            for bridge_path in (bridge_paths if b == 'rclpy' else ['wait_set'])
+            for path in (spg_paths if s == 'rclpy' else ['wait_set'])
+            for listen in listens]
+
+
 def _print_table(results, baselines):
     """One line per rate's baseline and per run; x base: the run's value over the baseline's."""
     nan = float('nan')
     load = os.getloadavg()
     print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, nice '
           f'{os.getpriority(os.PRIO_PROCESS, 0)}')
-    print('rate  bridge      path       spg         path       states  p50 ms  p99 ms  max ms  '
+    print('rate  bridge      path       spg         path       listener  p50 ms  p99 ms  max ms  '
           'missed  missed %  x base  p99 x base  SPG CPU us/tick')
     for rate, base in baselines.items():
         over = base['overshoot_us']
-        print(f"{rate:>4g}  baseline: sleep loop                          {base['periods']:>6} "
+        label = f"baseline: sleep loop, {base['periods']} periods"
+        print(f"{rate:>4g}  {label:<54}"
               f"{over['p50'] / 1e3:>7.3f} {over['p99'] / 1e3:>7.3f} {over['max'] / 1e3:>7.3f} "
               f"{base['missed']:>7} {base['missed_pct']:>9.3f}")
     for res in results:
@@ -398,7 +420,8 @@ def _print_table(results, baselines):
                   _ratio(lat['p99'] * 1e3, base['overshoot_us']['p99'])) if base else ''
         print(f"{res['rate']:>4g}  {res['bridge_backend']:<11} {res['bridge_path']:<10} "
               f"{res['spg_backend']:<11} "
-              f"{res['spg_path']:<9} {res['states']:>7} {lat['p50']:>7.3f} {lat['p99']:>7.3f} "
+              f"{res['spg_path']:<9} {'on' if res['listener'] else 'off':>8} "
+              f"{lat['p50']:>7.3f} {lat['p99']:>7.3f} "
               f"{lat['max']:>7.3f} {missed if missed is not None else '?':>7} {share:>9.3f} "
               f"{ratios or ' ' * 17}  {res['spg_cpu_us_per_tick'] or nan:>10.0f}")
 

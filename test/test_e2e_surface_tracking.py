@@ -462,16 +462,19 @@ def test_killed_bridge_and_killed_spg_restart_without_a_jump(tmp_path, monkeypat
 @pytest.mark.realtime
 def test_latency_bench_smoke():
     """``python -m benchmarks.latency_bench`` (realtime bridge + SPG over DDS, on this process's
-    backend), 3 s at 500 Hz (the SPG's default hot path) and 2 s at 1 kHz (rclpy: the
-    executor path): the bridge measures every command's latency on its own clock; the
-    machine baseline paces a sleep loop."""
+    backend), 3 s at 500 Hz (the SPG's default hot path, this process listening) and 2 s at
+    1 kHz (rclpy: the executor path; unobserved): the bridge measures every command's latency
+    on its own clock; the machine baseline paces a sleep loop."""
     from benchmarks.latency_bench import baseline, run
     from ifc_spg import ros
 
-    for seconds, rate, path, ticks in ((3.0, 500.0, 'wait_set', 1500),
-                                       (2.0, 1000.0, 'executor', 2000)):
-        res = run(seconds, rate=rate, spg_path=path)
+    for seconds, rate, path, ticks, listen in ((3.0, 500.0, 'wait_set', 1500, True),
+                                               (2.0, 1000.0, 'executor', 2000, False)):
+        res = run(seconds, rate=rate, spg_path=path, listen=listen)
         assert res['bridge_backend'] == res['spg_backend'] == ros.BACKEND
+        # a listening run saw states and commands on its own subscriptions; a quiet one none
+        assert (min(res['states'], res['commands']) > 0) if listen else \
+            res['states'] is res['commands'] is None, res
         assert res['expected_ticks'] == ticks
         lat = res['latency_ms']
         assert lat is not None, res['logs']
