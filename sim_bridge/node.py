@@ -43,7 +43,7 @@ import numpy as np
 from ifc_spg import ros
 from ifc_spg.errors import IfcSpgError, ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
-from ifc_spg.ros import HOT_PATHS, msg
+from ifc_spg.ros import COMMAND_INTERFACES, HOT_PATHS, msg
 from ifc_spg.ros.parameters import declare_checked
 from ifc_spg.ros.protocols import Node as RosNode
 from ifc_spg.ros.signals import StopSignals
@@ -80,8 +80,6 @@ class BridgeParams:
     fri_delay: int = 0
     hot_path: str = 'wait_set'
 
-
-COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 
 _DESCRIPTIONS = {
     'state_rate': 'joint_states rate in [Hz] in realtime mode (0: the command rate); rate / '

@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 from ifc_spg.errors import ParameterError, did_you_mean
 from ifc_spg.model import robot_gains
 from ifc_spg.pspm import PspmConfig
-from ifc_spg.ros import HOT_PATHS
+from ifc_spg.ros import COMMAND_INTERFACES, HOT_PATHS
 from ifc_spg.ros.protocols import Node as RosNode
 
 __all__ = ['SpgConfig', 'Param', 'PARAMETERS', 'SOLVERS', 'declare_parameters',
@@ -243,7 +243,6 @@ PARAMETERS = (
     Param('markers.frame', 'markers_frame',
           "Frame id of spg/markers: the robot's base frame in your tf tree"),
 )
-COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 TICKS = ('joint_states', 'timer')
 
 _DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(SpgConfig)}  # field -> default

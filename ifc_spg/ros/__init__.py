@@ -34,7 +34,7 @@ from ifc_spg.ros.ros_args import RosArgs, parse_ros_args, remove_ros_args
 
 __all__ = [
     'BACKEND', 'RMW', 'init', 'shutdown', 'ok', 'Node', 'spin', 'spin_hot', 'spin_once',
-    'spin_until', 'HotPath', 'HOT_PATHS',
+    'spin_until', 'HotPath', 'HOT_PATHS', 'COMMAND_INTERFACES',
     'executor', 'new_context', 'describe', 'wait_for_acks', 'QoSProfile', 'ReliabilityPolicy',
     'DurabilityPolicy', 'HistoryPolicy', 'qos_profile_sensor_data', 'latched',
     'ParameterDescriptor', 'FloatingPointRange', 'IntegerRange', 'Parameter',
@@ -48,6 +48,10 @@ ROSPY_WHEELS = ('ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-sensor-msg
 #: How a node serves its hot subscription on rclpy (the ``hot_path`` parameter of spg_node and
 #: sim_bridge): its own wait (:class:`HotPath`) or rclpy's executor
 HOT_PATHS = ('wait_set', 'executor')
+
+#: The command topic's message types (spg_node's ``command.interface``, sim_bridge's
+#: ``command_interface``): JointState, Float64MultiArray, JointTrajectory
+COMMAND_INTERFACES = ('joint_state', 'float64_multi_array', 'joint_trajectory')
 
 
 def _choice() -> str:
@@ -105,7 +109,8 @@ if TYPE_CHECKING:
         wait_for_acks,
     )
 
-_OWN = frozenset(('describe', 'parse_ros_args', 'remove_ros_args', 'RosArgs', 'HOT_PATHS'))
+_OWN = frozenset(('describe', 'parse_ros_args', 'remove_ros_args', 'RosArgs', 'HOT_PATHS',
+                  'COMMAND_INTERFACES'))
 _BACKEND_NAMES = tuple(name for name in __all__ if name not in _OWN)
 
 
