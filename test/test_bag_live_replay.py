@@ -229,8 +229,8 @@ def test_live_bags_of_a_stalling_stack_and_a_switch_replay_exactly(tmp_path, mon
                           rec.poll() is not None, 60.0) and rec.poll() is None, \
             procs.log(bag.name)
         # and its reader of spg/state is on the graph (the replay starts from the first
-        # recorded SPG state: seen on a loaded machine, a recorder whose spg/state reader the
-        # SPG found 0.7 s after its joint_states one, 88 commands left in the window)
+        # recorded SPG state: seen on a loaded machine, 350 joint states, 0.7 s, recorded
+        # before the first spg/state, and 88 commands left in the window)
         # (this node's publisher on spg/state, which never publishes, sees the readers on
         # both backends; the built-in one counts the readers its own writers matched)
         assert spin_until(lambda: node.count_subscribers('spg/state') >= 1, 30.0), \
