@@ -7,6 +7,7 @@ built-in Cyclone DDS backend) in one invocation::
     python -m benchmarks.latency_bench [--seconds 60] [--rate 500,1000]
                                           [--pairs all|same|BRIDGE:SPG,...]
                                           [--spg-paths wait_set,executor,events]
+                                          [--listener off|on|both]
                                           [--baseline-seconds S] [--nice N] [--json]
 
 ``--spg-paths`` runs each pairing with the SPG on rclpy once per way of serving its joint
@@ -23,9 +24,11 @@ The latency of a tick is measured by the bridge on its own clock: from publishin
 receiving the command answering it (same header stamp) — the bridge's publish, the SPG's tick
 and the command's way back over loopback DDS, as the robot sees it. Reported per pairing:
 p50/p99/max [ms], missed periods (the bridge's count of command periods without a new
-command, from its exit line; the goal on an idle machine is <= 0.1 % over 60 s), the states
-and commands this process saw (a listener on the SPG's backend), the bridge's pacing, and
-the SPG process' CPU time per tick over the run (all its threads; Linux).
+command, from its exit line; the goal on an idle machine is <= 0.1 % over 60 s), the bridge's
+pacing, and the SPG process' CPU time per tick over the run (all its threads; Linux). With
+``--listener on`` this process also subscribes to the states and commands and counts what it
+saw: a third reader of both topics, as a recorder would be, which costs the SPG a second
+command publish and the machine this process' executor (off by default: the two nodes alone).
 """
 
 import argparse
