@@ -99,14 +99,15 @@ class CartesianPoseTask(Task):
         view.setflags(write=False)
         return view
 
-    def activate(self, kin: Kinematics) -> None:
-        """Capture R_ref (``'init'``) and p_ref (``relative``), then the ``init`` bounds."""
+    _value_is_computed = True
+
+    def _capture(self, kin: Kinematics) -> None:
+        """Capture R_ref (``'init'``) and p_ref (``relative``) before the ``init`` bounds."""
         p, R, _ = kin.frame(self.frame_id, virtual=True)
         if self._R_ref is None:
             self._R_ref = R.copy()
         if self.relative:
             self._p_ref = p.copy()
-        super().activate(kin)
 
     def _S_base(self, R: np.ndarray) -> np.ndarray:
         return subspace_in_base(self.S, self.subspace_frame, R)

@@ -49,6 +49,8 @@ class JointPositionTask(Task):
         self._zero = np.zeros(self.dim)
         self._zero.setflags(write=False)
 
+    _value_is_computed = True
+
     def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(q_v[i], A, 0)`` in one computation (gamma is zero: a position task)."""
         return kin.q_v[self.indices], self._A, self._zero

@@ -55,6 +55,8 @@ class JointTorqueTask(Task):
         # all joints in model order (the usual case): no index arrays
         self._all = bool(np.array_equal(self.indices, np.arange(robot.n)))
 
+    _value_is_computed = True
+
     def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(tau_s, A, gamma)`` of the selected joints in one computation."""
         i = self.indices

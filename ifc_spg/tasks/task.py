@@ -163,8 +163,20 @@ class Task(abc.ABC):
         """True once :meth:`activate` captured the ``init`` values."""
         return self._active_lower is not None
 
+    #: ``compute_value(kin)`` is ``compute(kin)[0]``: a level's first build activates its
+    #: bounds with the value it computes anyway (set by the subclasses where it holds)
+    _value_is_computed = False
+
     def activate(self, kin: Kinematics) -> None:
         """Capture ``init`` bounds from the current value; called when the stack starts."""
+        self._capture(kin)
+        self._activate_bounds(kin, None)
+
+    def _capture(self, kin: Kinematics) -> None:  # noqa: B027 -- a hook, empty by default
+        """Capture what the task value depends on at activation (subclasses: references)."""
+
+    def _activate_bounds(self, kin: Kinematics, value: np.ndarray | None) -> None:
+        """Activate the bounds at the task value ``value`` (None: ``compute_value(kin)``)."""
         if True not in self._to_activate:  # (the bounds as given)
             self._active_lower, self._active_upper = self._lower, self._upper
             return
@@ -173,8 +185,9 @@ class Task(abc.ABC):
         # an equality's upper bound is its lower one (activated once)
         for b, to_activate in zip((self._lower, self._upper), self._to_activate):
             if to_activate:
-                if init is None:
-                    init = np.array(self.compute_value(kin), dtype=float)
+                if init is None:  # (a copy: a bound may keep it, the value's buffer not)
+                    init = np.array(self.compute_value(kin) if value is None else value,
+                                    dtype=float)
                 b = b.activate(init)
             bounds.append(b)
         self._active_lower = bounds[0]
@@ -198,9 +211,16 @@ class Task(abc.ABC):
 
     def level(self, kin: Kinematics, t: float) -> Level:
         """Build this task's :class:`Level` at task time ``t`` in [s]."""
-        if self._active_lower is None:
-            self.activate(kin)
-        alpha, A, gamma = self.compute(kin)
+        if self._active_lower is None:  # the first build after the stack started
+            if self._value_is_computed:
+                self._capture(kin)
+                alpha, A, gamma = self.compute(kin)
+                self._activate_bounds(kin, alpha)
+            else:
+                self.activate(kin)
+                alpha, A, gamma = self.compute(kin)
+        else:
+            alpha, A, gamma = self.compute(kin)
         lower, upper = self._active_lower, self._active_upper
         if lower is None or upper is None:
             lower, upper = self._active_bounds()  # raises: not active

@@ -50,6 +50,8 @@ class WrenchTask(Task):
         super().__init__(robot, dim=S.shape[1], **kwargs)
         self._rows = selected_rows(S, subspace_frame)  # base axes: St @ x is x[rows]
 
+    _value_is_computed = True
+
     def compute(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(S^T h_s, S^T A, S^T gamma)`` in one computation."""
         h, A, g, R = static_wrench(self.robot, kin, self.frame, self.include_damping)
