@@ -353,6 +353,11 @@ def main(argv=None):
                         help='run this process (the baseline, the listener) and the bridge and '
                              'SPG at this nice value, e.g. -10 as the tests and a robot PC do '
                              '(needs root or CAP_SYS_NICE; default: as started)')
+    parser.add_argument('--fifo', type=int, default=None,
+                        help='run this process (the baseline, the listener) and the bridge and '
+                             'SPG under SCHED_FIFO at this priority (1-99), as `chrt -f PRIO '
+                             'ros2 run ...` on a robot PC (needs root or CAP_SYS_NICE; default: '
+                             'as started)')
     parser.add_argument('--listener', default='off',
                         help="'off' (default: bridge and SPG alone), 'on' (this process also "
                              "subscribes to the states and commands, as a recorder would) or "
@@ -361,6 +366,11 @@ def main(argv=None):
     opts = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if opts.nice is not None:
         os.setpriority(os.PRIO_PROCESS, 0, opts.nice)  # inherited by the bridge and the SPG
+    if opts.fifo is not None:  # inherited by the bridge and the SPG, all their threads
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(opts.fifo))
+        except (OSError, ValueError) as exc:
+            parser.error(f'--fifo {opts.fifo}: {exc} (a priority 1-99; root or CAP_SYS_NICE)')
     rates = _list(opts.rate, '--rate', kind=float)
     paths = _list(opts.spg_paths, '--spg-paths', SPG_PATHS)
     bridge_paths = _list(opts.bridge_paths, '--bridge-paths', ros.HOT_PATHS)

@@ -204,6 +204,9 @@ def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, mo
 
         assert wait(lambda: 'tool' in cockpit.gizmos and cockpit.q is not None, 90.0), \
             procs.log('spg_node') + procs.log('sim_bridge')
+        # the one move below is one message: sent before the gizmo's new publisher matched
+        # the SPG's stream reader, it would be lost (a drag in the page sends many)
+        assert wait(lambda: cockpit._pubs['tool'].get_subscription_count() >= 1, 30.0)
         pin.framesForwardKinematics(robot.model, data, cockpit.q)
         start = data.oMf[tool].translation.copy()
         goal = start + [0.0, 0.08, -0.05]
