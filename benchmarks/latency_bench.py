@@ -8,7 +8,8 @@ built-in Cyclone DDS backend) in one invocation::
                                           [--pairs all|same|BRIDGE:SPG,...]
                                           [--spg-paths wait_set,executor,events]
                                           [--listener off|on|both]
-                                          [--baseline-seconds S] [--nice N] [--json]
+                                          [--baseline-seconds S] [--nice N] [--fifo PRIO]
+                                          [--json]
 
 ``--spg-paths`` runs each pairing with the SPG on rclpy once per way of serving its joint
 states: ``wait_set`` (the node's default, ``hot_path:=wait_set``), ``executor``
@@ -395,11 +396,19 @@ def main(argv=None):
                         _pairs(opts.pairs, have_rclpy), bridge_paths, paths, listens)]
     if opts.json:
         print(json.dumps({'load_average': os.getloadavg(), 'nice': os.getpriority(
-            os.PRIO_PROCESS, 0), 'baselines': list(baselines.values()), 'runs': results},
+            os.PRIO_PROCESS, 0), 'fifo': _fifo_priority(), 'baselines': list(baselines.values()),
+            'runs': results},
                          indent=1))
     else:
         _print_table(results, baselines)
     return 0 if all(res['latency_ms'] for res in results) else 1
+
+
+def _fifo_priority():
+    """This process' SCHED_FIFO priority, or None under another policy."""
+    if os.sched_getscheduler(0) != os.SCHED_FIFO:
+        return None
+    return os.sched_getparam(0).sched_priority
 
 
 def _runs(pairs, bridge_paths, spg_paths, listens):
@@ -414,8 +423,9 @@ def _print_table(results, baselines):
     """One line per rate's baseline and per run; x base: the run's value over the baseline's."""
     nan = float('nan')
     load = os.getloadavg()
+    fifo = _fifo_priority()
     print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, nice '
-          f'{os.getpriority(os.PRIO_PROCESS, 0)}')
+          f"{os.getpriority(os.PRIO_PROCESS, 0)}{'' if fifo is None else f', SCHED_FIFO {fifo}'}")
     print('rate  bridge      path       spg         path       listener  p50 ms  p99 ms  max ms  '
           'missed  missed %  x base  p99 x base  SPG CPU us/tick')
     for rate, base in baselines.items():

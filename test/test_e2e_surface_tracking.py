@@ -486,3 +486,16 @@ def test_latency_bench_smoke():
     assert base['periods'] == 200 and 0 <= base['missed'] < 200
     over = base['overshoot_us']
     assert 0 <= over['p50'] <= over['p99'] <= over['max']
+
+
+def test_latency_bench_refuses_a_fifo_priority_outside_1_to_99(capsys):
+    """``--fifo 0`` (SCHED_FIFO takes 1-99) stops with a usage error naming the option, before
+    any run starts."""
+    from benchmarks.latency_bench import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(['--fifo', '0', '--seconds', '1', '--baseline-seconds', '0'])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert '--fifo 0' in err and '1-99' in err
+    assert 'latency_bench: realtime run' not in err
