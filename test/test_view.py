@@ -145,7 +145,7 @@ def _settled_view(page, accept, timeout=120.0, still=1.0, every=0.25):
 
 @pytest.mark.realtime  # software WebGL: the cores to itself (14-64 s a shot when loaded)
 @pytest.mark.skipif(CHROMIUM is None, reason='no chromium (apt-get install chromium)')
-def test_a_real_browser_draws_the_robot_and_it_moves(cockpit):
+def test_a_real_browser_draws_the_robot_and_it_moves(cockpit, tmp_path):
     """One page in Debian's chromium (driven by Playwright): the robot is drawn, and moving the
     time slider (as the page's own slider does) moves it in that same page."""
     from playwright.sync_api import sync_playwright
@@ -161,8 +161,10 @@ def test_a_real_browser_draws_the_robot_and_it_moves(cockpit):
             page.goto(cockpit.url)
             # not a blank canvas nor the grid alone (std 7.6): shaded, coloured robot links
             first = _settled_view(page, lambda img: img.std() > 10)
+            page.screenshot(path=tmp_path / 'first.png')  # the whole page, as the README's
             cockpit.slider.value = len(cockpit.data.t) - 1
             last = _settled_view(page, lambda img: not np.array_equal(img, first))
+            page.screenshot(path=tmp_path / 'last.png')
         finally:
             browser.close()
     assert last.std() > 10, last.std()
