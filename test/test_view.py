@@ -180,7 +180,7 @@ def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, mo
     publishes the target and the simulated robot's tool reaches it."""
     import time
 
-    from helpers import CONFIG, use_loopback
+    from helpers import CONFIG, use_loopback, wait_for
     from ros_testing import ProcessGroup
 
     from ifc_spg.tools.view import LiveCockpit
@@ -200,17 +200,11 @@ def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, mo
                              'scene:=free', '-p', 'mode:=lockstep', '-p', 'duration:=600.0',
                              '-p', 'wait_for_subscribers:=2')
 
-        def wait(condition, timeout):
-            deadline = time.monotonic() + timeout
-            while not condition() and time.monotonic() < deadline:
-                time.sleep(0.05)
-            return condition()
-
-        assert wait(lambda: 'tool' in cockpit.gizmos and cockpit.q is not None, 90.0), \
+        assert wait_for(lambda: 'tool' in cockpit.gizmos and cockpit.q is not None, 90.0), \
             procs.log('spg_node') + procs.log('sim_bridge')
         # the one move below is one message: sent before the gizmo's new publisher matched
         # the SPG's stream reader, it would be lost (a drag in the page sends many)
-        assert wait(lambda: cockpit._pubs['tool'].get_subscription_count() >= 1, 30.0)
+        assert wait_for(lambda: cockpit._pubs['tool'].get_subscription_count() >= 1, 30.0)
         pin.framesForwardKinematics(robot.model, data, cockpit.q)
         start = data.oMf[tool].translation.copy()
         goal = start + [0.0, 0.08, -0.05]
@@ -220,7 +214,7 @@ def test_live_gizmo_moves_the_streamed_target_and_the_robot_follows(tmp_path, mo
             pin.framesForwardKinematics(robot.model, data, cockpit.q)
             return np.linalg.norm(data.oMf[tool].translation - goal) < 0.005
 
-        wait(lambda: tool_at_goal() or bridge.poll() is not None, 120.0)
+        wait_for(lambda: tool_at_goal() or bridge.poll() is not None, 120.0)
         assert bridge.poll() is None, procs.log('sim_bridge')  # still running: it got there
         time.sleep(0.5)  # and stays (a tool passing through would be off it below)
         stopped, log = procs.stop('sim_bridge'), procs.log('sim_bridge')
