@@ -312,6 +312,36 @@ def test_deactivate_recaptures_init_targets_at_the_next_level():
     np.testing.assert_allclose(fresh.lower, 0.0, atol=1e-12)
 
 
+def test_deactivate_recaptures_the_init_orientation_and_relative_position():
+    """A restarted stack holds the pose of its restart, not of its first start.
+
+    With ``orientation: init`` and a target of zero rotation error (and ``relative: true``
+    with a target of zero offset), the reference itself is what ``init`` captures.
+    """
+    robot = ROBOTS['lbr_iiwa14']
+    rng = np.random.default_rng(12)
+    q0, qdot, q_v0 = random_state(robot, rng)
+    q1, _, q_v1 = random_state(robot, rng)
+    frame = robot.frame_id('tool')
+    task = CartesianPoseTask(robot, frame='tool', equal=np.zeros(6), relative=True, gain=2.0)
+    task.level(kin_at(robot, q0, qdot, q_v0), 0.0)
+    kin1 = kin_at(robot, q1, qdot, q_v1)
+    pulled = task.level(kin1, 0.0)  # back towards the pose at q_v0
+    assert np.abs(pulled.lower).max() > 0.1
+    task.deactivate()
+    held = task.level(kin1, 0.0)  # the pose at q_v1 is the new reference
+    np.testing.assert_allclose(held.lower, 0.0, atol=1e-12)
+    np.testing.assert_array_equal(task.reference_rotation,
+                                  kin1.frame(frame, virtual=True)[1])
+    fixed = np.eye(3)  # a given rotation stays given
+    task = CartesianPoseTask(robot, frame='tool', axes=['rx', 'ry', 'rz'], equal=np.zeros(3),
+                             orientation=fixed)
+    task.level(kin_at(robot, q0, qdot, q_v0), 0.0)
+    task.deactivate()
+    task.level(kin1, 0.0)
+    np.testing.assert_array_equal(task.reference_rotation, fixed)
+
+
 def test_a_task_without_value_or_jacobian_fails_at_construction():
     """The contract is explicit: no default calls another in a loop (no RecursionError)."""
     robot = ROBOTS['lbr_iiwa14']

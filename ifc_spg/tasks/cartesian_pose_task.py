@@ -67,12 +67,14 @@ class CartesianPoseTask(Task):
                 raise IfcSpgError(f"orientation must be 'init' or a rotation matrix, got "
                                   f'{orientation!r}')
             self._R_ref: np.ndarray | None = None
+            self._orientation_init = True
         else:
             R = np.asarray(orientation, dtype=float)
             if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 \
                     or np.linalg.det(R) < 0:
                 raise IfcSpgError('orientation must be a 3 x 3 rotation matrix')
             self._R_ref = R
+            self._orientation_init = False
         self.relative = bool(relative)
         self._p_ref = np.zeros(3)
         self.free_axis = _free_rotation_axis(S)
@@ -108,6 +110,12 @@ class CartesianPoseTask(Task):
             self._R_ref = R.copy()
         if self.relative:
             self._p_ref = p.copy()
+
+    def deactivate(self) -> None:
+        """Also forget R_ref captured at activation (``'init'``): a restart captures it anew."""
+        super().deactivate()
+        if self._orientation_init:
+            self._R_ref = None
 
     def _S_base(self, R: np.ndarray) -> np.ndarray:
         return subspace_in_base(self.S, self.subspace_frame, R)
