@@ -14,6 +14,7 @@ from ifc_spg.limits import VelocityBox
 from ifc_spg.pspm import PspmConfig
 from ifc_spg.spg import SetPointGenerator, SpgInfo
 from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, Level, WrenchTask
+from ifc_spg.tasks.task import Task
 
 IIWA = RobotModel.from_config('lbr_iiwa14')
 DT = 0.002
@@ -371,9 +372,10 @@ def test_tick_says_what_happened_and_step_is_its_q_v():
 
 def test_the_construction_warm_up_changes_no_result(monkeypatch):
     """The warm-up (13 ticks and a stack switch of a throwaway SPG, once per process and
-    configuration) runs at construction and leaves the results alone: closed loops of the
-    Table 4.3 stack switched to Table 4.2 with and without it are equal bit for bit, first
-    and switch ticks included."""
+    configuration) runs at construction, and each stack's dry run (its levels and cascade
+    once, at set_stack) runs before its first tick; both leave the results alone: closed
+    loops of the Table 4.3 stack switched to Table 4.2 and back, and restarted, with and
+    without them are equal bit for bit, first and switch ticks included."""
     from ifc_spg import TaskStack
     from ifc_spg.offline.runner import find_config_dir
     import ifc_spg.spg as spg_module
@@ -389,12 +391,21 @@ def test_the_construction_warm_up_changes_no_result(monkeypatch):
         return step(self, *args)
 
     monkeypatch.setattr(SetPointGenerator, 'step', counted_step)
+    level, leveled = Task.level, []
+
+    def counted_level(self, *args):
+        leveled.append(self)
+        return level(self, *args)
+
+    monkeypatch.setattr(Task, 'level', counted_level)
 
     def run(warm_up):  # the process's record of warm-ups has no public API: emptied here
         monkeypatch.setattr(spg_module, '_WARMED_UP', set())
         steps.clear()
         spg = SetPointGenerator(IIWA, stacks[0], warm_up=warm_up)
         assert len(steps) == (spg_module._WARM_UP_TICKS + 3 if warm_up else 0)
+        # the stack's tasks built their levels before its first tick only in the dry run
+        assert (set(spg.pending_tasks) <= set(leveled)) == warm_up
         assert spg not in steps and len(spg_module._WARMED_UP) == int(warm_up)
         if warm_up:  # warmed up already: a second SPG runs none
             SetPointGenerator(IIWA, stacks[0])
@@ -403,8 +414,12 @@ def test_the_construction_warm_up_changes_no_result(monkeypatch):
         q, qd, t = plant.q, plant.qdot, 0.0
         log = []
         for k in range(300):
-            if k == 150:
-                spg.set_stack(stacks[1])
+            if k in (150, 225):
+                leveled.clear()
+                spg.set_stack(stacks[int(k == 150)])
+                assert (set(spg.pending_tasks) <= set(leveled)) == warm_up
+            if k == 260:
+                spg.reset(q)  # a restart: init values captured anew
             q_v = spg.step(q, qd, t)
             assert spg.info.status == 'ok', (k, spg.info.message)
             log.append(np.concatenate([q_v, spg.qdot_v, spg.tanks.energy]))
@@ -414,3 +429,4 @@ def test_the_construction_warm_up_changes_no_result(monkeypatch):
     cold, warm = run(False), run(True)
     assert np.array_equal(cold, warm)
     assert np.abs(cold[150] - cold[0]).max() > 0  # the loop moved
+    assert np.abs(cold[259] - cold[225]).max() > 0
