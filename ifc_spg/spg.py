@@ -60,8 +60,7 @@ def _dry_run_tasks() -> frozenset:
     Exact classes (a subclass may keep state in its level: the Ch. 5 exploration task
     updates its direction estimator there); see :meth:`SetPointGenerator._dry_run`.
     """
-    from ifc_spg.tasks import (CartesianPoseTask, JointPositionTask, JointTorqueTask,
-                               WrenchTask)
+    from ifc_spg.tasks import CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask
     return frozenset((CartesianPoseTask, JointPositionTask, JointTorqueTask, WrenchTask))
 
 
