@@ -69,6 +69,9 @@ class Experiment:
     check: Callable[..., Check] | None
     figure: Callable[..., None] | None = None
     figure_title: str = ''
+    #: An experiment of ours that tests the cause of a failure (not one of the thesis'):
+    #: the report counts it apart
+    ours: bool = False
 
 
 # -- series helpers -------------------------------------------------------------------------
