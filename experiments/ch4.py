@@ -163,7 +163,8 @@ def _check_4_1(runs, quick):
             txt.append(f'{v} (mu = {_FRICTION_41["friction"]:g}, 20 ms friction reference, '
                        f'ours): virtual tool at most {_fmt(None if pen is None else pen * 1e3)}'
                        f' mm beyond the obstacle face, longest stall '
-                       f'{out[v]["longest_stall_s"]:.1f} s')
+                       f'{out[v]["longest_stall_s"]:.1f} s, virtual tool travel along y in '
+                       f'the last second {out[v]["virtual_y_travel_last_1s_m"] * 1e3:.1f} mm')
             continue
         txt.append(f'{v}: max |tau_s| {tau_v:.1f} Nm, static tangential force max '
                    f'{tang_static:.1f} N, measured force on the obstacle max '

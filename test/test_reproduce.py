@@ -333,6 +333,16 @@ def test_table_5_1_task_specification_cuts_the_perpendicular_force(tmp_path):
         (row,) = n[case]['runs']
         assert (row['stiffness'], row['kappa']) == (40.0, 15.0)
     assert n['sma_initial_error_deg'] == 45.0 and n['runs_total'] == 4
+    # the dead-band ablation (ours, no claim): the same SMA runs at v_th = w0 = 2 mm/s
+    low = n['sma_estimator_vth']
+    assert low['v_threshold_m_s'] == ch5.T51_ABLATION_VTH == 0.002
+    (row,) = low['runs']
+    assert (row['stiffness'], row['kappa']) == (40.0, 15.0)
+    assert row['rms_f_perp_jc_ts_n'] != n['sma_estimator']['runs'][0]['rms_f_perp_jc_ts_n']
+    for r in (row, n['sma_estimator']['runs'][0]):  # lift speed = travel / lift time
+        speed, t = r['mean_speed_jc_ts_m_s'][1], r['time_to_open_jc_ts_s'][1]
+        assert speed == pytest.approx(0.29 / t, rel=0.01)
+    assert 'v_th = w0 = 2 mm/s' in check.summary
     saved = json.loads((tmp_path / 'table_5_1.json').read_text())
     assert saved['sma_estimator']['initial_error_deg'] == 45.0
     assert saved['fixed_direction']['runs'][0]['task_specification']['travel'] >= 0.29

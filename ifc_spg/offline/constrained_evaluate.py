@@ -59,22 +59,25 @@ _KEEP = ('rms_f_perp', 'rms_fs_perp', 'max_f_perp', 'travel', 'time_to_open',
 
 def _grid_run(job):
     """One run of the grid (a worker task): the metrics of :data:`_KEEP`."""
-    strategy, k, kappa, fixed, initial_error_deg, travel, duration = job
-    log = run(Scenario(strategy=strategy, scene='drawer_vertical',
-                       params=StrategyParams(stiffness=k, kappa=kappa),
+    strategy, k, kappa, fixed, initial_error_deg, travel, duration, estimator = job
+    params = StrategyParams(stiffness=k, kappa=kappa) if estimator is None else \
+        StrategyParams(stiffness=k, kappa=kappa, estimator=estimator)
+    log = run(Scenario(strategy=strategy, scene='drawer_vertical', params=params,
                        fixed_direction=fixed, initial_error_deg=initial_error_deg,
                        target=travel, duration=duration))
     return {key: log.metrics.get(key) for key in _KEEP}
 
 
-def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, workers=1):
+def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, workers=1,
+               estimator=None):
     """Both strategies once per (K, kappa) on the vertical drawer: one row each.
 
     With ``workers`` > 1 the runs go to a local Dask cluster of as many worker processes
     (:func:`ifc_spg.offline.sweep.map_unordered`; each run is deterministic, so the rows
     are the same).
     """
-    jobs = [(strategy, float(k), float(kappa), fixed, initial_error_deg, travel, duration)
+    jobs = [(strategy, float(k), float(kappa), fixed, initial_error_deg, travel, duration,
+             estimator)
             for k in stiffnesses for kappa in kappas
             for strategy in ('joint_compliance', 'task_specification')]
     results = [None] * len(jobs)
@@ -91,7 +94,7 @@ def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, 
 
 def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.0,
                sma_initial_error_deg=0.0, cases=('fixed_direction', 'sma_estimator'),
-               workers=1):
+               workers=1, estimator=None):
     """The thesis comparison (5.5.3) on the 1.2 kg vertical drawer; a dict of metrics.
 
     Both strategies lift the drawer ``travel`` (the thesis: 0.3 m) once per (K, kappa) of the
@@ -111,6 +114,8 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
         cases: Subset of ``('fixed_direction', 'sma_estimator')``.
         workers: Processes for the runs (1: in this process; the results do not depend
             on it).
+        estimator: The :class:`~ifc_spg.constrained.params.EstimatorParams` of every run
+            (None: the defaults, Sec. 5.4.3's N = 500 and v_th = 0.01 m/s).
 
     Returns:
         Per case: ``runs`` (one row per (K, kappa): both strategies' metrics),
@@ -127,7 +132,7 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
                                  f"{', '.join(THESIS_5_5_3)}")
         fixed = label == 'fixed_direction'
         rows = _grid_runs(stiffnesses, kappas, fixed, sma_initial_error_deg, travel, duration,
-                          workers)
+                          workers, estimator)
         res = {'runs': rows, 'travel_target': travel, 'duration': duration}
         if not fixed:
             res['initial_error_deg'] = sma_initial_error_deg
