@@ -138,6 +138,9 @@ F511_ERRORS = (10.0, 45.0)
 #: nu [m/s] of the two extra trajectory-following runs (45 deg) beside the thesis' 0.05: the
 #: claim that nu has no relation to the force slope (ours: the thesis runs 0.05 only)
 F511_NU = (0.025, 0.1)
+#: The cause ablation of Fig. 5.11 (ours, no claim; the thesis gives no D): the runs again
+#: with the IFC joint damping D (the plant's, ``sim.damping``) scaled by these factors
+F511_DAMPING_SCALES = (0.5, 0.25, 0.1)
 S543_STRATEGIES = (('joint_compliance', '(5.9)'), ('admittance', 'trajectory following'))
 #: Horizontal pull [m] of Fig. 5.12: from the LBR start pose A4 reaches its limit (-120 deg)
 #: after 0.268 m of the 0.3 m drawer (seen in a probe run before the claims were evaluated).
@@ -236,6 +239,53 @@ def _s543_run(strategy, scene, err, target, **kw):
     return _S543_CACHE[key]
 
 
+def _f511_damping(errors, scales):
+    """Fig. 5.11's runs with the plant's IFC damping D scaled (the cause ablation, ours).
+
+    Per scale, the numbers of the failing claims' metrics (measured |f_perp|, second half of
+    the lift: trajectory following / (5.9) at 10 deg, (5.9) second / first half at 45 deg,
+    (5.9) / trajectory following at 45 deg) and the same on the static force |f_s perp|.
+    """
+    from ifc_spg.model import RobotModel
+
+    robot = RobotModel.from_config('lbr4')
+    damping = robot.damping * np.sqrt(40.0 / robot.stiffness)  # as the runs' K = 40 Nm/rad
+    out = {}
+    for scale in scales:
+        sim = {'damping': (damping * scale).tolist()}
+        runs = {f'{strategy}_{err:g}': _lift_numbers(_s543_run(
+                    strategy, 'drawer_vertical', err, 0.29, duration=60.0, sim=sim))
+                for err in errors for strategy, _ in S543_STRATEGIES}
+        row = {'runs': runs}
+        for kind, key in (('measured', 'rms_f_perp'), ('static', 'rms_fs_perp')):
+            def half(run, which, key=key, runs=runs):
+                return runs[run][f'{key}_{which}_half_n']
+            row[kind] = {
+                'jc_vanish': half('joint_compliance_45', 'second') /
+                half('joint_compliance_45', 'first'),
+                'jc_below_tf': half('joint_compliance_45', 'second') /
+                half('admittance_45', 'second')}
+            if 'joint_compliance_10' in runs:
+                row[kind]['tf_above_jc_small'] = half('admittance_10', 'second') / \
+                    half('joint_compliance_10', 'second')
+        out[f'{scale:g}'] = row
+    return out
+
+
+def _f511_damping_text(ablation):
+    """The summary sentence of :func:`_f511_damping`."""
+    names = (('tf_above_jc_small', 'tf_above_jc_small (> 2)'), ('jc_vanish', 'jc_vanish (< 0.5)'),
+             ('jc_below_tf', 'jc_below_tf (< 1)'))
+    parts = []
+    for scale, row in ablation.items():
+        cells = ', '.join(f'{label} {row["measured"][key]:.3g} (static {row["static"][key]:.3g})'
+                          for key, label in names if key in row['measured'])
+        parts.append(f'D x {scale}: {cells}')
+    return ('. The IFC damping D of the plant scaled (ours, no claim; the thesis gives no D), '
+            "the failing claims' metrics on the measured force (static in brackets): " +
+            '; '.join(parts))
+
+
 def _lift_numbers(log):
     """Per-run numbers of Figs. 5.11/5.12: |f_perp| over both halves of the travel etc."""
     fp = perpendicular_force(log.force, log.true_direction)
@@ -318,6 +368,8 @@ def _fig_5_11(out_dir, quick, figures=True):
             log = _s543_run('admittance', 'drawer_vertical', 45.0, 0.29, duration=60.0,
                             params={'nu': nu})
             out[f'admittance_45_nu{nu:g}'] = _lift_numbers(log)
+    out['damping_ablation'] = _f511_damping(errors, F511_DAMPING_SCALES[1:2] if quick
+                                            else F511_DAMPING_SCALES)
     log0 = panels[0][0]
     out['misalignment'] = mis = _misalignment(None if log0.q is None else log0.q[0])
     if figures:
@@ -330,13 +382,14 @@ def _fig_5_11(out_dir, quick, figures=True):
             f'apart (largest {_fmt(mis["max_deg"])} deg, median {_fmt(mis["median_deg"])} deg)'
             + (f'; at the start pose of these runs mu = {mis["start_mu"]:.3f}, largest '
                f'{mis["start_deg"]:.1f} deg' if 'start_deg' in mis else ''))
+    mtxt += _f511_damping_text(out['damping_ablation'])
     txt = '; '.join(f'{k}: |f_perp| RMS {v["rms_f_perp_first_half_n"]:.2f} N (first half of '
                     f'the lift) / {v["rms_f_perp_second_half_n"]:.2f} N (second half), static '
                     f'|f_s perp| {v["rms_fs_perp_first_half_n"]:.2f} / '
                     f'{v["rms_fs_perp_second_half_n"]:.2f} N, lifted '
                     f'{v["travel_m"] * 100:.0f} cm in {_fmt(v["time_to_open_s"])} s, force '
                     f'slope {_fmt(v["force_slope_n_s"])} N/s' for k, v in out.items()
-                    if k != 'misalignment')
+                    if k not in ('misalignment', 'damping_ablation'))
     if not quick:  # Fig. 5.2 on the (5.9) run at 45 deg
         out['fig_5_2'] = f52 = _fig_5_2(_s543_run('joint_compliance', 'drawer_vertical', 45.0,
                                                   0.29, duration=60.0))
