@@ -720,11 +720,11 @@ def _fig_cup(runs, quick, path, chain):
     _save(fig, path)
 
 
-def _torso_roll_yaw_overrides():
+def _torso_roll_yaw_overrides(joints=('torso_roll', 'torso_yaw'), name='roll_yaw'):
     """Table 3.7 with the other reading of the thesis' torso "joints 2 and 3".
 
     1-based in our torso order (pitch, roll, yaw) they are roll and yaw: task 1 clamps those
-    instead of pitch and roll.
+    instead of pitch and roll. With ``joints`` (and ``name``), task 1 clamps those instead.
     """
     import yaml
 
@@ -733,9 +733,10 @@ def _torso_roll_yaw_overrides():
     doc = yaml.safe_load((find_config_dir() / 'tasks' /
                           'table_3_7_icub_wiping_cup_holding.yaml').read_text(encoding='utf8'))
     for task in doc['tasks']:
-        if task['name'] == 'torso_clamp':
-            task['joints'] = ['torso_roll', 'torso_yaw']
-    doc['name'] = 'table_3_7_icub_wiping_cup_holding_roll_yaw'
+        if task['name'] == 'torso_clamp':  # (held at q_bar = 0, as the two of the table)
+            task['joints'] = list(joints)
+            task['equal'] = [0.0] * len(joints)
+    doc['name'] = f'table_3_7_icub_wiping_cup_holding_{name}'
     return {'stacks': [{'at': 0.0, 'stack': doc}]}
 
 
@@ -849,6 +850,13 @@ def _check_3_7(runs, quick):
     if 'no_clamp' in runs:
         out['no_clamp'] = _numbers_3_7(runs['no_clamp'])
         txt += '; without the clamp (task 1 removed, ours): ' + _text_3_7(out['no_clamp'])
+    if 'all_torso' in runs:
+        out['all_torso'] = a = _numbers_3_7(runs['all_torso'])
+        c = a['clamps']
+        txt += ('; all three torso joints clamped (the cause ablation, ours, no claim): '
+                + _text_3_7(a) + f'; clamp onsets of Alg. C.2 {c["onsets"]}'
+                + ('' if not c['onsets'] else f' (first {c["first_s"]:.2f} s, '
+                   f'{c["first_joint"]})'))
     return Check(out, txt)
 
 
@@ -936,6 +944,11 @@ CH3_EXPERIMENTS = (
                 RunSpec('roll_yaw', 'thesis_3_7_icub_wiping_cup_holding.yaml',
                         _torso_roll_yaw_overrides(), full_only=True),
                 RunSpec('no_clamp', 'thesis_3_7_icub_wiping_cup_holding.yaml',
-                        _no_clamp_overrides(), full_only=True)),
+                        _no_clamp_overrides(), full_only=True),
+                # the cause ablation (ours, no claim): the whole torso clamped, so that no
+                # torso drift takes an arm joint to its limit
+                RunSpec('all_torso', 'thesis_3_7_icub_wiping_cup_holding.yaml',
+                        _torso_roll_yaw_overrides(('torso_pitch', 'torso_roll', 'torso_yaw'),
+                                                  'all_torso'), full_only=True)),
                _check_3_7, _fig_3_7),
 )

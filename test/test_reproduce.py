@@ -465,3 +465,29 @@ def test_note_fields_come_from_the_run():
                                          'kdl': {'s2_qdd': -0.4444}})
     assert 'qdd = -4 rad/s^2' in text and '(-0.444 rad/s^2)' in text
     assert 'n/a' in report.note_text('table_4_5', {})
+
+
+def test_table_3_7_runs_of_the_torso_readings_are_valid_stacks():
+    """Table 3.7's full-only variants (the other reading, the whole torso clamped, no clamp)
+    are stacks the iCub accepts, each clamping the torso joints it names at q_bar = 0."""
+    from ifc_spg import RobotModel, TaskStack
+
+    robot = RobotModel.from_config('icub_upper_body')
+    base = len(TaskStack.from_file(str(find_config_dir() / 'tasks' /
+                                       'table_3_7_icub_wiping_cup_holding.yaml')).build(robot))
+    clamped = {}
+    for spec in _BY_NAME['table_3_7'].runs:
+        if not spec.overrides:
+            continue
+        (entry,) = spec.overrides['stacks']
+        tasks = TaskStack.from_dict(entry['stack']).build(robot)
+        clamp = [t for t in tasks if t.name == 'torso_clamp']
+        assert len(tasks) == base - (not clamp), spec.label
+        clamped[spec.label] = clamp[0] if clamp else None
+    assert set(clamped) == {'roll_yaw', 'no_clamp', 'all_torso'}
+    assert clamped['no_clamp'] is None
+    for name, joints in (('roll_yaw', ('torso_roll', 'torso_yaw')),
+                         ('all_torso', ('torso_pitch', 'torso_roll', 'torso_yaw'))):
+        task = clamped[name]
+        assert tuple(robot.joint_names[i] for i in task.indices) == joints, name
+        np.testing.assert_array_equal(task.lower_bound.evaluate(0.0)[0], np.zeros(len(joints)))
