@@ -246,10 +246,11 @@ def _f511_damping(errors, scales):
     the lift: trajectory following / (5.9) at 10 deg, (5.9) second / first half at 45 deg,
     (5.9) / trajectory following at 45 deg) and the same on the static force |f_s perp|.
     """
-    from ifc_spg.model import RobotModel
+    from ifc_spg.constrained.params import StrategyParams
+    from ifc_spg.offline.constrained import robot_with_stiffness
 
-    robot = RobotModel.from_config('lbr4')
-    damping = robot.damping * np.sqrt(40.0 / robot.stiffness)  # as the runs' K = 40 Nm/rad
+    # the runs' plant damping (the LBR-IV's, scaled to the runs' K = 40 Nm/rad)
+    damping = robot_with_stiffness('lbr4', StrategyParams().stiffness).damping
     out = {}
     for scale in scales:
         sim = {'damping': (damping * scale).tolist()}

@@ -254,17 +254,21 @@ def _halves(o, key):
     return [o[f'{key}_first_half_n'], o[f'{key}_second_half_n']]
 
 
+def _stuck_runs(runs, col, bound=40.0):
+    """The runs whose RMS estimate error (column ``col``) stays above ``bound`` [deg]."""
+    return [r for r in runs if (r['rms_error_angle_jc_ts_deg'][col] or 0.0) > bound]
+
+
 def _stuck(runs, col, bound=40.0):
-    hit = [r for r in runs if (r['rms_error_angle_jc_ts_deg'][col] or 0.0) > bound]
+    hit = _stuck_runs(runs, col, bound)
     where = ', '.join(f"K = {r['stiffness']:g}/kappa = {r['kappa']:g}" for r in hit)
     return f'{len(hit)} of {len(runs)}' + (f' ({where})' if hit else '')
 
 
 def _stuck_speed(runs, col, bound=40.0):
     """The mean lift speeds [mm/s] of the runs :func:`_stuck` counts, a sentence ('': none)."""
-    v = [r['mean_speed_jc_ts_m_s'][col] * 1e3 for r in runs
-         if (r['rms_error_angle_jc_ts_deg'][col] or 0.0) > bound
-         and r['mean_speed_jc_ts_m_s'][col] is not None]
+    v = [r['mean_speed_jc_ts_m_s'][col] * 1e3 for r in _stuck_runs(runs, col, bound)
+         if r['mean_speed_jc_ts_m_s'][col] is not None]
     if not v:
         return ''
     span = f'{min(v):.1f}' if len(v) == 1 else f'{min(v):.1f}-{max(v):.1f}'

@@ -483,8 +483,8 @@ class SetPointGenerator:
         LBR Table 4.1 stack), about half of it caches that building the stack had cooled
         and half its tasks' activation and cold solves; this tick, right after the stack
         is set (the node sets it between two ticks on the same thread), takes that. It runs
-        at the kinematics' values of the last tick (at ``q_home`` before the first) and
-        leaves them as they were; its tasks are deactivated after (their ``init`` values
+        at the kinematics of the last tick (at ``q_home`` before the first), which it only
+        reads; its tasks are deactivated after (their ``init`` values
         are captured again at the first real tick) and the cascade's working sets
         forgotten, as that tick would forget them. So no result changes (tested bit for
         bit). Only stacks of tasks of :func:`_dry_run_tasks` (no collision avoidance, no
@@ -495,15 +495,14 @@ class SetPointGenerator:
         if not tasks or any(type(task) not in kinds for task in tasks):
             return
         kin = self.kin
-        if self.q_v is None:  # no tick yet: at home
+        if self.q_v is None:  # no tick yet: at home (the first tick sets its own state)
             q = np.minimum(np.maximum(np.asarray(self.robot.q_home, dtype=float),
                                       self._q_min), self._q_max)
-            state = (q, np.zeros(self.n), q)
-        else:  # the last tick's (values kept: nothing reads a difference before the next)
-            state = (kin.q.copy(), kin.qdot.copy(), kin.q_v.copy())
+            kin.update(q, np.zeros(self.n), q)
+        # else at the last tick's state, which the levels only read (their frames are cached
+        # for it already)
         try:
-            kin.update(*state)
-            q_v = state[2]
+            q_v = kin.q_v
             box = self._limits.box(q_v) if self.velocity_box else self._position_box(q_v)
             self._solver.solve([task.level(kin, 0.0) for task in tasks], box, q_v)
         except Exception:  # a dry run must never stop a stack (its first tick reports)
@@ -511,7 +510,6 @@ class SetPointGenerator:
         finally:
             for task in tasks:
                 task.deactivate()
-            kin.update(*state)
             self._forget_warm_start()
 
     def reset(self, q: np.ndarray) -> None:

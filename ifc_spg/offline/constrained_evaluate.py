@@ -60,8 +60,7 @@ _KEEP = ('rms_f_perp', 'rms_fs_perp', 'max_f_perp', 'travel', 'time_to_open',
 def _grid_run(job):
     """One run of the grid (a worker task): the metrics of :data:`_KEEP`."""
     strategy, k, kappa, fixed, initial_error_deg, travel, duration, estimator = job
-    params = StrategyParams(stiffness=k, kappa=kappa) if estimator is None else \
-        StrategyParams(stiffness=k, kappa=kappa, estimator=estimator)
+    params = StrategyParams(stiffness=k, kappa=kappa, estimator=estimator or EstimatorParams())
     log = run(Scenario(strategy=strategy, scene='drawer_vertical', params=params,
                        fixed_direction=fixed, initial_error_deg=initial_error_deg,
                        target=travel, duration=duration))
