@@ -22,7 +22,7 @@ import tempfile
 
 import numpy as np
 
-__all__ = ['available', 'build', 'kdl_segments', 'run']
+__all__ = ['available', 'build', 'kdl_segments', 'run', 'run_segments']
 
 _SOURCE = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'kdl_bench.cpp')
 _HEADER = 'kdl/chainhdsolver_vereshchagin.hpp'
@@ -130,17 +130,31 @@ def run(exe, chain, states, *, base_acceleration, A_N=None, b_N=None, repeat=20)
         of each of the ``repeat * len(states)`` timed calls in [us].
     """
     A = np.zeros((6, 0)) if A_N is None else np.asarray(A_N, dtype=float).reshape(6, -1)
-    b = np.zeros(A.shape[1]) if b_N is None else np.asarray(b_N, dtype=float).reshape(-1)
-    if A.shape[1] == 0:     # KDL needs nc >= 1: free motion is one all-zero constraint
-        A, b = np.zeros((6, 1)), np.zeros(1)
     segs, R0, p0 = kdl_segments(chain)
     # into KDL's base (R0, p0): the base acceleration moves to p0; A_N (tip origin, base
     # axes) only turns
     a0 = np.asarray(base_acceleration, dtype=float)
     a0 = np.concatenate((R0.T @ (a0[:3] + np.cross(a0[3:], p0)), R0.T @ a0[3:]))
     A = np.vstack((R0.T @ A[:3], R0.T @ A[3:]))
+    return run_segments(exe, segs, states, base_acceleration=a0, A_N=A, b_N=b_N,
+                        repeat=repeat)
+
+
+def run_segments(exe, segs, states, *, base_acceleration, A_N=None, b_N=None, repeat=20):
+    """:func:`run` on KDL segments as given: rows as :func:`kdl_segments` returns them.
+
+    Each row is ``(type, axis, rotor inertia, f_tip R, f_tip p, mass, cog, I)`` in KDL's own
+    convention (the cog and the rotational inertia about it in the segment's *tip* frame),
+    the base acceleration and A_N in KDL's base frame.
+    """
+    A = np.zeros((6, 0)) if A_N is None else np.asarray(A_N, dtype=float).reshape(6, -1)
+    b = np.zeros(A.shape[1]) if b_N is None else np.asarray(b_N, dtype=float).reshape(-1)
+    if A.shape[1] == 0:     # KDL needs nc >= 1: free motion is one all-zero constraint
+        A, b = np.zeros((6, 1)), np.zeros(1)
+    a0 = np.asarray(base_acceleration, dtype=float)
     lines = [f'{len(segs)} {A.shape[1]} {len(states)} {int(repeat)}']
     for kind, ax, rotor, R, p, m, c, Ic in segs:
+        Ic = np.asarray(Ic, dtype=float)
         lines.append(f'{kind} {_fmt(ax)} {rotor!r} {_fmt(R)} {_fmt(p)} {m!r} {_fmt(c)} '
                      f'{_fmt([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]])}')
     lines.append(f'{_fmt(a0)} {_fmt(A)} {_fmt(b)}')
@@ -158,4 +172,6 @@ def run(exe, chain, states, *, base_acceleration, A_N=None, b_N=None, repeat=20)
             qdd.append(np.array(rest.split(), dtype=float))
         elif head == 'ns':
             ns = np.array(rest.split(), dtype=float)
+    if ns is None:
+        raise RuntimeError(f'the KDL timing program printed no timings: {proc.stdout[-200:]!r}')
     return np.array(qdd), ns / 1e3

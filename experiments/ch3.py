@@ -523,6 +523,28 @@ def _a7_start(d):
     return {'q0_deg': [0.0, 30.0, 0.0, -60.0, 0.0, 90.0, 170.0 - d]}
 
 
+#: The setup of v1-v4 (ours, chosen then so that the limit is hit): A7 started 6 deg from its
+#: limit, R = 0.15 m; run again without the velocity box (ours, no claim reads it) to show
+#: what the claims measure once a clamp acts: the limit reached by construction
+V1_A7_FROM_LIMIT_DEG, V1_RADIUS_M = 6.0, 0.15
+
+
+def _v1_setup(scenario):
+    """Overrides of ``scenario`` (a Table 3.4 file) with the v1 start pose and radius."""
+    import yaml
+
+    from ifc_spg.offline.runner import find_config_dir
+
+    doc = yaml.safe_load((find_config_dir() / 'scenarios' / scenario).read_text(
+        encoding='utf8'))
+    stacks = doc['stacks']
+    for st in stacks:
+        for task in st['stack']['tasks']:
+            if task['name'] == 'circle':
+                task['equal']['radius'] = V1_RADIUS_M
+    return {**_a7_start(V1_A7_FROM_LIMIT_DEG), 'stacks': stacks}
+
+
 def _circle_numbers(r, robot):
     t, qn = _qdot_norm(r, _T_CIRCLE)
     m = r.after(_T_CIRCLE, r.s.t_cmd)
@@ -553,7 +575,7 @@ def _check_3_4(runs, quick):
     robot = RobotModel.from_config('lbr4')
     out, txt = {}, []
     sweep = [f'{v}_a7_{d:g}' for d in A7_START_FROM_LIMIT_DEG for v in ('full', 'relaxed')]
-    for v in ('full', 'relaxed', 'full_daqp', 'relaxed_daqp', *sweep):
+    for v in ('full', 'relaxed', 'full_daqp', 'relaxed_daqp', *sweep, 'full_v1', 'relaxed_v1'):
         if v not in runs:
             continue
         o = out[v] = _circle_numbers(runs[v], robot)
@@ -565,11 +587,24 @@ def _check_3_4(runs, quick):
                    f'{100 * o["contact_lost_share"]:.0f} %')
     daqp = [t for t in txt if t.startswith(('full_daqp', 'relaxed_daqp'))]
     swept = [t for t in txt if '_a7_' in t.split(':')[0]]
+    v1 = [t for t in txt if t.startswith(('full_v1', 'relaxed_v1'))]
+    if 'full_v1' in out and 'relaxed_v1' in out:
+        out['v1'] = {'limit_full': out['full_v1']['ticks_at_joint_limit'],
+                     'limit_relaxed': out['relaxed_v1']['ticks_at_joint_limit'],
+                     'jump_ratio': out['full_v1']['max_qdot_v_jump_rad_s'] /
+                     max(out['relaxed_v1']['max_qdot_v_jump_rad_s'], 1e-12),
+                     'peak_ratio': out['relaxed_v1']['peak_qdot_norm_rad_s'] /
+                     out['full_v1']['peak_qdot_norm_rad_s']}
+        v1.append(f"full / relaxed: jump of qdot_v {out['v1']['jump_ratio']:.3g}, peak |qdot| "
+                  f"relaxed / full {out['v1']['peak_ratio']:.3g}")
     return Check(out, 'nullspace (Alg. C.1/C.2, no PSPM, no velocity box) ' + '; '.join(txt[:2])
                  + ('; beside it, DAQP + PSPM with the box (ours): ' + '; '.join(daqp)
                     if daqp else '')
                  + ('; A7 started closer to its limit (ours, no claim): ' + '; '.join(swept)
-                    if swept else ''))
+                    if swept else '')
+                 + (f'; the v1-v4 setup (A7 {V1_A7_FROM_LIMIT_DEG:g} deg from its limit, R = '
+                    f'{V1_RADIUS_M:g} m; ours, no claim), without the box: ' + '; '.join(v1)
+                    if v1 else ''))
 
 
 def _fig_3_4(runs, quick, path):
@@ -634,8 +669,10 @@ def _check_cup(runs, quick, chain, task, wrist=None, settle=0.5):
         fit = (e >= 3.0) & (tt <= t3)
         tau = float(-1.0 / np.polyfit(tt[fit], np.log(e[fit]), 1)[0]) if fit.sum() > 10 \
             else None
+        late = tt >= settle
         returns.append({'error_at_end_deg': float(e[0]), 'under_3deg_after_s': t3,
-                        'tau_s': tau})
+                        'tau_s': tau,
+                        'settled_max_deg': float(e[late].max()) if late.any() else None})
     out = {'max_displacement_m': disp, 'max_orientation_error_deg': float(ang.max()),
            'max_orientation_error_settled_deg': settled, 'settle_s': settle,
            'returns': returns,
@@ -680,15 +717,39 @@ def _check_3_6(runs, quick):
     wrist = ('r_wrist_prosup', 'r_wrist_pitch', 'r_wrist_yaw')
     check = _check_cup(runs, quick, 'r_palm', 'right_hand_orientation', wrist=wrist,
                        settle=_ICUB_SETTLE)
+    check.numbers['push_clamps'] = _push_clamps(runs['cup'])
+    check.summary += '; ' + _push_clamps_text(check.numbers['push_clamps'])
     if 'half_push' in runs:
         half = _check_cup({'cup': runs['half_push']}, quick, 'r_palm',
                           'right_hand_orientation', wrist=wrist, settle=_ICUB_SETTLE)
+        half.numbers['push_clamps'] = _push_clamps(runs['half_push'])
         check.numbers['half_push'] = half.numbers
         check.summary += (f"; pushes at half the force (ours, no claim): orientation error max "
                           f"{half.numbers['max_orientation_error_settled_deg']:.2f} deg from "
                           f'{_ICUB_SETTLE:g} s after a push, '
-                          f"{half.numbers['max_orientation_error_deg']:.2f} deg while pushed")
+                          f"{half.numbers['max_orientation_error_deg']:.2f} deg while pushed; "
+                          + _push_clamps_text(half.numbers['push_clamps']))
     return check
+
+
+def _push_clamps(r):
+    """Per push: the clamp onsets of Alg. C.2 from its start to the next push (or the end).
+
+    A list of ``[(t [s], joint), ...]``, one per push (:func:`_clamp_windows`).
+    """
+    onsets, _ = _clamp_windows(r, np.zeros(0))
+    windows = _push_windows(r)
+    out = []
+    for i, (a, _) in enumerate(windows):
+        end = windows[i + 1][0] if i + 1 < len(windows) else math.inf
+        out.append([(round(tc, 3), j) for tc, j in onsets if a <= tc < end])
+    return out
+
+
+def _push_clamps_text(per_push):
+    parts = [', '.join(f'{j} at {tc:.2f} s' for tc, j in c) if c else 'none'
+             for c in per_push]
+    return 'clamp onsets of Alg. C.2 from each push to the next: ' + ' / '.join(parts)
 
 
 #: Settling time [s] of the iCub cup-holding check: ~3 time constants of the measured return
@@ -912,6 +973,9 @@ CH3_EXPERIMENTS = (
                         quick=5.0),
                 RunSpec('relaxed_daqp', 'thesis_3_4_circle_drawing_relaxed.yaml', _DAQP_PSPM,
                         quick=5.0),
+                *(RunSpec(f'{v}_v1', f'thesis_3_4_circle_drawing_{v}.yaml',
+                          _v1_setup(f'thesis_3_4_circle_drawing_{v}.yaml'), full_only=True)
+                  for v in ('full', 'relaxed')),
                 *(RunSpec(f'{v}_a7_{d:g}', f'thesis_3_4_circle_drawing_{v}.yaml',
                           _a7_start(d), full_only=True)
                   for d in A7_START_FROM_LIMIT_DEG for v in ('full', 'relaxed'))),

@@ -26,10 +26,86 @@ T51_SMA_ERROR_DEG = 45.0
 #: The dead band v_th = w0 [m/s] of Table 5.1's ablation (ours; Sec. 5.4.3's is 0.01 m/s, and
 #: Sec. 5.5 names none): the slow task-specification lifts (1-2 mm/s) stay inside 0.01 m/s
 T51_ABLATION_VTH = 0.002
+#: The cause ablation of Table 5.1's absolute forces (ours, no claim; the thesis gives no D):
+#: the fixed-direction runs with the plant's IFC joint damping D scaled by these factors (as
+#: Fig. 5.11's), and the claims on those runs whose values it prints
+T51_DAMPING_SCALES = (0.5, 0.25, 0.1)
+T51_DAMPING_CLAIMS = ('table_5_1.fixed_reduction', 'table_5_1.fixed_jc_abs',
+                      'table_5_1.fixed_ts_abs', 'table_5_1.fig_5_16_equal_low_k',
+                      'table_5_1.fig_5_16_jc_grows', 'table_5_1.fig_5_17_jc_flat')
 
 
 def _span(x):
     return f'{min(x):.0f}-{max(x):.0f} s' if x else 'none'
+
+
+def _case_numbers(r, duration):
+    """The numbers of one :func:`comparison` case: overall and per (K, kappa) run."""
+    def times(s):
+        return [row[s]['time_to_open'] for row in r['runs']]
+
+    def speed(m):  # mean lift speed [m/s] until open (or the run's end)
+        t = m['time_to_open'] if m['time_to_open'] is not None else duration
+        return None if m.get('travel') is None or not t else float(m['travel']) / t
+    return {'rms_f_perp_jc_to_ts_n': r['rms_f_perp_jc_to_ts'],
+            'reduction_percent': r['reduction_percent'],
+            'rms_fs_perp_jc_to_ts_n': r['rms_fs_perp_jc_to_ts'],
+            'static_reduction_percent': r['static_reduction_percent'],
+            'opened': r['opened'],
+            'time_to_open_jc_s': times('joint_compliance'),
+            'time_to_open_ts_s': times('task_specification'),
+            'runs': [{'stiffness': row['stiffness'], 'kappa': row['kappa'],
+                      'rms_f_perp_jc_ts_n': [row['joint_compliance']['rms_f_perp'],
+                                             row['task_specification']['rms_f_perp']],
+                      'rms_error_angle_jc_ts_deg': [
+                          row['joint_compliance'].get('rms_error_angle_deg'),
+                          row['task_specification'].get('rms_error_angle_deg')],
+                      'rms_fs_perp_jc_ts_n': [row['joint_compliance']['rms_fs_perp'],
+                                              row['task_specification']['rms_fs_perp']],
+                      'time_to_open_jc_ts_s': [row['joint_compliance']['time_to_open'],
+                                               row['task_specification']['time_to_open']],
+                      'mean_speed_jc_ts_m_s': [speed(row['joint_compliance']),
+                                               speed(row['task_specification'])]}
+                     for row in r['runs']]}
+
+
+def _t51_damping(kw, scales):
+    """Table 5.1's fixed-direction runs with the plant's IFC damping D scaled (ours, no claim).
+
+    Per scale the numbers of :func:`_case_numbers` and the values of the fixed-direction
+    claims (:data:`T51_DAMPING_CLAIMS`, evaluated by their own rules on the ablated runs).
+    """
+    from experiments.claims import CLAIMS, evaluate
+    from ifc_spg.offline.constrained_evaluate import comparison
+
+    wanted = [c for c in CLAIMS if c.id in T51_DAMPING_CLAIMS]
+    out = {}
+    for scale in scales:
+        case = _case_numbers(comparison(cases=('fixed_direction',), damping_scale=scale,
+                                        **kw)['fixed_direction'], kw['duration'])
+        rows = evaluate('table_5_1', {'fixed_direction': case, 'duration_s': kw['duration']},
+                        quick=len(case['runs']) < 9, claims=wanted)
+        out[f'{scale:g}'] = {'fixed_direction': case,
+                             'claims': {r['id']: {'value': r['value'], 'passed': r['passed']}
+                                        for r in rows}}
+    return out
+
+
+def _t51_damping_text(ablation):
+    """The summary sentence of :func:`_t51_damping`."""
+    parts = []
+    for scale, row in ablation.items():
+        jc, ts = row['fixed_direction']['rms_f_perp_jc_to_ts_n']
+        sjc, sts = row['fixed_direction']['rms_fs_perp_jc_to_ts_n']
+        cells = ', '.join(f"{k.split('.', 1)[1]} {v['value']:.3g} "
+                          f"({'holds' if v['passed'] else 'fails'})"
+                          for k, v in row['claims'].items() if v['value'] is not None)
+        parts.append(f'D x {scale}: {jc:.2f} -> {ts:.2f} N (static {sjc:.2f} -> {sts:.2f} N)'
+                     + (f'; {cells}' if cells else ''))
+    return ('. The fixed-direction runs again with the IFC damping D of the plant scaled (ours, '
+            'no claim; the thesis gives no D), overall RMS |f_perp| joint compliance -> task '
+            "specification and the fixed-direction claims' values by their rules: "
+            + '; '.join(parts))
 
 
 def _table_5_1(out_dir, quick, figures=True):
@@ -59,34 +135,12 @@ def _table_5_1(out_dir, quick, figures=True):
 
     def times(r, s):
         return [row[s]['time_to_open'] for row in r['runs']]
-
-    def speed(m):  # mean lift speed [m/s] until open (or the run's end)
-        t = m['time_to_open'] if m['time_to_open'] is not None else kw['duration']
-        return None if m.get('travel') is None or not t else float(m['travel']) / t
-    nums: dict[str, Any]
-    nums = {k: {'rms_f_perp_jc_to_ts_n': res[k]['rms_f_perp_jc_to_ts'],
-                'reduction_percent': res[k]['reduction_percent'],
-                'rms_fs_perp_jc_to_ts_n': res[k]['rms_fs_perp_jc_to_ts'],
-                'static_reduction_percent': res[k]['static_reduction_percent'],
-                'opened': res[k]['opened'],
-                'time_to_open_jc_s': times(res[k], 'joint_compliance'),
-                'time_to_open_ts_s': times(res[k], 'task_specification'),
-                'runs': [{'stiffness': r['stiffness'], 'kappa': r['kappa'],
-                          'rms_f_perp_jc_ts_n': [r['joint_compliance']['rms_f_perp'],
-                                                 r['task_specification']['rms_f_perp']],
-                          'rms_error_angle_jc_ts_deg': [
-                              r['joint_compliance'].get('rms_error_angle_deg'),
-                              r['task_specification'].get('rms_error_angle_deg')],
-                          'rms_fs_perp_jc_ts_n': [r['joint_compliance']['rms_fs_perp'],
-                                                  r['task_specification']['rms_fs_perp']],
-                          'time_to_open_jc_ts_s': [
-                              r['joint_compliance']['time_to_open'],
-                              r['task_specification']['time_to_open']],
-                          'mean_speed_jc_ts_m_s': [speed(r['joint_compliance']),
-                                                   speed(r['task_specification'])]}
-                         for r in res[k]['runs']]}
-            for k in ('fixed_direction', 'sma_estimator', 'sma_estimator_vth')}
+    nums: dict[str, Any] = {k: _case_numbers(res[k], kw['duration'])
+                            for k in ('fixed_direction', 'sma_estimator', 'sma_estimator_vth')}
     nums['sma_estimator_vth']['v_threshold_m_s'] = vth
+    # the cause of the absolute forces (ours, no claim): the plant's damping D scaled
+    nums['damping_ablation'] = _t51_damping(kw, T51_DAMPING_SCALES[-1:] if quick
+                                            else T51_DAMPING_SCALES)
     nums['runs_total'] = 2 * (len(fx['runs']) + len(sma['runs']))  # (the claims' runs)
     nums['duration_s'] = kw['duration']
     nums['sma_initial_error_deg'] = T51_SMA_ERROR_DEG
@@ -108,7 +162,8 @@ def _table_5_1(out_dir, quick, figures=True):
                  'thesis 0.58 -> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %); the SMA runs '
                  f'again with the dead band v_th = w0 = {vth * 1e3:g} mm/s instead of 10 mm/s '
                  f'(ours, no claim) {text(low)}'
-                 + _per_condition(nums['fixed_direction']['runs']))
+                 + _per_condition(nums['fixed_direction']['runs'])
+                 + _t51_damping_text(nums['damping_ablation']))
 
 
 def _per_condition(runs):

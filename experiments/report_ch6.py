@@ -42,6 +42,51 @@ def _gauss_shape(prob):
     return out
 
 
+#: The report's arm as a KDL segment (the report's solver runs on KDL's
+#: ChainHdSolver_Vereshchagin, its Sec. 5.4): a revolute joint about z at the root, the tip
+#: 1 m along x, 1 kg with the centre of mass and principal axes "at 0.5 m from the origin of
+#: the segment's proximal frame" (Sec. 6.1). ``as_described``: cog (0.5, 0, 0) m as the
+#: report states it; ``kdl_convention``: (-0.5, 0, 0) m, the same point in the tip frame, where
+#: KDL reads a segment's cog and inertia.
+KDL_ARM_COG = {'as_written': (0.5, 0.0, 0.0), 'kdl_convention': (-0.5, 0.0, 0.0)}
+#: Scenario 2's resulting joint torque [Nm]: the -11 Nm of the tip force plus mu* = 10 Nm.
+KDL_TAU = -1.0
+
+
+def _kdl_native():
+    """q̈ of the report's arm from KDL's own Vereshchagin solver, per cog reading.
+
+    The cause experiment of report_6's failing claim (ours, no claim): where KDL is not
+    installed, ``{'not_run': why}``.
+    """
+    from benchmarks import kdl
+
+    ok, why = kdl.available()
+    if not ok:
+        return {'not_run': why}
+    try:
+        exe = kdl.build()
+    except RuntimeError as err:
+        return {'not_run': str(err)}
+    out = {}
+    for key, cog in KDL_ARM_COG.items():
+        seg = (1, (0.0, 0.0, 1.0), 0.0, np.eye(3), (1.0, 0.0, 0.0), 1.0, cog, np.zeros((3, 3)))
+        qdd, _ = kdl.run_segments(exe, [seg], [(np.zeros(1), np.zeros(1), np.array([KDL_TAU]))],
+                                  base_acceleration=np.zeros(6), repeat=1)
+        out[key] = float(qdd[0, 0])
+    return out
+
+
+def _kdl_text(k):
+    if 'not_run' in k:
+        return f" KDL's own solver on the report's arm: not run ({k['not_run']})."
+    return (" KDL's own ChainHdSolver_Vereshchagin (the report's library; ours, no claim), "
+            f'scenario 2 (resulting torque {KDL_TAU:g} Nm), the arm written as a KDL Segment '
+            f"with the cog as the report states it, (0.5, 0, 0) m: qdd = {k['as_written']:.3f} "
+            "rad/s^2; with the same point in KDL's tip frame, (-0.5, 0, 0) m: qdd = "
+            f"{k['kdl_convention']:.3f} rad/s^2.")
+
+
 def _report_6(out_dir, quick, figures=True):
     """Report Ch. 6 (Vukcevic 2018): the 1-DoF arm with static friction.
 
@@ -61,6 +106,7 @@ def _report_6(out_dir, quick, figures=True):
         row['inertia_kg_m2'] = 0.25 if not impl else 2.25
         out[key] = row
     out['gauss'] = g = _gauss_shape(report_problems(implemented=False)[1])
+    out['kdl_native'] = _kdl_native()
     d, kd = out['described'], out['kdl']
     task = {'partial': 'no A_N',
             'full': f'A_N: angular acceleration about z = {GAUSS_FULL_B:g} rad/s^2'}
@@ -75,7 +121,7 @@ def _report_6(out_dir, quick, figures=True):
                f"straight line {v['linear_residual']:.3g}, of a parabola "
                f"{v['quadratic_residual']:.3g}, maximum at mu = {v['mu_at_max_nm']:g} Nm, qdd "
                f"{v['qdd_range_rad_s2'][0]:.3g} ... {v['qdd_range_rad_s2'][1]:.3g} rad/s^2"
-               for k, v in g.items()))
+               for k, v in g.items())) + '.' + _kdl_text(out['kdl_native'])
     return Check(out, txt)
 
 

@@ -22,12 +22,13 @@ Examples::
     python -m ifc_spg.cli.constrained_evaluate --quick      # shorter runs (CI smoke)
 """
 
+from dataclasses import replace
 import math
 
 from ifc_spg.constrained.metrics import pooled_rms
 from ifc_spg.constrained.params import EstimatorParams, StrategyParams
 from ifc_spg.errors import ParameterError, did_you_mean
-from ifc_spg.offline.constrained import Scenario, run
+from ifc_spg.offline.constrained import Scenario, robot_with_stiffness, run
 from ifc_spg.offline.sweep import map_unordered
 
 __all__ = ['ACCREA_SCENES', 'KAPPAS', 'QUICK_COMPARISON', 'STIFFNESSES', 'THESIS_5_5_3',
@@ -59,16 +60,21 @@ _KEEP = ('rms_f_perp', 'rms_fs_perp', 'max_f_perp', 'travel', 'time_to_open',
 
 def _grid_run(job):
     """One run of the grid (a worker task): the metrics of :data:`_KEEP`."""
-    strategy, k, kappa, fixed, initial_error_deg, travel, duration, estimator = job
+    (strategy, k, kappa, fixed, initial_error_deg, travel, duration, estimator,
+     damping_scale) = job
     params = StrategyParams(stiffness=k, kappa=kappa, estimator=estimator or EstimatorParams())
-    log = run(Scenario(strategy=strategy, scene='drawer_vertical', params=params,
-                       fixed_direction=fixed, initial_error_deg=initial_error_deg,
-                       target=travel, duration=duration))
+    scenario = Scenario(strategy=strategy, scene='drawer_vertical', params=params,
+                        fixed_direction=fixed, initial_error_deg=initial_error_deg,
+                        target=travel, duration=duration)
+    if damping_scale != 1.0:    # the plant's IFC damping at this K, scaled
+        damping = robot_with_stiffness(scenario.robot, k).damping * damping_scale
+        scenario = replace(scenario, sim={**scenario.sim, 'damping': damping.tolist()})
+    log = run(scenario)
     return {key: log.metrics.get(key) for key in _KEEP}
 
 
 def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, workers=1,
-               estimator=None):
+               estimator=None, damping_scale=1.0):
     """Both strategies once per (K, kappa) on the vertical drawer: one row each.
 
     With ``workers`` > 1 the runs go to a local Dask cluster of as many worker processes
@@ -76,7 +82,7 @@ def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, 
     are the same).
     """
     jobs = [(strategy, float(k), float(kappa), fixed, initial_error_deg, travel, duration,
-             estimator)
+             estimator, float(damping_scale))
             for k in stiffnesses for kappa in kappas
             for strategy in ('joint_compliance', 'task_specification')]
     results = [None] * len(jobs)
@@ -93,7 +99,7 @@ def _grid_runs(stiffnesses, kappas, fixed, initial_error_deg, travel, duration, 
 
 def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.0,
                sma_initial_error_deg=0.0, cases=('fixed_direction', 'sma_estimator'),
-               workers=1, estimator=None):
+               workers=1, estimator=None, damping_scale=1.0):
     """The thesis comparison (5.5.3) on the 1.2 kg vertical drawer; a dict of metrics.
 
     Both strategies lift the drawer ``travel`` (the thesis: 0.3 m) once per (K, kappa) of the
@@ -115,6 +121,9 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
             on it).
         estimator: The :class:`~ifc_spg.constrained.params.EstimatorParams` of every run
             (None: the defaults, Sec. 5.4.3's N = 500 and v_th = 0.01 m/s).
+        damping_scale: Factor on the plant's IFC joint damping D (the robot's, scaled to
+            each run's K by :func:`~ifc_spg.offline.constrained.robot_with_stiffness`);
+            1: the robot's own. The thesis gives no D (a cause ablation, not the setup).
 
     Returns:
         Per case: ``runs`` (one row per (K, kappa): both strategies' metrics),
@@ -123,6 +132,8 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
         ``static_reduction_percent``), ``opened`` (runs that reached ``travel``); and
         ``thesis``.
     """
+    if not damping_scale > 0:
+        raise ParameterError(f'damping_scale must be > 0, got {damping_scale!r}')
     out = {}
     for label in cases:
         if label not in THESIS_5_5_3:
@@ -131,8 +142,9 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
                                  f"{', '.join(THESIS_5_5_3)}")
         fixed = label == 'fixed_direction'
         rows = _grid_runs(stiffnesses, kappas, fixed, sma_initial_error_deg, travel, duration,
-                          workers, estimator)
-        res = {'runs': rows, 'travel_target': travel, 'duration': duration}
+                          workers, estimator, damping_scale)
+        res = {'runs': rows, 'travel_target': travel, 'duration': duration,
+               'damping_scale': damping_scale}
         if not fixed:
             res['initial_error_deg'] = sma_initial_error_deg
         for key, name, red in (('rms_f_perp', 'rms_f_perp_jc_to_ts', 'reduction_percent'),
