@@ -458,6 +458,14 @@ def test_fig_5_11_static_erroneous_force_vanishes_once_the_estimate_converges(tm
     assert got['fig_5_11.jc_vanish'] == (jc['rms_f_perp_second_half_n'] <
                                          0.5 * jc['rms_f_perp_first_half_n'])
     assert fig is not None and fig.exists()
+    # the cause of tf_nu_no_relation (full run only): trajectory following's force builds
+    # up at nu |K_x d_hat_0| (Sec. 5.3.1's K_p nu); twice nu, twice the predicted slope
+    log = ch5._s543_run('admittance', 'drawer_vertical', 45.0, 0.29, duration=60.0)
+    model = ch5._tf_slope_model(log, 0.05)
+    assert model['measured_n_s'] == pytest.approx(n['admittance_45']['force_slope_n_s'])
+    assert model['measured_n_s'] == pytest.approx(model['predicted_n_s'], rel=0.2), model
+    assert ch5._tf_slope_model(log, 0.1)['predicted_n_s'] == \
+        pytest.approx(2.0 * model['predicted_n_s'])
 
 
 def test_sec_5_4_worst_misalignment_is_the_largest_angle_over_directions():
