@@ -141,6 +141,13 @@ def _check_4_1(runs, quick):
         pos_v, _ = r.tool_positions(virtual=True)
         face = _obstacle_face(r)
         hit = r.s.t_cw[mf][np.argmax(f_y > 3.0)] if np.any(f_y > 3.0) else None
+        # where the tool touched the face (physical y at the largest force on it) and how far
+        # short of that it stays in the last second, which the stall claim reads
+        t_js = np.asarray(r.s.t_js[:len(pos)], dtype=float)
+        y_rel = pos[:, 1] - pos[0, 1]
+        t_peak = r.s.t_cw[mf][int(np.argmax(f_y))]
+        y_touch = float(y_rel[min(int(np.searchsorted(t_js, t_peak)), len(y_rel) - 1)])
+        gap_end = float(np.min(y_touch - y_rel[t_js >= t_js[-1] - 1.0]))
         tr = r.task('trajectory')
         ev, ep = _band_err(tr, comps=(0, 1))
         m = tr['t'] >= _T41_BAND
@@ -157,6 +164,8 @@ def _check_4_1(runs, quick):
                   'longest_stall_s': None if face is None else
                   _longest_stall(r, pos, pos_v, face),
                   'max_physical_y_m': y_phys,
+                  'touch_y_m': y_touch,
+                  'last_1s_short_of_touch_m': gap_end,
                   'trajectory_error_rms_m': _rms(ep[m])}
         pen = out[v]['max_virtual_penetration_m']
         if v.startswith('friction_'):
