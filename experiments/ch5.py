@@ -51,6 +51,7 @@ def _case_numbers(r, duration):
             'reduction_percent': r['reduction_percent'],
             'rms_fs_perp_jc_to_ts_n': r['rms_fs_perp_jc_to_ts'],
             'static_reduction_percent': r['static_reduction_percent'],
+            'rms_fd_perp_jc_to_ts_n': r['rms_fd_perp_jc_to_ts'],
             'opened': r['opened'],
             'time_to_open_jc_s': times('joint_compliance'),
             'time_to_open_ts_s': times('task_specification'),
@@ -62,6 +63,8 @@ def _case_numbers(r, duration):
                           row['task_specification'].get('rms_error_angle_deg')],
                       'rms_fs_perp_jc_ts_n': [row['joint_compliance']['rms_fs_perp'],
                                               row['task_specification']['rms_fs_perp']],
+                      'rms_fd_perp_jc_ts_n': [row['joint_compliance'].get('rms_fd_perp'),
+                                              row['task_specification'].get('rms_fd_perp')],
                       'time_to_open_jc_ts_s': [row['joint_compliance']['time_to_open'],
                                                row['task_specification']['time_to_open']],
                       'mean_speed_jc_ts_m_s': [speed(row['joint_compliance']),
@@ -151,8 +154,10 @@ def _table_5_1(out_dir, quick, figures=True):
         sjc, sts = r['rms_fs_perp_jc_to_ts']
         tj = [t for t in times(r, 'joint_compliance') if t is not None]
         tt = [t for t in times(r, 'task_specification') if t is not None]
+        djc, dts = r['rms_fd_perp_jc_to_ts']
         return (f'{jc:.2f} -> {ts:.2f} N (-{r["reduction_percent"]:.0f} %; static f_s '
-                f'{sjc:.2f} -> {sts:.2f} N; lifted {r["opened"]["joint_compliance"]} / '
+                f'{sjc:.2f} -> {sts:.2f} N; damping force {djc:.2f} -> {dts:.2f} N; lifted '
+                f'{r["opened"]["joint_compliance"]} / '
                 f'{r["opened"]["task_specification"]} of {len(r["runs"])} in {_span(tj)} / '
                 f'{_span(tt)})')
     return Check(nums,

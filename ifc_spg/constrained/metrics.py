@@ -81,7 +81,7 @@ def time_to_open(t, env_q, target):
 
 
 def summarize(t, env_q, force, true_direction, estimate=None, static_force=None, target=None,
-              force_limit=np.inf, until_open=True, skip=0.0):
+              force_limit=np.inf, until_open=True, skip=0.0, damping_force=None):
     """Metrics of one run as a JSON-friendly dict.
 
     Args:
@@ -96,12 +96,13 @@ def summarize(t, env_q, force, true_direction, estimate=None, static_force=None,
         until_open: Evaluate the force metrics up to the opening time only (the rest of a
             run may push against the end stop).
         skip: Leave out the first ``skip`` seconds of the force and angle metrics.
+        damping_force: The IFC's damping force (T, 3) in [N], optional.
 
     Returns:
         Dict with ``rms_f_perp``, ``max_f_perp``, ``max_force``, ``travel``,
         ``time_to_open``, ``success``, ``samples`` (samples in the evaluated window, for
         :func:`pooled_rms`) and, when given, ``rms_error_angle_deg``,
-        ``final_error_angle_deg``, ``rms_fs_perp``.
+        ``final_error_angle_deg``, ``rms_fs_perp``, ``rms_fd_perp``.
     """
     t = np.asarray(t, dtype=float)
     topen = None if target is None else time_to_open(t, env_q, target)
@@ -129,4 +130,6 @@ def summarize(t, env_q, force, true_direction, estimate=None, static_force=None,
         out['final_error_angle_deg'] = float(ang[-1])
     if static_force is not None:
         out['rms_fs_perp'] = rms(perpendicular_force(np.asarray(static_force)[sl], td))
+    if damping_force is not None:
+        out['rms_fd_perp'] = rms(perpendicular_force(np.asarray(damping_force)[sl], td))
     return out

@@ -228,7 +228,9 @@ class RunLog:
 
     Attributes:
         t: Time [s] (T,). env_q: mechanism position (T,). force: force the robot applies
-        at the tool, ground truth (T, 3) [N]. static_force: f_s (T, 3) [N]. estimate:
+        at the tool, ground truth (T, 3) [N]. static_force: f_s (T, 3) [N]. damping_force:
+        the plant's damping torque -D qdot through J^{+T} (T, 3) [N] (NaN without joint
+        impedance). estimate:
         d_hat (T, 3). true_direction: (T, 3). metrics: :func:`summarize` output.
         q: measured joint positions (T, n) [rad]. ik_residual: the admittance strategy's
         IK residual |x_v - FK(q_v)| per tick (T,) (NaN for the other strategies).
@@ -238,6 +240,7 @@ class RunLog:
     env_q: np.ndarray
     force: np.ndarray
     static_force: np.ndarray
+    damping_force: np.ndarray
     estimate: np.ndarray
     true_direction: np.ndarray
     metrics: dict[str, Any]
@@ -319,12 +322,17 @@ def _simulation(scenario, robot, period):
         scenario.scene_options), command_period=period, q0=q0, **scenario.sim)
 
 
-def _record(rows, s, ctrl, h, true_direction):
-    """Append one tick's samples (state ``s``, static wrench ``h``) to ``rows``."""
+def _record(rows, s, ctrl, h, h_damped, true_direction):
+    """Append one tick's samples (state ``s``, static wrench ``h``) to ``rows``.
+
+    ``h_damped``: the static wrench with the plant's damping torque -D qdot (None: the
+    robot has no joint impedance); their difference is the damping force.
+    """
     rows['t'].append(s.t)
     rows['env_q'].append(s.env_q[0])
     rows['force'].append(-s.contact_wrench[:3])
     rows['fs'].append(h[:3].copy())
+    rows['fd'].append(np.full(3, math.nan) if h_damped is None else h_damped[:3] - h[:3])
     rows['est'].append(np.array(ctrl.estimator.direction))
     rows['true'].append(true_direction)
     rows['q'].append(s.q)
@@ -350,10 +358,16 @@ def run(scenario):
                              direction=d_true0 if scenario.fixed_direction else None,
                              options=scenario.strategy_options)
         kin = Kinematics(robot)
+        # the damping the plant applies (sim.damping overrides the robot's): the damping
+        # force J^{+T} (-D qdot) is logged beside the static force
+        plant = None
+        if robot.ifc == 'joint_impedance':
+            plant = robot if 'damping' not in scenario.sim else robot.with_gains(
+                damping=scenario.sim['damping'], where=f'scenario {scenario.scene}: sim.')
         ticks = round(scenario.duration / period)
         steps = round(period / sim.dt)
         rows: dict[str, list[Any]] = {
-            k: [] for k in ('t', 'env_q', 'force', 'fs', 'est', 'true', 'q', 'ik')}
+            k: [] for k in ('t', 'env_q', 'force', 'fs', 'fd', 'est', 'true', 'q', 'ik')}
         t_open = None
         pushes = sorted(scenario.pushes, key=lambda push: push[0])
         for _ in range(ticks):
@@ -363,7 +377,9 @@ def run(scenario):
                 sim.apply_wrench(frame, wrench, seconds)
             q_v = ctrl.step(s.q, s.qd, s.t)
             kin.update(s.q, s.qd, s.q_v)
-            _record(rows, s, ctrl, static_wrench(robot, kin, frame)[0], handle(sim))
+            _record(rows, s, ctrl, static_wrench(robot, kin, frame)[0],
+                    None if plant is None else
+                    static_wrench(plant, kin, frame, include_damping=True)[0], handle(sim))
             sim.write_command(q_v)
             sim.step(steps)
             if t_open is None and abs(s.env_q[0] - rows['env_q'][0]) >= scenario.target:
@@ -377,10 +393,13 @@ def run(scenario):
     moved = arr['env_q'][-1] - arr['env_q'][0]
     true_dir = arr['true'] * (1.0 if moved >= 0 else -1.0)
     metrics = summarize(arr['t'], arr['env_q'], arr['force'], true_dir, estimate=arr['est'],
-                        static_force=arr['fs'], target=scenario.target,
+                        static_force=arr['fs'],
+                        damping_force=None if plant is None else arr['fd'],
+                        target=scenario.target,
                         force_limit=scenario.force_limit, skip=SKIP)
     metrics['strategy'] = scenario.strategy
     metrics['scene'] = scenario.scene
     return RunLog(t=arr['t'], env_q=arr['env_q'], force=arr['force'], static_force=arr['fs'],
+                  damping_force=arr['fd'],
                   estimate=arr['est'], true_direction=true_dir, metrics=metrics,
                   warnings=warnings, q=arr['q'], ik_residual=arr['ik'])

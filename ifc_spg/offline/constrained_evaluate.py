@@ -54,7 +54,7 @@ THESIS_5_5_3 = {'fixed_direction': (0.58, 0.17, 70.0), 'sma_estimator': (11.17, 
 #: Short comparison for the tests and ``--quick``: one (K, kappa) pair of the grid (the
 #: fastest lift), the full travel.
 QUICK_COMPARISON = {'stiffnesses': (40.0,), 'kappas': (15.0,), 'travel': 0.29, 'duration': 25.0}
-_KEEP = ('rms_f_perp', 'rms_fs_perp', 'max_f_perp', 'travel', 'time_to_open',
+_KEEP = ('rms_f_perp', 'rms_fs_perp', 'rms_fd_perp', 'max_f_perp', 'travel', 'time_to_open',
          'rms_error_angle_deg', 'samples')
 
 
@@ -154,6 +154,11 @@ def comparison(stiffnesses=STIFFNESSES, kappas=KAPPAS, travel=0.29, duration=80.
             ts = pooled_rms([r['task_specification'] for r in rows], key)
             res[name] = [jc, ts]
             res[red] = reduction(jc, ts)
+        # the plant's damping force -D qdot through J^{+T}, orthogonal to the motion: the
+        # part of the measured force the static models of both strategies do not see
+        res['rms_fd_perp_jc_to_ts'] = [
+            pooled_rms([r[strategy] for r in rows], 'rms_fd_perp')
+            for strategy in ('joint_compliance', 'task_specification')]
         res['opened'] = {s: sum(r[s]['time_to_open'] is not None for r in rows)
                          for s in ('joint_compliance', 'task_specification')}
         out[label] = res
