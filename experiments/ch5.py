@@ -72,6 +72,29 @@ def _case_numbers(r, duration):
                      for row in r['runs']]}
 
 
+def _lift_time_model(fixed_runs, other_runs=()):
+    """Task specification's lift time against c K / kappa (the cause of 'lifted', ours).
+
+    Table 5.1's task 1 subtracts S^T J^{+T} K qdot from the force rate kappa, so the force
+    stops growing at a speed proportional to kappa over the Cartesian stiffness, which
+    grows with K: the lift time t ~ c K / kappa. c is the median of t kappa / K over the
+    fixed-direction runs that finish; the runs that do not (of ``fixed_runs`` and
+    ``other_runs``) get their predicted time.
+    """
+    done = [(r['stiffness'], r['kappa'], r['time_to_open_jc_ts_s'][1]) for r in fixed_runs
+            if r['time_to_open_jc_ts_s'][1] is not None]
+    if not done:
+        return None
+    c = [t * kappa / k for k, kappa, t in done]
+    c_med = float(np.median(c))
+    missing = [{'stiffness': r['stiffness'], 'kappa': r['kappa'], 'case': case,
+                'predicted_s': c_med * r['stiffness'] / r['kappa']}
+               for case, runs in (('fixed_direction', fixed_runs), ('sma_estimator', other_runs))
+               for r in runs if r['time_to_open_jc_ts_s'][1] is None]
+    return {'c_s_n_per_nm': c_med, 'c_range': [min(c), max(c)], 'finished': len(done),
+            'not_finished': missing}
+
+
 def _t51_damping(kw, scales):
     """Table 5.1's fixed-direction runs with the plant's IFC damping D scaled (ours, no claim).
 
@@ -141,6 +164,8 @@ def _table_5_1(out_dir, quick, figures=True):
     nums: dict[str, Any] = {k: _case_numbers(res[k], kw['duration'])
                             for k in ('fixed_direction', 'sma_estimator', 'sma_estimator_vth')}
     nums['sma_estimator_vth']['v_threshold_m_s'] = vth
+    nums['lift_time_model'] = _lift_time_model(nums['fixed_direction']['runs'],
+                                               nums['sma_estimator']['runs'])
     # the cause of the absolute forces (ours, no claim): the plant's damping D scaled
     nums['damping_ablation'] = _t51_damping(kw, T51_DAMPING_SCALES[-1:] if quick
                                             else T51_DAMPING_SCALES)

@@ -209,7 +209,11 @@ NOTES = {
                  'and hardly with K (D grows with sqrt(K), the lift speed falls with K), the '
                  'opposite of '
                  "the trends the captions of Figs. 5.16/5.17 give the previous approach, whose "
-                 'erroneous force the thesis attributes to its conflicting subtasks.',
+                 'erroneous force the thesis attributes to its conflicting subtasks. The runs '
+                 'that do not finish the lift: task specification lifts in about c K / kappa '
+                 '(task 1 subtracts S^T J^{{+T}} K qdot from the force rate kappa, so the force '
+                 'stops growing at a speed proportional to kappa over the Cartesian '
+                 'stiffness): {lift_model}.',
     'sec_5_3': 'Per trial (seed {seed}) nu ~ U[0.01, 0.05] m/s, the SMA window ~ U[0.3, 1] s '
                "and the initial error ~ U[40, 50] deg about a random axis orthogonal to the "
                'true direction are drawn (the thesis fixes d_p0, about 45 deg off); each trial '
@@ -333,6 +337,20 @@ def _stuck_speed(runs, col, bound=40.0):
 def _t51_rms(case, col):
     """Overall RMS |f_perp| [N] of a Table 5.1 case, joint compliance (0) or task spec. (1)."""
     return f"{case['rms_f_perp_jc_to_ts_n'][col]:.2f}"
+
+
+def _lift_model_text(m, duration):
+    """The sentence of :func:`experiments.ch5._lift_time_model`."""
+    lo, hi = m['c_range']
+    txt = (f"c = {m['c_s_n_per_nm']:.2f} (t in s, K in Nm/rad, kappa in N/s), the median over "
+           f"the {m['finished']} fixed-direction runs that finish ({lo:.2f}-{hi:.2f})")
+    miss = m['not_finished']
+    if not miss:
+        return txt + '; every run finishes'
+    return txt + '; ' + '; '.join(
+        f"{r['case'].replace('_', ' ')} K = {r['stiffness']:g} / kappa = {r['kappa']:g} "
+        f"would take {r['predicted_s']:.0f} s" for r in miss) + \
+        f' (by that model), against the {duration:g} s a run may last (ours)'
 
 
 def _t51_fd_by_kappa(runs):
@@ -543,6 +561,8 @@ NOTE_FIELDS = {
                   'fd_ratio': lambda n: _t51_fd_ratio(n['fixed_direction'], 0),
                   'fd_ratio_ts': lambda n: _t51_fd_ratio(n['fixed_direction'], 1),
                   'fd_by_kappa': lambda n: _t51_fd_by_kappa(n['fixed_direction']['runs']),
+                  'lift_model': lambda n: _lift_model_text(n['lift_time_model'],
+                                                           n['duration_s']),
                   'fx_jc': lambda n: _t51_rms(n['fixed_direction'], 0),
                   'fx_ts': lambda n: _t51_rms(n['fixed_direction'], 1)},
     'sec_5_3': {'seed': lambda n: f"{n['seed']}", 'hz': lambda n: f"{1 / n['dt']:.0f}",

@@ -197,6 +197,24 @@ def test_report_6_kdl_reads_the_cog_in_the_tip_frame():
         pytest.approx(check.numbers['described']['s2_qdd'], rel=1e-9)
 
 
+def test_table_5_1_lift_time_model_predicts_the_unfinished_runs():
+    """Task-specification lift times t = c K / kappa: c from the finished fixed-direction
+    runs (median), the unfinished runs of both cases get c K / kappa."""
+    def row(k, kappa, t):
+        return {'stiffness': k, 'kappa': kappa, 'time_to_open_jc_ts_s': [1.0, t]}
+    fixed = [row(k, kappa, None if (k, kappa) == (200.0, 5.0) else 7.0 * k / kappa)
+             for k in (40.0, 100.0, 200.0) for kappa in (5.0, 10.0, 15.0)]
+    fixed[0]['time_to_open_jc_ts_s'][1] *= 1.2    # an outlier does not move the median
+    m = ch5._lift_time_model(fixed, [row(100.0, 10.0, None), row(40.0, 5.0, 3.0)])
+    assert m['c_s_n_per_nm'] == pytest.approx(7.0) and m['finished'] == 8
+    assert m['c_range'] == pytest.approx([7.0, 8.4])
+    assert [(r['case'], r['predicted_s']) for r in m['not_finished']] == [
+        ('fixed_direction', pytest.approx(280.0)), ('sma_estimator', pytest.approx(70.0))]
+    txt = report._lift_model_text(m, 240.0)
+    assert 'fixed direction K = 200 / kappa = 5 would take 280 s' in txt and '240 s' in txt
+    assert ch5._lift_time_model([row(40.0, 5.0, None)]) is None
+
+
 def test_comparison_rejects_a_non_positive_damping_scale():
     from ifc_spg.offline.constrained_evaluate import QUICK_COMPARISON, comparison
 
