@@ -100,8 +100,9 @@ def _report_6(out_dir, quick, figures=True):
         row = {}
         for k, prob in enumerate(report_problems(implemented=impl), start=1):
             r = prob.friction_solver().solve(prob.q, prob.qd, prob.tau, **prob.kwargs)
-            row[f's{k}_mu'] = float(np.asarray(r.mu)[0])
-            row[f's{k}_qdd'] = float(np.asarray(r.qdd)[0])
+            # + 0.0: a signed zero (the compiled kernel's stuck arm) prints as 0
+            row[f's{k}_mu'] = float(np.asarray(r.mu)[0]) + 0.0
+            row[f's{k}_qdd'] = float(np.asarray(r.qdd)[0]) + 0.0
             row[f's{k}_stick'] = bool(np.asarray(r.stick)[0])
         row['inertia_kg_m2'] = 0.25 if not impl else 2.25
         out[key] = row
