@@ -20,6 +20,7 @@ from experiments.harness import (
     _rms,
     _rot_angle,
     _save,
+    _scenario_doc,
     _shade_pushes,
     _smooth,
     _task_panel,
@@ -37,12 +38,7 @@ _DAQP_PSPM = {'spg': {'status_decimation': 5, 'solver': 'daqp', 'torque_limits':
 
 def _surface_scenario():
     """The Table 3.2 scenario document (its last stack: the thesis' Table 3.2 stack)."""
-    import yaml
-
-    from ifc_spg.offline.runner import find_config_dir
-
-    return yaml.safe_load((find_config_dir() / 'scenarios' / 'thesis_3_2_surface_tracking.yaml')
-                          .read_text(encoding='utf8'))
+    return _scenario_doc('thesis_3_2_surface_tracking.yaml')
 
 
 def _surface_stack(frequency=None, damping=False):
@@ -144,12 +140,7 @@ _ELBOW_DAQP = {'status_decimation': 5, 'solver': 'daqp', 'torque_limits': False,
 
 def _elbow_scenario():
     """The elbow trial's scenario document."""
-    import yaml
-
-    from ifc_spg.offline.runner import find_config_dir
-
-    return yaml.safe_load((find_config_dir() / 'scenarios' / ELBOW_SCENARIO)
-                          .read_text(encoding='utf8'))
+    return _scenario_doc(ELBOW_SCENARIO)
 
 
 def _elbow_overrides(run):
@@ -531,13 +522,7 @@ V1_A7_FROM_LIMIT_DEG, V1_RADIUS_M = 6.0, 0.15
 
 def _v1_setup(scenario):
     """Overrides of ``scenario`` (a Table 3.4 file) with the v1 start pose and radius."""
-    import yaml
-
-    from ifc_spg.offline.runner import find_config_dir
-
-    doc = yaml.safe_load((find_config_dir() / 'scenarios' / scenario).read_text(
-        encoding='utf8'))
-    stacks = doc['stacks']
+    stacks = _scenario_doc(scenario)['stacks']
     for st in stacks:
         for task in st['stack']['tasks']:
             if task['name'] == 'circle':
@@ -699,14 +684,8 @@ def _check_cup(runs, quick, chain, task, wrist=None, settle=0.5):
 
 def _half_pushes(scenario):
     """Overrides of ``scenario`` with its pushes at half their wrench (an explanatory run)."""
-    import yaml
-
-    from ifc_spg.offline.runner import find_config_dir
-
-    doc = yaml.safe_load((find_config_dir() / 'scenarios' / scenario).read_text(
-        encoding='utf8'))
     return {'pushes': [{**p, 'wrench': [0.5 * float(w) for w in p['wrench']]}
-                       for p in doc['pushes']]}
+                       for p in _scenario_doc(scenario)['pushes']]}
 
 
 def _check_3_6(runs, quick):
@@ -790,12 +769,7 @@ def _torso_clamp_overrides(joints, name):
     drift, not a run without the clamp); all three is the cause ablation (ours). The clamped
     joints are held at q_bar = 0, as the table's two.
     """
-    import yaml
-
-    from ifc_spg.offline.runner import find_config_dir
-
-    doc = yaml.safe_load((find_config_dir() / 'tasks' /
-                          'table_3_7_icub_wiping_cup_holding.yaml').read_text(encoding='utf8'))
+    doc = _scenario_doc('table_3_7_icub_wiping_cup_holding.yaml', folder='tasks')
     tasks = [task for task in doc['tasks'] if task['name'] != 'torso_clamp' or joints]
     for task in tasks:
         if task['name'] == 'torso_clamp':

@@ -19,6 +19,7 @@ from experiments.harness import (
     _push_windows,
     _rms,
     _save,
+    _scenario_doc,
     _shade_pushes,
     _smooth,
     _task_panel,
@@ -481,14 +482,7 @@ _DELAY_RUNS = ((0, 2.5), (1, 2.5), (0, 0.5), (1, 0.5))
 
 def _delay_overrides(delay, d5):
     """Scenario overrides: the no-PSPM Table 4.5 scenario with ``fri_delay`` and D5."""
-    import copy
-
-    import yaml
-
-    from ifc_spg.offline.runner import find_config_dir
-    doc = yaml.safe_load((find_config_dir() / 'scenarios' /
-                          'thesis_4_5_stability_no_pspm.yaml').read_text())
-    sim = copy.deepcopy(doc['sim'])
+    sim = _scenario_doc('thesis_4_5_stability_no_pspm.yaml')['sim']
     sim['fri_delay'] = delay
     sim['damping'][4] = d5
     return {'sim': sim}

@@ -219,5 +219,14 @@ def _shade_pushes(ax, r):
         ax.axvspan(a, b, color='0.9', zorder=0)
 
 
+def _scenario_doc(name, folder='scenarios'):
+    """The YAML document of ``config/<folder>/<name>``, a fresh dict the caller may edit."""
+    import yaml
+
+    from ifc_spg.offline.runner import find_config_dir
+
+    return yaml.safe_load((find_config_dir() / folder / name).read_text(encoding='utf8'))
+
+
 def _push_windows(run):
     return [(p['at'], p['at'] + p['duration']) for p in run.pushes]
