@@ -5,6 +5,7 @@ Each runs its own machinery instead of a scenario (:data:`DIRECT`): Sec. 5.3.4 i
 Table 5.1 :mod:`ifc_spg.offline.constrained_evaluate`; run by :mod:`experiments.reproduce`.
 """
 
+import functools
 import json
 import math
 import os
@@ -270,19 +271,31 @@ def _worst_misalignment(jac):
     return mu, math.degrees(math.acos(min(1.0, cos)))
 
 
-def _misalignment(q_start=None):
-    """Sec. 5.4: the misalignment over :data:`MISALIGNMENT`'s sample (and at ``q_start``)."""
-    import pinocchio as pin
-
+@functools.cache
+def _lbr4_tool():
+    """The LBR-IV model of the Sec. 5.4 runs, a pinocchio data for it and the tool frame."""
     from ifc_spg.model import RobotModel
 
-    cfg = MISALIGNMENT
     robot = RobotModel.from_config('lbr4')
-    model, data, frame = robot.model, robot.create_data(), robot.frame_id('tool')
+    return robot, robot.create_data(), robot.frame_id('tool')
+
+
+def _tool_jacobian(q):
+    """The LBR-IV tool Jacobian at ``q`` (6 x 7, base-aligned axes at the tool origin)."""
+    import pinocchio as pin
+
+    robot, data, frame = _lbr4_tool()
+    return pin.computeFrameJacobian(robot.model, data, np.asarray(q, dtype=float), frame,
+                                    pin.LOCAL_WORLD_ALIGNED)
+
+
+def _misalignment(q_start=None):
+    """Sec. 5.4: the misalignment over :data:`MISALIGNMENT`'s sample (and at ``q_start``)."""
+    cfg = MISALIGNMENT
+    model = _lbr4_tool()[0].model
 
     def at(q):
-        return _worst_misalignment(pin.computeFrameJacobian(
-            model, data, np.asarray(q, dtype=float), frame, pin.LOCAL_WORLD_ALIGNED))
+        return _worst_misalignment(_tool_jacobian(q))
     rng = np.random.default_rng(cfg['seed'])
     rows = [at(rng.uniform(model.lowerPositionLimit, model.upperPositionLimit))
             for _ in range(cfg['samples'])]
@@ -395,20 +408,12 @@ def _lift_numbers(log):
 
 def _arm_numbers(log):
     """A4 [deg] and the smallest singular value of the LBR tool Jacobian, start / end."""
-    import pinocchio as pin
-
-    from ifc_spg.model import RobotModel
-
     q = None if log.q is None else np.asarray(log.q, dtype=float)
     if q is None or q.ndim != 2 or q.shape[1] != 7:
         return {}
-    robot = RobotModel.from_config('lbr4')
-    data, frame = robot.create_data(), robot.frame_id('tool')
 
     def sigma_min(qi):
-        jac = pin.computeFrameJacobian(robot.model, data, qi, frame,
-                                       pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-        return float(np.linalg.svd(jac, compute_uv=False)[-1])
+        return float(np.linalg.svd(_tool_jacobian(qi), compute_uv=False)[-1])
     return {'a4_start_end_deg': [float(np.rad2deg(q[0, 3])), float(np.rad2deg(q[-1, 3]))],
             'jacobian_sigma_min_start_end': [sigma_min(q[0]), sigma_min(q[-1])]}
 
@@ -449,15 +454,9 @@ def _tf_slope_model(log, nu):
     :func:`_worst_misalignment`), so |f| grows at nu |K_x d_hat_0|. Returns the measured and
     the predicted slope [N/s].
     """
-    import pinocchio as pin
-
     from ifc_spg.constrained.params import StrategyParams
-    from ifc_spg.model import RobotModel
 
-    robot = RobotModel.from_config('lbr4')
-    jac = pin.computeFrameJacobian(robot.model, robot.create_data(),
-                                   np.asarray(log.q[0], dtype=float), robot.frame_id('tool'),
-                                   pin.LOCAL_WORLD_ALIGNED)
+    jac = _tool_jacobian(log.q[0])
     k_x = StrategyParams().stiffness * np.linalg.inv(jac @ jac.T)[:3, :3]
     d0 = np.asarray(log.estimate[0], dtype=float)
     d0 = d0 / np.linalg.norm(d0)
@@ -471,22 +470,22 @@ def _fig_5_11(out_dir, quick, figures=True):
 
     errors = F511_ERRORS[-1:] if quick else F511_ERRORS
     out, panels = {}, []
+    tf_logs = {}  # trajectory following at 45 deg by nu
     for err in errors:
         for strategy, label in S543_STRATEGIES:
             log = _s543_run(strategy, 'drawer_vertical', err, 0.29, duration=60.0)
             out[f'{strategy}_{err:g}'] = _lift_numbers(log)
             panels.append((log, f'{label}, initial error {err:g} deg'))
+            if strategy == 'admittance' and err == 45.0:
+                tf_logs[StrategyParams().nu] = log
     if not quick:  # Sec. 5.4.3: for trajectory following nu has no relation to the slope
         for nu in F511_NU:
-            log = _s543_run('admittance', 'drawer_vertical', 45.0, 0.29, duration=60.0,
-                            params={'nu': nu})
+            tf_logs[nu] = log = _s543_run('admittance', 'drawer_vertical', 45.0, 0.29,
+                                          duration=60.0, params={'nu': nu})
             out[f'admittance_45_nu{nu:g}'] = _lift_numbers(log)
         # the cause of the failing claim (ours, no claim): Sec. 5.3.1's slope K_p nu
-        out['tf_slope_model'] = {
-            f'{nu:g}': _tf_slope_model(_s543_run(
-                'admittance', 'drawer_vertical', 45.0, 0.29, duration=60.0,
-                **({} if nu == StrategyParams().nu else {'params': {'nu': nu}})), nu)
-            for nu in sorted((*F511_NU, StrategyParams().nu))}
+        out['tf_slope_model'] = {f'{nu:g}': _tf_slope_model(tf_logs[nu], nu)
+                                 for nu in sorted(tf_logs)}
     out['damping_ablation'] = _f511_damping(errors, F511_DAMPING_SCALES[1:2] if quick
                                             else F511_DAMPING_SCALES)
     log0 = panels[0][0]
