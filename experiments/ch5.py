@@ -158,10 +158,6 @@ def _table_5_1(out_dir, quick, figures=True):
         estimator=EstimatorParams(v_threshold=vth, w0=vth), **kw)['sma_estimator']
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     (Path(out_dir) / 'table_5_1.json').write_text(json.dumps(res, indent=1, default=float))
-    fx, sma, low = res['fixed_direction'], res['sma_estimator'], res['sma_estimator_vth']
-
-    def times(r, s):
-        return [row[s]['time_to_open'] for row in r['runs']]
     nums: dict[str, Any] = {k: _case_numbers(res[k], kw['duration'])
                             for k in ('fixed_direction', 'sma_estimator', 'sma_estimator_vth')}
     nums['sma_estimator_vth']['v_threshold_m_s'] = vth
@@ -170,17 +166,19 @@ def _table_5_1(out_dir, quick, figures=True):
     # the cause of the absolute forces (ours, no claim): the plant's damping D scaled
     nums['damping_ablation'] = _t51_damping(kw, T51_DAMPING_SCALES[-1:] if quick
                                             else T51_DAMPING_SCALES)
-    nums['runs_total'] = 2 * (len(fx['runs']) + len(sma['runs']))  # (the claims' runs)
+    nums['runs_total'] = 2 * sum(len(nums[k]['runs'])  # (the claims' runs)
+                                 for k in ('fixed_direction', 'sma_estimator'))
     nums['duration_s'] = kw['duration']
     nums['sma_initial_error_deg'] = T51_SMA_ERROR_DEG
     grid = 'K = 40 Nm/rad, kappa = 15 N/s' if quick else '9 runs, K x kappa grid'
 
-    def text(r):
-        jc, ts = r['rms_f_perp_jc_to_ts']
-        sjc, sts = r['rms_fs_perp_jc_to_ts']
-        tj = [t for t in times(r, 'joint_compliance') if t is not None]
-        tt = [t for t in times(r, 'task_specification') if t is not None]
-        djc, dts = r['rms_fd_perp_jc_to_ts']
+    def text(k):
+        r = nums[k]
+        jc, ts = r['rms_f_perp_jc_to_ts_n']
+        sjc, sts = r['rms_fs_perp_jc_to_ts_n']
+        tj = [t for t in r['time_to_open_jc_s'] if t is not None]
+        tt = [t for t in r['time_to_open_ts_s'] if t is not None]
+        djc, dts = r['rms_fd_perp_jc_to_ts_n']
         return (f'{jc:.2f} -> {ts:.2f} N (-{r["reduction_percent"]:.0f} %; static f_s '
                 f'{sjc:.2f} -> {sts:.2f} N; damping force {djc:.2f} -> {dts:.2f} N; lifted '
                 f'{r["opened"]["joint_compliance"]} / '
@@ -189,10 +187,11 @@ def _table_5_1(out_dir, quick, figures=True):
     return Check(nums,
                  f'overall RMS |f_perp| (measured) joint compliance -> task specification '
                  f'({grid}, 0.29 m lift, runs up to {kw["duration"]:g} s): fixed direction '
-                 f'{text(fx)}; SMA estimator from {T51_SMA_ERROR_DEG:g} deg {text(sma)}; '
+                 f"{text('fixed_direction')}; SMA estimator from {T51_SMA_ERROR_DEG:g} deg "
+                 f"{text('sma_estimator')}; "
                  'thesis 0.58 -> 0.17 N (-70 %), 11.17 -> 1.54 N (-86 %); the SMA runs '
                  f'again with the dead band v_th = w0 = {vth * 1e3:g} mm/s instead of 10 mm/s '
-                 f'(ours, no claim) {text(low)}'
+                 f"(ours, no claim) {text('sma_estimator_vth')}"
                  + _per_condition(nums['fixed_direction']['runs'])
                  + _t51_damping_text(nums['damping_ablation']))
 
